@@ -1,0 +1,144 @@
+"""The headless contract end to end: ``python -m core fabricate`` as a user runs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT.parent / "shared" / "models"
+
+
+def fabricate(*args: str) -> subprocess.CompletedProcess:
+    """Run the CLI in a subprocess, as a user would."""
+    return subprocess.run([sys.executable, "-m", "core", "fabricate", *args],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def assert_refused(proc: subprocess.CompletedProcess, *words: str) -> None:
+    """Exit status 2, one line on stderr naming the problem, no traceback."""
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if not ln.startswith("[")]
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    for word in words:
+        assert word.lower() in lines[0].lower(), lines[0]
+
+
+@pytest.fixture
+def box_stl(tmp_path) -> Path:
+    """A 40 x 24 x 19.2 mm box standing on z = 0: 5 x 3 x 6 cells."""
+    path = tmp_path / "box.stl"
+    box = trimesh.creation.box((40.0, 24.0, 19.2))
+    box.apply_translation(-box.bounds[0])
+    box.export(path)
+    return path
+
+
+def test_box_end_to_end(box_stl, tmp_path):
+    out = tmp_path / "out"
+    proc = fabricate(str(box_stl), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((out / "report.json").read_text())
+    layout = json.loads((out / "layout.json").read_text())
+    assert report["grid"]["shape"] == [5, 3, 6]
+    assert report["grid"]["cell_mm"] == [8.0, 8.0, 3.2]
+    assert report["plates"] == 90
+    assert report["model"]["watertight"] is True
+    assert report["bricks"]["total"] == len(layout["bricks"])
+    assert report["stability"]["components"] == 1
+    occupied = np.zeros((5, 3, 6), int)
+    for b in layout["bricks"]:
+        (i, j, k), (sx, sy, sz) = b["cell"], b["size"]
+        occupied[i:i + sx, j:j + sy, k:k + sz] += 1
+        assert b["kind"] == "lego" and b["part"].isdigit()
+    assert (occupied == 1).all()
+    assert (out / "layout.png").stat().st_size > 1000
+    assert set(report["timings_s"]) >= {"load", "legofy", "layout", "stability"}
+
+
+def test_seed_is_deterministic(box_stl, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert fabricate(str(box_stl), "--out", str(a), "--seed", "3", "--no-picture").returncode == 0
+    assert fabricate(str(box_stl), "--out", str(b), "--seed", "3", "--no-picture").returncode == 0
+    assert (a / "layout.json").read_text() == (b / "layout.json").read_text()
+
+
+def test_plates_only(box_stl, tmp_path):
+    out = tmp_path / "out"
+    assert fabricate(str(box_stl), "--out", str(out), "--parts", "plates",
+                     "--no-picture").returncode == 0
+    layout = json.loads((out / "layout.json").read_text())
+    assert all(b["size"][2] == 1 for b in layout["bricks"])
+
+
+def test_missing_file(tmp_path):
+    assert_refused(fabricate(str(tmp_path / "nope.stl"), "--out", str(tmp_path / "o")),
+                   "nope.stl")
+    assert not (tmp_path / "o").exists()
+
+
+def test_empty_file(tmp_path):
+    empty = tmp_path / "empty.stl"
+    empty.write_bytes(b"")
+    assert_refused(fabricate(str(empty), "--out", str(tmp_path / "o")), "empty")
+    assert not (tmp_path / "o").exists()
+
+
+def test_garbage_file(tmp_path):
+    junk = tmp_path / "junk.stl"
+    junk.write_bytes(b"\x00\x13 this is not a mesh \xff" * 10)
+    assert_refused(fabricate(str(junk), "--out", str(tmp_path / "o")))
+    assert not (tmp_path / "o").exists()
+
+
+def test_nan_coordinates(tmp_path):
+    bad = tmp_path / "nan.stl"
+    bad.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex nan 1 0\n"
+                   "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n")
+    assert_refused(fabricate(str(bad), "--out", str(tmp_path / "o")), "nan")
+
+
+def test_bad_parts_and_units(box_stl, tmp_path):
+    assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--parts", "3001"),
+                   "3024")
+    assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--units", "ft"))
+    assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--scale", "-1"))
+
+
+def test_out_folder_with_foreign_files_is_kept(box_stl, tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.txt").write_text("precious")
+    assert_refused(fabricate(str(box_stl), "--out", str(out)), "other files")
+    assert (out / "thesis.txt").read_text() == "precious"
+
+
+def test_rerun_replaces_previous_output(box_stl, tmp_path):
+    out = tmp_path / "out"
+    assert fabricate(str(box_stl), "--out", str(out), "--no-picture").returncode == 0
+    assert fabricate(str(box_stl), "--out", str(out), "--no-picture", "--seed", "1").returncode == 0
+    assert json.loads((out / "report.json").read_text())["seed"] == 1
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_unit_warning(tmp_path):
+    tiny = tmp_path / "tiny.stl"
+    trimesh.creation.box((0.16, 0.15, 0.12)).export(tiny)
+    proc = fabricate(str(tiny), "--out", str(tmp_path / "o"), "--no-picture")
+    assert proc.returncode == 0, proc.stderr
+    assert "--units" in proc.stderr
+
+
+def test_triangle_soup_refused(tmp_path):
+    soup = MODELS / "broken_triangle_soup.stl"
+    if not soup.exists():
+        pytest.skip(f"{MODELS} is absent: the shared benchmark models are not here")
+    assert_refused(fabricate(str(soup), "--out", str(tmp_path / "o")), "volume")
+    assert not (tmp_path / "o").exists()
