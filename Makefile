@@ -5,7 +5,7 @@
 SYSPY   := /usr/bin/python3
 VENV    := .venv
 PY      := $(VENV)/bin/python
-APT_PKGS := freecad python3-venv python3-pip xvfb
+APT_PKGS := freecad python3-venv python3-pip xvfb prusa-slicer
 SUDO    := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEMO_OUT := demo-out
 

@@ -1,0 +1,253 @@
+"""Print time: PrusaSlicer's estimate from the flat profile, and the fallback model.
+
+Tests that slice skip when prusa-slicer is not installed (Debian package
+``prusa-slicer``); tests on real models skip when ../shared/models is absent.
+:func:`calibration_plates` is also the set ``ESTIMATE_COEFFS`` in
+core/print_time.py was fitted on.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from core import print_time as pt
+from core.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT.parent / "shared" / "models"
+CALIBRATION_MODELS = ("xyz_calibration_cube.stl", "openbot_phone_mount.stl", "relativty_lens_mount.stl",
+                      "phone_charger_stand.stl", "openbot_motor_bracket.stl", "soap_dispenser_holder.stl")
+
+needs_slicer = pytest.mark.skipif(pt.slicer_path() is None,
+                                  reason="prusa-slicer not installed (apt-get install prusa-slicer) "
+                                         "or disabled by FABRICKATOR_SLICER")
+
+
+def studded(nx: int, ny: int, layers: int) -> trimesh.Trimesh:
+    """A solid LEGO-like block: nx x ny studs, ``layers`` plates high, studs on top."""
+    body = trimesh.creation.box((8.0 * nx, 8.0 * ny, 3.2 * layers))
+    body.apply_translation(-body.bounds[0])
+    studs = []
+    for i in range(nx):
+        for j in range(ny):
+            stud = trimesh.creation.cylinder(radius=2.4, height=1.7, sections=32)
+            stud.apply_translation((8.0 * i + 4.0, 8.0 * j + 4.0, 3.2 * layers + 0.85))
+            studs.append(stud)
+    return trimesh.boolean.union([body, *studs], engine="manifold")
+
+
+def calibration_plates(models: Path = MODELS) -> dict[str, list[trimesh.Trimesh]]:
+    """Named plates (lists of meshes) spanning the shapes Fabrickator prints.
+
+    Boxes of several proportions, cylinders, a thin tube, an open cup, a
+    sphere, studded LEGO-like parts, multi-part plates, and the models of
+    CALIBRATION_MODELS found in ``models`` (all fit the MK3S bed as they are).
+    """
+    cube = trimesh.creation.box((20, 20, 20))
+    tube = trimesh.creation.annulus(r_min=22, r_max=25, height=50, sections=96)
+    cup = trimesh.boolean.difference([trimesh.creation.box((50, 50, 40)),
+                                      trimesh.creation.box((46, 46, 40)).apply_translation((0, 0, 2))],
+                                     engine="manifold")
+    cylinder = trimesh.creation.cylinder(radius=15, height=40, sections=96)
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=20)
+    brick = studded(4, 2, 3)
+    plates = {
+        "cube20": [cube],
+        "box60x40x10": [trimesh.creation.box((60, 40, 10))],
+        "box10x10x80": [trimesh.creation.box((10, 10, 80))],
+        "box100x80x30": [trimesh.creation.box((100, 80, 30))],
+        "cylinder_r15_h40": [cylinder],
+        "disc_r40_h10": [trimesh.creation.cylinder(radius=40, height=10, sections=96)],
+        "tube_r25_h50": [tube],
+        "cup50": [cup],
+        "sphere_r20": [sphere],
+        "brick2x4": [brick],
+        "plate4x6": [studded(6, 4, 1)],
+        "tower2x2x12": [studded(2, 2, 12)],
+        "two_cubes": [cube, cube.copy()],
+        "four_bricks": [brick.copy() for _ in range(4)],
+        "mixed": [cylinder, tube, sphere],
+    }
+    for name in CALIBRATION_MODELS:
+        if (models / name).exists():
+            plates[name] = [trimesh.load(models / name, force="mesh")]
+    return plates
+
+
+@pytest.mark.parametrize("text, seconds", [
+    ("45s", 45), ("13m 45s", 13 * 60 + 45), ("1h 2m 3s", 3723), ("2h 0m 5s", 7205),
+    ("1d 0h 1m 0s", 86460), ("3d 4h 5m 6s", ((3 * 24 + 4) * 60 + 5) * 60 + 6), ("7m", 420), (" 1h 5s ", 3605),
+])
+def test_parse_duration(text, seconds):
+    assert pt.parse_duration(text) == seconds
+
+
+@pytest.mark.parametrize("text", ["", "abc", "1x", "5 minutes", "1h2"])
+def test_parse_duration_rejects(text):
+    with pytest.raises(ValueError):
+        pt.parse_duration(text)
+
+
+def test_gcode_seconds_reads_normal_mode(tmp_path):
+    gcode = tmp_path / "a.gcode"
+    gcode.write_text("G1 X0\n; estimated printing time (silent mode) = 9h 0m 0s\n"
+                     "; estimated printing time (normal mode) = 1h 2m 3s\n; layer_height = 0.2\n")
+    assert pt.gcode_seconds(gcode) == 3723
+    gcode.write_text("G1 X0\n")
+    with pytest.raises(ValueError):
+        pt.gcode_seconds(gcode)
+
+
+def test_flat_profile_is_resolved():
+    config = pt.load_profile()
+    assert "inherits" not in config
+    expected = {"layer_height": "0.2", "first_layer_height": "0.2", "printer_model": "MK3S",
+                "filament_type": "PLA", "nozzle_diameter": "0.4", "fill_pattern": "gyroid",
+                "fill_density": "15%", "perimeters": "2", "temperature": "215", "printer_technology": "FFF",
+                "print_settings_id": "0.20mm QUALITY @MK3", "filament_settings_id": "Prusament PLA",
+                "printer_settings_id": "Original Prusa i3 MK3S & MK3S+"}
+    assert {key: config.get(key) for key in expected} == expected
+    assert np.allclose(pt.build_volume(config), (250, 210, 210))
+    assert pt.profile_label(config) == "MK3S, 0.20mm QUALITY, PLA"
+
+
+def load_tool():
+    """tools/make_prusa_profile.py as a module (tools/ is not a package)."""
+    path = ROOT / "tools" / "make_prusa_profile.py"
+    spec = importlib.util.spec_from_file_location("make_prusa_profile", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool
+
+
+def test_inheritance_order():
+    tool = load_tool()
+    sections = tool.parse_bundle("""
+[vendor]
+name = X
+[print:*a*]
+k = a
+ka = 1
+[print:*b*]
+# comment
+k = b
+kb = 2
+[print:P]
+inherits = *a*; *b*
+own = 3
+[print:Q]
+inherits = P
+k = q
+""")
+    assert tool.resolve(sections, "print", "P") == {"k": "b", "ka": "1", "kb": "2",
+                                                    "inherits": "*a*; *b*", "own": "3"}
+    assert tool.resolve(sections, "print", "Q")["k"] == "q"
+    assert tool.resolve(sections, "print", "Q")["own"] == "3"
+
+
+def test_profile_generator_matches_committed_profile(tmp_path):
+    bundle = Path("/usr/share/PrusaSlicer/profiles/PrusaResearch.ini")
+    if not bundle.exists():
+        pytest.skip(f"{bundle} absent (Debian package prusa-slicer not installed)")
+    out = tmp_path / "flat.ini"
+    assert load_tool().main([str(bundle), str(out)]) == 0
+    assert out.read_text() == pt.DEFAULT_PROFILE.read_text()
+
+
+def test_missing_profile_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="profile"):
+        pt.print_time([trimesh.creation.box((5, 5, 5))], tmp_path, profile=tmp_path / "nope.ini")
+
+
+def test_missing_mesh_file_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="nope.stl"):
+        pt.print_time([tmp_path / "nope.stl"], tmp_path)
+
+
+def test_empty_plate_takes_no_time(tmp_path):
+    assert pt.print_time([], tmp_path).seconds == 0.0
+    assert pt.estimate_seconds([]) == 0.0
+
+
+def test_env_none_forces_estimate(tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.SLICER_ENV, "none")
+    assert pt.slicer_path() is None
+    result = pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path)
+    assert result.method.startswith("estimate")
+    assert "FABRICKATOR_SLICER=none" in result.method
+    assert result.gcode_path is None
+    assert 10 * 60 < result.seconds < 60 * 60
+
+
+def test_env_points_to_missing_binary(tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.SLICER_ENV, str(tmp_path / "no-such-slicer"))
+    assert pt.slicer_path() is None
+    assert pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path).method.startswith("estimate")
+
+
+def test_estimate_grows_with_size_and_parts():
+    small = pt.estimate_seconds([trimesh.creation.box((10, 10, 10))])
+    big = pt.estimate_seconds([trimesh.creation.box((40, 40, 40))])
+    two = pt.estimate_seconds([trimesh.creation.box((10, 10, 10))] * 2)
+    assert 0 < small < two < big
+
+
+def test_estimate_reads_files(tmp_path):
+    path = tmp_path / "box.stl"
+    box = trimesh.creation.box((30, 20, 10))
+    box.export(path)
+    assert pt.estimate_seconds([path]) == pytest.approx(pt.estimate_seconds([box]))
+
+
+@needs_slicer
+def test_slicing_a_cube(tmp_path):
+    result = pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path)
+    assert result.method.startswith("prusa-slicer 2.")
+    assert result.method.endswith("(MK3S, 0.20mm QUALITY, PLA)")
+    assert Path(result.gcode_path).is_file()
+    assert 10 * 60 < result.seconds < 60 * 60
+
+
+@needs_slicer
+def test_two_cubes_share_a_plate(tmp_path):
+    cube = trimesh.creation.box((20, 20, 20))
+    one = pt.print_time([cube], tmp_path)
+    two = pt.print_time([cube, cube.copy().apply_translation((100, 0, 0))], tmp_path)
+    assert two.method == one.method
+    assert one.gcode_path != two.gcode_path
+    assert one.seconds < two.seconds < 2 * one.seconds + 120
+
+
+@needs_slicer
+def test_part_over_build_height_falls_back(tmp_path):
+    result = pt.print_time([trimesh.creation.box((20, 20, 230))], tmp_path)
+    assert result.method.startswith("estimate")
+    assert "exceeds the build volume" in result.method
+    assert result.seconds > 0
+
+
+@needs_slicer
+def test_parts_that_do_not_fit_together_fall_back(tmp_path):
+    plate = trimesh.creation.box((200, 150, 5))
+    result = pt.print_time([plate, plate.copy()], tmp_path)
+    assert result.method.startswith("estimate")
+    assert "could not fit" in result.method
+    assert result.seconds > 0
+
+
+@needs_slicer
+def test_estimate_agrees_with_slicer_on_calibration_plates(tmp_path):
+    plates = calibration_plates()
+    if not any(name in plates for name in CALIBRATION_MODELS):
+        pytest.skip(f"test models not found at {MODELS}")
+    errors = {}
+    for name, plate in plates.items():
+        sliced = pt.print_time(plate, tmp_path)
+        assert sliced.method.startswith("prusa-slicer"), (name, sliced.method)
+        errors[name] = pt.estimate_seconds(plate) / sliced.seconds - 1.0
+    assert all(abs(e) <= 0.35 for e in errors.values()), errors
