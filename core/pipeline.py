@@ -71,7 +71,6 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
     layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
     stab = timed("stability", 0.9, stability_stage.analyse, layout)
-    progress(1.0, "done")
     return Fabrication(model, chosen, grid, layout, stab, seed, timings)
 
 
@@ -160,6 +159,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
         if out.exists():
             shutil.rmtree(out)
         os.replace(tmp, out)
+        progress(1.0, "done")
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,326 @@
+"""The exact fewest-parts cover of a grid: a yardstick for the layouter.
+
+The question: how few catalog parts can cover exactly the filled cells of a
+:class:`~core.model.Grid` (every filled cell once, no empty cell), if a part
+may sit at any cell, plates take one layer and bricks three, and footprints
+turn by 0° or 90°?  Stability and connection are ignored, so the answer is a
+lower bound for any layout the layouter makes.
+
+It is the set-partitioning integer program
+
+    minimise  sum_p x_p   subject to   sum_{p covers c} x_p = 1 for each
+    filled cell c,   x_p in {0, 1},
+
+with one variable per placement that fits inside the filled cells.  Placements
+are found per part orientation with a summed-volume table (a box fits where
+its window sum equals its volume), and the constraint matrix is assembled
+column-wise with index arithmetic, all vectorised over positions.  A box of
+cells is 6-connected, so no placement spans two 6-connected regions and the
+program splits into one independent program per region; HiGHS solves each.
+
+Per region, the LP relaxation comes first (interior point, then PDLP: much
+faster than simplex on these degenerate programs).  Its row duals ``y``,
+exact or not, give a certified bound by weak duality
+(:func:`certified_bound`).  When the LP is solved in time, the MIP follows
+with the cut ``sum x >= ceil(LP bound)``, which lets HiGHS stop as soon as
+a cover of that size is found.  So under a time limit the result stays a
+*valid* lower bound: the largest of the ceilings of the certified LP bound
+and of HiGHS's MIP dual bound, and of cells / largest part; never the
+incumbent unless it is proven optimal.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import highspy
+import numpy as np
+from scipy import ndimage
+
+from core.catalog import CATALOG, Part
+from core.errors import InputError
+from core.model import Grid
+
+#: Above this many placement variables the program is not built at all.
+MAX_VARIABLES = 2_000_000
+
+#: Slack when rounding a floating-point dual bound up to an integer.
+_ROUND_EPS = 1e-6
+
+#: 6-connectivity structure for :func:`scipy.ndimage.label`.
+_SIX = ndimage.generate_binary_structure(3, 1)
+
+
+def part_shapes(parts: tuple[Part, ...]) -> list[tuple[int, int, int]]:
+    """The distinct box sizes (x, y, z in cells) the parts take when placed."""
+    shapes = {(sx, sy, p.layers) for p in parts for sx, sy in p.orientations()}
+    return sorted(shapes)
+
+
+def _summed_volume(filled: np.ndarray) -> np.ndarray:
+    """Zero-padded 3-D prefix sums: ``S[i, j, k]`` = filled cells in ``[:i, :j, :k]``."""
+    s = np.zeros(tuple(n + 1 for n in filled.shape), dtype=np.int64)
+    s[1:, 1:, 1:] = filled.astype(np.int64).cumsum(0).cumsum(1).cumsum(2)
+    return s
+
+
+def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
+    """Min corners (n, 3) of every box of size ``shape`` made only of filled cells.
+
+    ``table`` is the summed-volume table of the grid (:func:`_summed_volume`).
+    """
+    nx, ny, nz = (n - 1 for n in table.shape)
+    sx, sy, sz = shape
+    if sx > nx or sy > ny or sz > nz:
+        return np.empty((0, 3), dtype=np.int64)
+    mx, my, mz = nx - sx + 1, ny - sy + 1, nz - sz + 1
+
+    def corner(a: int, b: int, c: int) -> np.ndarray:
+        return table[a:a + mx, b:b + my, c:c + mz]
+
+    window = (corner(sx, sy, sz) - corner(0, sy, sz) - corner(sx, 0, sz) - corner(sx, sy, 0)
+              + corner(0, 0, sz) + corner(0, sy, 0) + corner(sx, 0, 0) - corner(0, 0, 0))
+    return np.argwhere(window == sx * sy * sz)
+
+
+def _placements(filled: np.ndarray, shapes: list[tuple[int, int, int]]):
+    """All fitting placements: (positions per shape, total count)."""
+    table = _summed_volume(filled)
+    found = [fitting_positions(table, s) for s in shapes]
+    return found, int(sum(len(f) for f in found))
+
+
+def _columns(filled, labels, shapes, found):
+    """Constraint columns of every placement, grouped by region.
+
+    Returns ``(col_region, indptr, rows, n_rows)``: columns sorted by region
+    (stably), CSC ``indptr`` and row ``rows`` (row = rank of the cell among
+    its region's filled cells, in flat index order, so each column's rows are
+    ascending), and the number of rows per region (index = region label).
+    """
+    nx, ny, nz = filled.shape
+    flat = np.flatnonzero(filled)
+    lab = labels.ravel()[flat]
+    n_regions = int(labels.max())
+    n_rows = np.bincount(lab, minlength=n_regions + 1)
+    first = np.concatenate(([0], np.cumsum(n_rows)))[:-1]
+    order = np.argsort(lab, kind="stable")
+    rowid = np.full(filled.size, -1, dtype=np.int32)
+    rowid[flat[order]] = np.arange(flat.size) - first[lab[order]]
+
+    regions, lengths, entries = [], [], []
+    for (sx, sy, sz), pos in zip(shapes, found):
+        if len(pos) == 0:
+            continue
+        base = (pos[:, 0] * ny + pos[:, 1]) * nz + pos[:, 2]
+        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
+        offset = ((di * ny + dj) * nz + dk).ravel()
+        cells = base[:, None] + offset[None, :]
+        regions.append(labels.ravel()[base])
+        lengths.append(np.full(len(pos), offset.size, dtype=np.int64))
+        entries.append(rowid[cells].ravel())
+    if not regions:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, np.zeros(1, dtype=np.int64), empty, n_rows
+    region = np.concatenate(regions)
+    length = np.concatenate(lengths)
+    entry = np.concatenate(entries)
+    if np.all(region[1:] >= region[:-1]):
+        return region, np.concatenate(([0], np.cumsum(length))), entry, n_rows
+    start = np.concatenate(([0], np.cumsum(length)))[:-1]
+    perm = np.argsort(region, kind="stable")
+    new_len = length[perm]
+    indptr = np.concatenate(([0], np.cumsum(new_len)))
+    gather = np.repeat(start[perm] - indptr[:-1], new_len) + np.arange(indptr[-1])
+    return region[perm], indptr, entry[gather], n_rows
+
+
+def _set_partitioning_lp(indptr, rows, n_rows: int) -> highspy.HighsLp:
+    """The LP: minimise the number of columns with every row covered exactly once, 0 <= x <= 1."""
+    n_cols = len(indptr) - 1
+    lp = highspy.HighsLp()
+    lp.num_col_ = n_cols
+    lp.num_row_ = n_rows
+    lp.col_cost_ = np.ones(n_cols)
+    lp.col_lower_ = np.zeros(n_cols)
+    lp.col_upper_ = np.ones(n_cols)
+    lp.row_lower_ = np.ones(n_rows)
+    lp.row_upper_ = np.ones(n_rows)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_ = n_cols
+    lp.a_matrix_.num_row_ = n_rows
+    lp.a_matrix_.start_ = indptr.astype(np.int32)
+    lp.a_matrix_.index_ = rows.astype(np.int32)
+    lp.a_matrix_.value_ = np.ones(len(rows))
+    return lp
+
+
+def _highs(time_limit_s: float, **options) -> highspy.Highs:
+    """A silent single-threaded HiGHS instance with a time limit."""
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("threads", 1)
+    h.setOptionValue("time_limit", max(float(time_limit_s), 0.01))
+    for key, value in options.items():
+        h.setOptionValue(key, value)
+    return h
+
+
+def certified_bound(indptr, rows, y: np.ndarray) -> float:
+    """A lower bound on the LP (hence on the cover) from any row prices ``y``.
+
+    By weak duality for ``min 1.x, Ax = 1, 0 <= x <= 1``, every ``y`` gives
+    ``sum(y) - sum_j max(0, (A^T y)_j - 1) <= LP optimum``; so an inexact dual
+    (interior point, PDLP, a solver stopped early) still yields a valid bound.
+    """
+    y = np.nan_to_num(np.asarray(y, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    col_sum = np.add.reduceat(y[rows], indptr[:-1]) if len(rows) else np.zeros(0)
+    return float(y.sum() - np.maximum(col_sum - 1.0, 0.0).sum())
+
+
+def _lp_bound(lp, indptr, rows, deadline: float) -> tuple[int, str]:
+    """Ceiling of a certified LP-relaxation bound, and "optimal", "infeasible",
+    "time limit" (the LP solvers ran out of time) or "inexact" (they stopped
+    for another reason, e.g. an interior point method that cannot reach its
+    tolerances without crossover).
+
+    Interior point first, then PDLP with most of what is left if it timed
+    out; both
+    without presolve, which does not watch the clock on large programs.
+    Their claims of infeasibility are not final (a stopped interior point
+    method can make them wrongly): the MIP must confirm them.
+    """
+    best, status = -math.inf, "time limit"
+    for solver, fraction in (("ipm", 0.5), ("pdlp", 0.8)):
+        left = deadline - time.perf_counter()
+        if left <= 0.01:
+            break
+        h = _highs(left * fraction, solver=solver, run_crossover="off", presolve="off")
+        h.passModel(lp)
+        h.run()
+        model_status = h.getModelStatus()
+        if model_status == highspy.HighsModelStatus.kInfeasible:
+            status = "infeasible"
+            break
+        y = np.asarray(h.getSolution().row_dual)
+        if len(y) == lp.num_row_:
+            best = max(best, certified_bound(indptr, rows, y))
+        if model_status == highspy.HighsModelStatus.kOptimal:
+            status = "optimal"
+            break
+        if model_status != highspy.HighsModelStatus.kTimeLimit:
+            status = "inexact"
+            break
+    return (math.ceil(best - _ROUND_EPS) if math.isfinite(best) else 0), status
+
+
+def _solve_region(indptr, rows, n_rows: int, deadline: float):
+    """Solve one region's set-partitioning program with HiGHS by ``deadline``.
+
+    A cell that no placement covers means no cover.  Otherwise the LP
+    relaxation is solved first (:func:`_lp_bound`).  Unless that ran out of
+    time, its certified bound is added as the cut ``sum x >= bound`` and the
+    MIP gets the rest of the time (a MIP whose LP cannot be solved in time
+    would only spend it on its own root LP); the MIP alone decides that no
+    cover exists.
+    Returns ``(bound, incumbent, optimal)``: ``bound`` a valid lower bound
+    (None if no exact cover exists), ``incumbent`` the best cover size
+    found or None.
+    """
+    if not np.all(np.bincount(rows, minlength=n_rows)):
+        return None, None, True
+    lp = _set_partitioning_lp(indptr, rows, n_rows)
+    lp_bound, lp_status = _lp_bound(lp, indptr, rows, deadline)
+    if lp_status == "time limit":
+        return lp_bound, None, False
+    h = _highs(deadline - time.perf_counter(), mip_rel_gap=0.0, mip_abs_gap=1.0 - 1e-3)
+    h.passModel(lp)
+    h.changeColsIntegrality(lp.num_col_, np.arange(lp.num_col_, dtype=np.int32),
+                            np.full(lp.num_col_, highspy.HighsVarType.kInteger))
+    h.addRow(float(lp_bound), highspy.kHighsInf, lp.num_col_,
+             np.arange(lp.num_col_, dtype=np.int32), np.ones(lp.num_col_))
+    h.run()
+    status = h.getModelStatus()
+    if status == highspy.HighsModelStatus.kInfeasible:
+        return None, None, True
+    info = h.getInfo()
+    has_solution = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
+    incumbent = round(info.objective_function_value) if has_solution else None
+    dual = info.mip_dual_bound
+    bound = max(lp_bound, math.ceil(dual - _ROUND_EPS) if math.isfinite(dual) else 0)
+    if incumbent is not None and (status == highspy.HighsModelStatus.kOptimal or bound >= incumbent):
+        return incumbent, incumbent, True
+    return bound, incumbent, False
+
+
+def brick_lower_bound(grid: Grid, parts: tuple[Part, ...] = CATALOG,
+                      time_limit_s: float = 20.0) -> dict:
+    """The fewest ``parts`` that cover exactly the filled cells of ``grid``.
+
+    Returns ``{"bound", "optimal", "objective", "status", "seconds",
+    "variables"}``.  ``bound`` is a valid lower bound on the number of parts
+    of any exact cover (equal to the minimum when ``optimal``), or None when
+    no cover exists (``status`` "infeasible", e.g. without the 1x1 plate) or
+    the program has more than :data:`MAX_VARIABLES` placements (``status``
+    "too large").  ``objective`` is the size of the best cover found, or None
+    if some region has none yet.  ``status`` is "optimal" when every region
+    was solved to optimality, else "time limit".  ``variables`` counts the
+    placements.  ``time_limit_s`` bounds the total solver time (HiGHS checks
+    its clock now and then, so it may run over by a few seconds on programs
+    near the size limit); it is shared among the 6-connected regions, fewest
+    placements first, each getting a share of what is left proportional to
+    its number of placements.  An empty grid needs 0 parts.
+    """
+    start = time.perf_counter()
+    if not parts:
+        raise InputError("the brick set for the lower bound is empty")
+    if not time_limit_s > 0:
+        raise InputError(f"the time limit for the lower bound must be positive, not {time_limit_s}")
+    filled = np.asarray(grid.filled, dtype=bool)
+    shapes = part_shapes(parts)
+    found, n_vars = _placements(filled, shapes)
+
+    def result(bound, optimal, objective, status):
+        return {"bound": bound, "optimal": optimal, "objective": objective, "status": status,
+                "seconds": round(time.perf_counter() - start, 4), "variables": n_vars}
+
+    if not filled.any():
+        return result(0, True, 0, "optimal")
+    if n_vars > MAX_VARIABLES:
+        return result(None, False, None, "too large")
+
+    labels, n_regions = ndimage.label(filled, structure=_SIX)
+    col_region, indptr, rows, n_rows = _columns(filled, labels, shapes, found)
+    col_first = np.searchsorted(col_region, np.arange(1, n_regions + 2))
+    n_cols = np.diff(col_first)
+    largest = max(p.cells for p in parts)
+
+    total_bound, total_obj, all_optimal = 0, 0, True
+    weight = n_cols.astype(float)
+    remaining_weight = weight.sum()
+    deadline = start + time_limit_s
+    for r in np.argsort(n_cols, kind="stable"):
+        cells = int(n_rows[r + 1])
+        trivial = -(-cells // largest)
+        if n_cols[r] == 0:
+            return result(None, True, None, "infeasible")
+        if cells == 1:
+            total_bound += 1
+            total_obj = None if total_obj is None else total_obj + 1
+            remaining_weight -= weight[r]
+            continue
+        lo, hi = col_first[r], col_first[r + 1]
+        now = time.perf_counter()
+        share = (deadline - now) * weight[r] / remaining_weight
+        remaining_weight -= weight[r]
+        sub_ptr = indptr[lo:hi + 1] - indptr[lo]
+        sub_rows = rows[indptr[lo]:indptr[hi]]
+        bound, obj, optimal = _solve_region(sub_ptr, sub_rows, cells, now + share)
+        if bound is None:
+            return result(None, True, None, "infeasible")
+        total_bound += max(bound, trivial)
+        all_optimal &= optimal
+        total_obj = None if obj is None or total_obj is None else total_obj + obj
+    return result(total_bound, all_optimal, total_obj,
+                  "optimal" if all_optimal else "time limit")

@@ -1,0 +1,254 @@
+"""An isometric picture of a brick layout, drawn the way LEGO looks.
+
+The layout is seen from the front left, above (view direction ``(1, 1, -1)``
+in model mm, so the faces facing -x, -y and +z are visible), in true
+proportions (cells are 8 x 8 x 3.2 mm).
+
+Drawing is a painter's algorithm over unit cell faces, which is exact for
+boxes on a grid: a ray along the view direction visits cells with
+non-decreasing i and j and non-increasing k, so a cell can only hide cells
+whose ``8 i + 8 j - 3.2 k`` (its depth) is larger, and drawing cells from
+the largest depth to the smallest paints every hidden face before what
+hides it.  Per cell, the exposed visible faces are drawn (a face whose
+neighbour cell is empty), then the outline segments of those faces that lie
+on a brick boundary (the neighbouring face in the same plane is missing or
+belongs to another brick), and the studs on exposed tops of LEGO bricks are
+drawn with the empty cell above them.  Everything is one
+:class:`~matplotlib.collections.PolyCollection` built with numpy, and the
+figure is an Agg canvas, so pyplot's global state is never touched.
+
+Colours come from a small LEGO palette; a brick takes the colour its id
+hashes to unless a face-adjacent brick already took it, so neighbours
+differ.  Printed bricks are light grey and have no studs drawn.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
+
+from core.errors import InputError
+from core.model import Layout
+
+#: LEGO colours (RGB 0..1): red, blue, yellow, green, orange, medium azure,
+#: lime, dark red, tan, medium blue, bright pink, sand green.
+PALETTE = np.array([
+    (201, 26, 9), (0, 85, 191), (242, 205, 55), (35, 120, 65),
+    (254, 138, 24), (54, 174, 191), (187, 233, 11), (114, 14, 15),
+    (228, 205, 158), (90, 147, 219), (228, 173, 200), (160, 188, 172),
+]) / 255.0
+
+#: Colour of printed bricks (light bluish grey, lighter).
+PRINTED_RGB = np.array([0.86, 0.87, 0.88])
+
+#: Background and outline colours.
+BACKGROUND_RGB = (1.0, 1.0, 1.0)
+OUTLINE_RGB = (0.08, 0.08, 0.1)
+
+#: Brightness of the faces facing -x, -y and +z (a light from above left).
+SHADE = np.array([0.78, 0.6, 1.0])
+
+#: Stud diameter and height in mm.
+STUD_DIAMETER_MM = 4.8
+STUD_HEIGHT_MM = 1.7
+
+#: View direction in model mm (towards the scene), screen right and up.
+VIEW = np.array([1.0, 1.0, -1.0]) / np.sqrt(3.0)
+RIGHT = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)
+UP = np.array([1.0, 1.0, 2.0]) / np.sqrt(6.0)
+
+#: Visible face directions and their corners (unit cell coordinates, in
+#: order around the face).
+FACE_NORMALS = np.array([(-1, 0, 0), (0, -1, 0), (0, 0, 1)])
+FACE_CORNERS = np.array([
+    [(0, 0, 0), (0, 1, 0), (0, 1, 1), (0, 0, 1)],
+    [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)],
+    [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
+], dtype=float)
+
+#: Vertices per stud half-outline; every polygon is padded to 2 * this.
+_ARC = 9
+_VERTS = 2 * _ARC
+
+
+def _edge_directions() -> np.ndarray:
+    """(3, 4, 3): the in-plane direction away from the face across each edge."""
+    centre = FACE_CORNERS.mean(axis=1, keepdims=True)
+    middle = (FACE_CORNERS + np.roll(FACE_CORNERS, -1, axis=1)) / 2
+    return np.rint(2 * (middle - centre)).astype(np.int64)
+
+
+def _project(points_mm: np.ndarray) -> np.ndarray:
+    """Screen coordinates (..., 2) of model points (..., 3) in mm."""
+    return np.stack([points_mm @ RIGHT, points_mm @ UP], axis=-1)
+
+
+def _pad(polys: np.ndarray) -> np.ndarray:
+    """Repeat the last vertex so that every polygon has ``_VERTS`` vertices."""
+    extra = _VERTS - polys.shape[1]
+    return np.concatenate([polys, np.repeat(polys[:, -1:], extra, axis=1)], axis=1)
+
+
+def brick_colours(layout: Layout, labels: np.ndarray) -> np.ndarray:
+    """RGB (n_bricks, 3): palette colours, face-adjacent bricks different where possible."""
+    n = len(layout.bricks)
+    pairs = []
+    for axis in range(3):
+        a = np.moveaxis(labels, axis, 0)
+        lo, hi = a[:-1].ravel(), a[1:].ravel()
+        keep = (lo >= 0) & (hi >= 0) & (lo != hi)
+        pairs.append(np.stack([lo[keep], hi[keep]], axis=1))
+    pairs = np.unique(np.concatenate(pairs + [np.empty((0, 2), np.int64)]), axis=0)
+    pairs = np.concatenate([pairs, pairs[:, ::-1]])
+    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    start = np.searchsorted(pairs[:, 0], np.arange(n + 1))
+    m = len(PALETTE)
+    choice = np.full(n, -1, dtype=np.int64)
+    for b, brick in enumerate(layout.bricks):
+        taken = set(choice[pairs[start[b]:start[b + 1], 1]].tolist())
+        wish = (brick.id * 2654435761) % (2 ** 32) % m
+        free = [c for c in ((wish + s) % m for s in range(m)) if c not in taken]
+        choice[b] = free[0] if free else wish
+    rgb = PALETTE[choice]
+    printed = np.array([b.kind == "printed" for b in layout.bricks], dtype=bool)
+    rgb[printed] = PRINTED_RGB
+    return rgb
+
+
+def _scene(layout: Layout):
+    """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
+
+    kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.
+    """
+    cell = np.asarray(layout.grid.cell, dtype=float)
+    labels = layout.labels()
+    padded = np.pad(labels, 1, constant_values=-1)
+    rgb = brick_colours(layout, labels)
+    is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
+    cells = np.argwhere(labels >= 0)
+    own = labels[tuple(cells.T)]
+    at = cells + 1
+
+    def label_at(offset) -> np.ndarray:
+        p = at + offset
+        return padded[p[..., 0], p[..., 1], p[..., 2]]
+
+    def depth(index: np.ndarray) -> np.ndarray:
+        return ((index + 0.5) * cell) @ VIEW
+
+    edges = _edge_directions()
+    polys, keys, sub, kinds, colours = [], [], [], [], []
+    for f, normal in enumerate(FACE_NORMALS):
+        exposed = label_at(normal) < 0
+        c, lab = cells[exposed], own[exposed]
+        corners = _project((c[:, None, :] + FACE_CORNERS[f][None]) * cell)
+        polys.append(_pad(corners))
+        keys.append(depth(c))
+        sub.append(np.full(len(c), f))
+        kinds.append(np.zeros(len(c), dtype=np.int64))
+        colours.append(rgb[lab] * SHADE[f])
+        for e, t in enumerate(edges[f]):
+            same = (label_at(t)[exposed] == lab) & (label_at(t + normal)[exposed] < 0)
+            seg = corners[~same][:, [e, (e + 1) % 4]]
+            polys.append(_pad(seg))
+            keys.append(depth(c[~same]))
+            sub.append(np.full(len(seg), 3))
+            kinds.append(np.ones(len(seg), dtype=np.int64))
+            colours.append(np.zeros((len(seg), 3)))
+
+    tops = (label_at(FACE_NORMALS[2]) < 0) & is_lego[own]
+    c = cells[tops]
+    centre = (c + [0.5, 0.5, 1.0]) * cell
+    r = STUD_DIAMETER_MM / 2
+    lower = np.linspace(0.75 * np.pi, 1.75 * np.pi, _ARC)
+    upper = np.linspace(-0.25 * np.pi, 0.75 * np.pi, _ARC)
+    ring = np.linspace(0, 2 * np.pi, _VERTS, endpoint=False)
+
+    def circle(theta, z) -> np.ndarray:
+        pts = np.stack([r * np.cos(theta), r * np.sin(theta), np.full_like(theta, z)], axis=-1)
+        return _project(centre[:, None, :] + pts[None])
+
+    side = np.concatenate([circle(lower, 0.0), circle(upper, STUD_HEIGHT_MM)], axis=1)
+    top = circle(ring, STUD_HEIGHT_MM)
+    above = depth(c + [0, 0, 1])
+    for kind, poly, shade in ((2, side, SHADE[1]), (3, top, SHADE[2])):
+        polys.append(poly)
+        keys.append(above)
+        sub.append(np.full(len(c), kind + 2))
+        kinds.append(np.full(len(c), kind))
+        colours.append(rgb[own[tops]] * shade)
+
+    keys, sub = np.concatenate(keys), np.concatenate(sub)
+    order = np.lexsort((sub, -np.round(keys, 6)))
+    return (np.concatenate(polys)[order], np.concatenate(kinds)[order],
+            np.concatenate(colours)[order])
+
+
+def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
+                  title: str | None = None) -> None:
+    """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
+
+    Bricks are shaded boxes with black outlines along brick edges and studs
+    on their exposed tops, printed bricks light grey; ``title`` goes above.
+    A layout without bricks gives a picture that says so.  Raises
+    InputError for a size that is not two positive integers or a path whose
+    folder does not exist.
+    """
+    try:
+        width, height = (int(s) for s in size_px)
+    except (TypeError, ValueError):
+        raise InputError(f"picture size must be two integers (width, height), got {size_px!r}")
+    if width < 16 or height < 16 or width > 20000 or height > 20000:
+        raise InputError(f"picture size must be 16 to 20000 pixels each way, got {width} x {height}")
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InputError(f"cannot write the picture: folder {folder} does not exist")
+
+    dpi = 100
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=BACKGROUND_RGB)
+    FigureCanvasAgg(fig)
+    top_margin = 0.93 if title else 0.99
+    ax = fig.add_axes((0.01, 0.01, 0.98, top_margin - 0.01))
+    ax.set_axis_off()
+    if title:
+        fig.text(0.5, 0.965, title, ha="center", va="center",
+                 fontsize=min(16.0, max(7.0, 0.03 * height)))
+
+    if not layout.bricks:
+        ax.text(0.5, 0.5, "no bricks", ha="center", va="center", fontsize=14,
+                color=(0.4, 0.4, 0.4), transform=ax.transAxes)
+        fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
+        return
+
+    polys, kinds, colours = _scene(layout)
+    lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
+    span = np.maximum(hi - lo, 1e-9) * 1.04
+    box_w, box_h = 0.98 * width, (top_margin - 0.01) * height
+    px_per_mm = min(box_w / span[0], box_h / span[1])
+    centre = (lo + hi) / 2
+    ax.set_xlim(centre[0] - box_w / px_per_mm / 2, centre[0] + box_w / px_per_mm / 2)
+    ax.set_ylim(centre[1] - box_h / px_per_mm / 2, centre[1] + box_h / px_per_mm / 2)
+
+    pt_per_px = 72.0 / dpi
+    outline = np.clip(0.3 * px_per_mm, 0.4, 1.6) * pt_per_px
+    face = np.ones((len(kinds), 4))
+    face[:, :3] = np.clip(colours, 0, 1)
+    edge = face.copy()
+    segment = kinds == 1
+    face[segment, 3] = 0.0
+    edge[segment, :3] = OUTLINE_RGB
+    stud_top = kinds == 3
+    edge[stud_top, :3] = np.clip(colours[stud_top] * 0.55, 0, 1)
+    widths = np.zeros(len(kinds))
+    widths[segment] = outline
+    widths[stud_top] = 0.5 * outline
+    widths[kinds == 2] = 0.5 * pt_per_px
+    ax.add_collection(PolyCollection(polys, closed=True, facecolors=face, edgecolors=edge,
+                                     linewidths=widths, antialiaseds=kinds != 0,
+                                     capstyle="round", joinstyle="round"))
+    fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
