@@ -42,6 +42,7 @@ test: $(VENV)/.installed
 
 bench: $(VENV)/.installed
 	$(PY) bench/bench.py
+	$(PY) bench/bench_printed.py
 
 clean:
 	rm -rf $(DEMO_OUT) examples/build bench/out .pytest_cache

@@ -55,6 +55,14 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--parts", default=None, metavar="SET",
                      help="brick set: all, plates, bricks, design numbers (3001,3024) "
                           "or plate2x4-style names, comma-separated; must contain 3024")
+    fab.add_argument("--high-res", action="append", default=[], metavar="X0,Y0,Z0,X1,Y1,Z1",
+                     help="box in model mm whose bricks become printed parts (repeatable; write --high-res=-5,... when it starts with a minus)")
+    fab.add_argument("--high-res-solid", action="append", default=[], metavar="FILE",
+                     help="region solid (STL/STEP/...) whose bricks become printed (repeatable)")
+    fab.add_argument("--clearance", type=float, default=0.1, metavar="MM",
+                     help="FDM clearance of printed studs and holes, a diameter (default 0.1)")
+    fab.add_argument("--seconds-per-brick", type=float, default=10.0, metavar="S",
+                     help="assembly estimate per LEGO brick or printed part placed (default 10)")
     fab.add_argument("--no-picture", action="store_true", help="do not render layout.png")
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return parser
@@ -69,7 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         doc = pipeline.fabricate(args.model, args.out, units=args.units, scale=args.scale,
                                  seed=args.seed, parts=args.parts,
-                                 picture=not args.no_picture, progress=progress)
+                                 picture=not args.no_picture, progress=progress,
+                                 high_res=args.high_res, high_res_solids=args.high_res_solid,
+                                 clearance=args.clearance,
+                                 seconds_per_brick=args.seconds_per_brick)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2
@@ -80,4 +91,9 @@ def main(argv: list[str] | None = None) -> int:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {args.out}")
+    if doc["printed_parts"]:
+        pt = doc["print_time_s"] or {}
+        print(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
+              f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts "
+              f"+ {doc['assembly_s']} s assembly: speed-up {doc['speedup']}")
     return 0

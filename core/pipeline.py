@@ -18,11 +18,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from core import catalog, layout as layout_stage, mesh_io, stability as stability_stage, voxelize
+from core import catalog, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
+from core import print_time as print_time_stage, stability as stability_stage, voxelize
+from core.brick_solids import BrickGeometry
 from core.errors import InputError
 from core.model import CELL_MM, Grid, Layout
 
 Progress = Callable[[float, str], None]
+
+#: Default assembly estimate: seconds to place one LEGO brick or printed part.
+SECONDS_PER_BRICK = 10.0
 
 #: Files that mark a folder as an output of ours (and so safe to replace).
 OUTPUT_MARKERS = ("report.json", "layout.json")
@@ -39,6 +44,10 @@ class Fabrication:
     stability: stability_stage.Stability
     seed: int
     timings_s: dict[str, float] = field(default_factory=dict)
+    printed: list[printed_stage.PrintedPart] = field(default_factory=list)
+    print_full: print_time_stage.PrintEstimate | None = None
+    print_parts: print_time_stage.PrintEstimate | None = None
+    seconds_per_brick: float = SECONDS_PER_BRICK
 
 
 def _noop(fraction: float, message: str) -> None:
@@ -46,10 +55,21 @@ def _noop(fraction: float, message: str) -> None:
 
 
 def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: int = 0,
-        parts: str | None = None, progress: Progress | None = None) -> Fabrication:
-    """Load, repair, legofy and lay out the model at ``path``.
+        parts: str | None = None, progress: Progress | None = None, high_res=(),
+        high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
+        seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True) -> Fabrication:
+    """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
+    ``high_res`` are boxes (``"X0,Y0,Z0,X1,Y1,Z1"`` strings or (2, 3)
+    arrays, model mm), ``high_res_solids`` region solid files (in ``units``),
+    ``high_res_bricks`` brick ids: every brick they touch becomes printed,
+    one printed part per connected group (:mod:`core.high_res`,
+    :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter).  With
+    printed parts and ``slice_parts``, the whole model and the plate of all
+    printed parts are print-timed (:func:`core.print_time.print_time`); the
+    print times stay None without printed parts, so a plain run slices
+    nothing.
     Raises :class:`~core.errors.InputError` for bad input; otherwise returns
     a :class:`Fabrication` whose layout covers every filled cell once.
     """
@@ -69,9 +89,67 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
+    if not (isinstance(seconds_per_brick, (int, float)) and 0 <= seconds_per_brick < 1e6):
+        raise InputError(f"--seconds-per-brick {seconds_per_brick!r} must be a number of seconds >= 0")
+    geometry = BrickGeometry(clearance=float(clearance))
+    geometry.check(1)
+    boxes = [high_res_stage.parse_box(b) if isinstance(b, str) else b for b in high_res]
     layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
-    stab = timed("stability", 0.9, stability_stage.analyse, layout)
-    return Fabrication(model, chosen, grid, layout, stab, seed, timings)
+    made: list[printed_stage.PrintedPart] = []
+    clamp = None
+    if boxes or high_res_solids or high_res_bricks:
+        cells = timed("high_res", 0.6, high_res_stage.marked_cells, grid, boxes, high_res_solids,
+                      units=units, scale=scale)
+        ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
+        groups = high_res_stage.groups(layout, ids)
+        if groups:
+            source = printed_stage.model_solid(model)
+            made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
+                         source, geometry)
+            printed_stage.apply(layout, made)
+            clamp = printed_stage.clamp_masks(layout, made)
+    stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
+    fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
+                      seconds_per_brick=float(seconds_per_brick))
+    if made and slice_parts:
+        timed("print_time", 0.85, _print_times, fab)
+    return fab
+
+
+def _print_times(fab: Fabrication) -> None:
+    """Slice the whole model (the baseline) and one plate of all printed parts,
+    the two slicer runs side by side.
+
+    A part's own ``print_s`` is the plate time shared out in proportion to
+    the parts' calibrated estimates (:func:`core.print_time.estimate_seconds`),
+    so the parts' times add up to the plate's.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from core.export import plate
+    meshes = plate(fab.printed)
+    with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work, \
+            ThreadPoolExecutor(max_workers=2) as pool:
+        full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work)
+        parts = pool.submit(print_time_stage.print_time, meshes, work)
+        fab.print_full, fab.print_parts = full.result(), parts.result()
+    weights = [print_time_stage.estimate_seconds([m]) for m in meshes]
+    total = sum(weights) or 1.0
+    for p, w in zip(fab.printed, weights):
+        p.print_s = fab.print_parts.seconds * w / total
+
+
+def assembly_seconds(fab: Fabrication) -> float:
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick and per printed part placed."""
+    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
+    return fab.seconds_per_brick * (lego + len(fab.printed))
+
+
+def speedup(fab: Fabrication) -> float | None:
+    """The paper's speed-up: full print time / (printed parts' print time + assembly), or None."""
+    if fab.print_full is None or fab.print_parts is None:
+        return None
+    return fab.print_full.seconds / max(fab.print_parts.seconds + assembly_seconds(fab), 1e-9)
 
 
 def report(fab: Fabrication) -> dict:
@@ -81,6 +159,9 @@ def report(fab: Fabrication) -> dict:
         by_part[b.part] = by_part.get(b.part, 0) + 1
     lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
     m, st = fab.model, fab.stability
+    incomplete = sum(len(p.incomplete_studs) for p in fab.printed)
+    full, plate = fab.print_full, fab.print_parts
+    gain = speedup(fab)
     bounds = m.mesh.bounds
     return {
         "model": {
@@ -103,6 +184,7 @@ def report(fab: Fabrication) -> dict:
         "bricks": {
             "total": len(fab.layout.bricks),
             "lego": lego,
+            "printed": len(fab.layout.bricks) - lego,
             "by_part": dict(sorted(by_part.items())),
             "per_cell": round(len(fab.layout.bricks) / max(fab.grid.count, 1), 4),
         },
@@ -114,9 +196,18 @@ def report(fab: Fabrication) -> dict:
             "weak_points": len(st.weak_points),
             "weak_point_bricks": list(st.weak_points),
             "unconnectable": list(st.unconnectable),
-            "incomplete_studs": 0,
+            "incomplete_studs": incomplete,
         },
-        "printed_parts": [],
+        "printed_parts": [p.to_json() for p in fab.printed],
+        "print_time_s": None if full is None else {
+            "full_model": round(full.seconds, 1),
+            "printed_parts": round(plate.seconds, 1),
+            "method": full.method if full.method == plate.method
+            else f"full model: {full.method}; printed parts: {plate.method}",
+        },
+        "assembly_s": round(assembly_seconds(fab), 1),
+        "seconds_per_brick": fab.seconds_per_brick,
+        "speedup": None if gain is None else round(gain, 3),
         "timings_s": dict(fab.timings_s),
     }
 
@@ -145,6 +236,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
     tmp.chmod(0o755)
     try:
         start = time.perf_counter()
+        if fab.printed:
+            from core import export
+            progress(0.9, "export")
+            export.export_parts(fab.printed, tmp / "parts")
         (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
         if picture:
             progress(0.95, "picture")
@@ -168,8 +263,13 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
 
 def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm",
               scale: float = 1.0, seed: int = 0, parts: str | None = None,
-              picture: bool = True, progress: Progress | None = None) -> dict:
-    """Run the pipeline on ``path`` and write its outputs into ``out``; returns the report."""
+              picture: bool = True, progress: Progress | None = None, **printing) -> dict:
+    """Run the pipeline on ``path`` and write its outputs into ``out``; returns the report.
+
+    ``printing`` are the high-res keywords of :func:`run` (``high_res``,
+    ``high_res_solids``, ``high_res_bricks``, ``clearance``,
+    ``seconds_per_brick``, ``slice_parts``).
+    """
     _prepare_out(Path(out))
-    fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress)
+    fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress, **printing)
     return write_outputs(fab, out, picture=picture, progress=progress)

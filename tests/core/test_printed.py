@@ -1,0 +1,108 @@
+"""Printed parts: brick solid ∩ part, stud completeness, merging, clearance."""
+
+import numpy as np
+import pytest
+import trimesh
+from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeSphere
+from OCP.gp import gp_Pnt
+
+from core import printed
+from core.brick_solids import BrickGeometry, brick_solid, face_list
+from core.errors import InputError
+from core.mesh_io import LoadedModel
+from core.model import Brick, Grid, Layout
+
+import cadquery as cq
+
+
+def _layout(bricks, shape=(4, 4, 6)):
+    g = Grid(origin=np.zeros(3), cell=np.array([8.0, 8.0, 3.2]), filled=np.ones(shape, bool))
+    return Layout(g, bricks)
+
+
+def _mesh_source(mesh):
+    return printed.model_solid(LoadedModel(mesh=mesh, path="m.stl", format="stl",
+                                           triangles=len(mesh.faces), watertight=True))
+
+
+BOX = [[-5, -5, -5], [40, 40, 30]]
+SOURCES = {
+    "brep": lambda: printed.ModelSolid(brep=BRepPrimAPI_MakeBox(gp_Pnt(*BOX[0]), gp_Pnt(*BOX[1])).Shape()),
+    "mesh": lambda: _mesh_source(trimesh.creation.box(bounds=BOX)),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(SOURCES))
+def test_brick_inside_part_is_the_brick_with_all_studs(kind):
+    lay = _layout([Brick(0, "3001", (2, 4, 3), (0, 0, 0))])
+    part = printed.build_part("P1", lay.bricks, lay, SOURCES[kind](), engrave=False)
+    ref = brick_solid(2, 4, 3).shape.Volume()
+    assert part.volume_mm3 == pytest.approx(ref, rel=2e-3 if kind == "mesh" else 1e-9)
+    assert len(part.complete_studs) == 8 and not part.incomplete_studs
+    assert not part.incomplete_tubes and len(part.complete_tubes) == 4  # 3 tubes + cavity
+    assert part.mesh.is_watertight and part.pieces == 1
+
+
+@pytest.mark.parametrize("kind", ["brep", "mesh"])
+def test_sphere_cutting_a_brick_keeps_inner_studs_only(kind):
+    # Sphere centred on stud (0, 0) of a 2x2 brick, radius reaching over studs (0,0) and
+    # (1,0)/(0,1) partially: stud (0,0) whole, (1,1) removed, the others cut.
+    centre, radius = (4.0, 4.0, 9.6), 9.0
+    if kind == "brep":
+        source = printed.ModelSolid(brep=BRepPrimAPI_MakeSphere(gp_Pnt(*centre), radius).Shape())
+    else:
+        sphere = trimesh.creation.icosphere(subdivisions=5, radius=radius)
+        sphere.apply_translation(centre)
+        source = _mesh_source(sphere)
+    lay = _layout([Brick(0, "3003", (2, 2, 3), (0, 0, 0))])
+    part = printed.build_part("P1", lay.bricks, lay, source, engrave=False)
+    assert part.complete_studs == ["0:stud:0,0"]
+    assert set(part.incomplete_studs) == {"0:stud:0,1", "0:stud:1,0", "0:stud:1,1"}
+    assert part.top_ok[(0, 0, 2)] and not part.top_ok[(1, 1, 2)]
+
+
+@pytest.mark.parametrize("kind", sorted(SOURCES))
+def test_merged_part_has_no_internal_faces_and_the_union_volume(kind):
+    bricks = [Brick(0, "3001", (2, 4, 3), (0, 0, 0)), Brick(1, "3001", (2, 4, 3), (2, 0, 0))]
+    lay = _layout(bricks)
+    part = printed.build_parts(lay, [[0, 1]], SOURCES[kind](), engrave=False)[0]
+    union = (brick_solid(2, 4, 3, flush={"side+x"}).shape.Volume()
+             + brick_solid(2, 4, 3, origin=(16, 0, 0), flush={"side-x"}).shape.Volume())
+    assert part.volume_mm3 == pytest.approx(union, rel=2e-3 if kind == "mesh" else 1e-6)
+    assert len(part.complete_studs) == 16 and part.pieces == 1
+    if kind == "brep":
+        for face in face_list(part.solid):
+            xs = [v.X for v in cq.Face(face).Vertices()]
+            assert not np.allclose(xs, 16.0), "a face lies on the plane between the bricks"
+    else:
+        assert not np.any(np.all(np.isclose(part.mesh.triangles[:, :, 0], 16.0), axis=1))
+
+
+def test_stacked_bricks_merge_without_internal_void():
+    bricks = [Brick(0, "3001", (2, 4, 3), (0, 0, 0)), Brick(1, "3001", (2, 4, 3), (0, 0, 3))]
+    lay = _layout(bricks)
+    part = printed.build_parts(lay, [[0, 1]], SOURCES["brep"](), engrave=False)[0]
+    shells = cq.Shape.cast(part.solid).Shells()
+    assert len(shells) == 1
+    assert len(part.studs) == 8 and all(s.startswith("1:") for s in part.studs)
+
+
+def test_clearance_sets_the_printed_stud_diameter():
+    lay = _layout([Brick(0, "3024", (1, 1, 1), (0, 0, 0))])
+    for clearance in (0.1, 0.4):
+        part = printed.build_part("P1", lay.bricks, lay, SOURCES["mesh"](),
+                                  BrickGeometry(clearance=clearance), engrave=False)
+        v = part.mesh.vertices
+        stud = v[v[:, 2] > 3.2 + 1e-6]
+        radius = np.hypot(stud[:, 0] - 4, stud[:, 1] - 4).max()
+        assert radius == pytest.approx((4.8 - clearance) / 2, abs=1e-3)
+
+
+def test_merge_split_and_bad_groups():
+    assert printed.merge([[1], [2], [3]], [1, 2]) == [[3], [1, 2]]
+    assert printed.split([[1, 2, 3]], [2]) == [[1, 3], [2]]
+    bricks = [Brick(0, "3024", (1, 1, 1), (0, 0, 0)), Brick(1, "3024", (1, 1, 1), (2, 0, 0))]
+    with pytest.raises(InputError):
+        printed.build_parts(_layout(bricks), [[0, 1]], SOURCES["brep"]())
+    with pytest.raises(InputError):
+        _mesh_source(trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]))
