@@ -1,0 +1,245 @@
+"""Stability stage: how a layout holds together.
+
+Two bricks are connected where one sits directly on the other with
+overlapping footprints (the studs of the lower one clamp into the upper
+one).  :func:`brick_graph` builds that graph from the layout's cell labels,
+:func:`analyse` counts its connected components against the connected
+regions of filled cells, finds the weak points (bricks whose removal splits
+their component: articulation points of the graph) and says, for every
+region that the bricks do not hold together, why.
+
+The graph kernels (:func:`component_labels`, :func:`articulation_points`)
+work on plain CSR arrays and are compiled with numba, so the layout stage
+can call them in its repair loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+from scipy import ndimage, sparse
+from scipy.sparse.csgraph import connected_components
+
+from core.model import Layout
+
+#: 6-connectivity: cells touching by a face.
+FACE_STRUCTURE = ndimage.generate_binary_structure(3, 1)
+
+
+@dataclass
+class Stability:
+    """What :func:`analyse` found out about a layout.
+
+    ``regions``: connected regions of filled cells (6-connectivity).
+    ``components``: connected components of the brick graph; a layout that
+    holds together has exactly one per region.  ``weak_points``: ids of the
+    bricks that are articulation points of the brick graph.
+    ``unconnectable``: one entry per region whose bricks form more than one
+    component, ``{"region", "components", "cells", "reason"}``.
+    """
+
+    regions: int
+    components: int
+    weak_points: list[int] = field(default_factory=list)
+    unconnectable: list[dict] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"regions": self.regions, "components": self.components,
+                "weak_points": list(self.weak_points),
+                "unconnectable": list(self.unconnectable)}
+
+
+@njit(cache=True)
+def component_labels(indptr, indices, n):
+    """Component index of every vertex of a CSR graph, numbered from 0 in vertex order."""
+    comp = np.full(n, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)
+    c = 0
+    for s in range(n):
+        if comp[s] >= 0:
+            continue
+        comp[s] = c
+        top = 0
+        stack[0] = s
+        while top >= 0:
+            v = stack[top]
+            top -= 1
+            for e in range(indptr[v], indptr[v + 1]):
+                w = indices[e]
+                if comp[w] < 0:
+                    comp[w] = c
+                    top += 1
+                    stack[top] = w
+        c += 1
+    return comp
+
+
+@njit(cache=True)
+def articulation_points(indptr, indices, n):
+    """Boolean mask of the articulation points of a simple undirected CSR graph.
+
+    Iterative Tarjan: a vertex is an articulation point when removing it
+    leaves more components than before.
+    """
+    disc = np.full(n, -1, dtype=np.int64)
+    low = np.zeros(n, dtype=np.int64)
+    parent = np.full(n, -1, dtype=np.int64)
+    pos = indptr[:-1].copy()
+    stack = np.empty(n, dtype=np.int64)
+    art = np.zeros(n, dtype=np.bool_)
+    t = 0
+    for s in range(n):
+        if disc[s] >= 0:
+            continue
+        disc[s] = t
+        low[s] = t
+        t += 1
+        top = 0
+        stack[0] = s
+        root_children = 0
+        while top >= 0:
+            v = stack[top]
+            if pos[v] < indptr[v + 1]:
+                w = indices[pos[v]]
+                pos[v] += 1
+                if disc[w] < 0:
+                    parent[w] = v
+                    disc[w] = t
+                    low[w] = t
+                    t += 1
+                    top += 1
+                    stack[top] = w
+                    if v == s:
+                        root_children += 1
+                elif w != parent[v] and disc[w] < low[v]:
+                    low[v] = disc[w]
+            else:
+                top -= 1
+                p = parent[v]
+                if p >= 0:
+                    if low[v] < low[p]:
+                        low[p] = low[v]
+                    if p != s and low[v] >= disc[p]:
+                        art[p] = True
+        if root_children >= 2:
+            art[s] = True
+    return art
+
+
+def regions(filled: np.ndarray) -> tuple[np.ndarray, int]:
+    """Label the connected regions of filled cells (6-connectivity): ``(labels, count)``; 0 is empty."""
+    lab, n = ndimage.label(filled, structure=FACE_STRUCTURE)
+    return lab, int(n)
+
+
+def brick_graph(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) -> sparse.csr_matrix:
+    """Symmetric adjacency (0/1) between bricks, indexed by position in ``layout.bricks``.
+
+    Two bricks are adjacent where one sits directly on the other with
+    overlapping footprints; bricks side by side in a layer are not.
+    ``clamp`` (optional, for printed bricks) is a pair of grid-shaped bool
+    arrays ``(studs_ok, bottom_ok)``: a contact between cell (i, j, k) and
+    the cell above counts only where ``studs_ok[i, j, k]`` (the lower
+    brick's stud there is complete) and ``bottom_ok[i, j, k + 1]`` (the
+    upper brick's underside there is complete); None means all complete.
+    """
+    return _graph_of_labels(layout.labels(), len(layout.bricks), clamp)
+
+
+def _graph_of_labels(lab: np.ndarray, n: int,
+                     clamp: tuple[np.ndarray, np.ndarray] | None = None) -> sparse.csr_matrix:
+    """The brick graph of a grid of brick indices (-1 empty), vectorised over cells."""
+    lower = lab[:, :, :-1].ravel()
+    upper = lab[:, :, 1:].ravel()
+    touch = (lower >= 0) & (upper >= 0) & (lower != upper)
+    if clamp is not None:
+        studs_ok, bottom_ok = clamp
+        touch &= np.asarray(studs_ok, bool)[:, :, :-1].ravel() & np.asarray(bottom_ok, bool)[:, :, 1:].ravel()
+    rows = np.concatenate([lower[touch], upper[touch]])
+    cols = np.concatenate([upper[touch], lower[touch]])
+    graph = sparse.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n, n))
+    graph.sum_duplicates()
+    graph.data[:] = 1
+    return graph
+
+
+def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) -> Stability:
+    """Count regions and brick components, find weak points and explain splits.
+
+    ``clamp`` is passed to the brick graph (see :func:`brick_graph`): printed
+    bricks connect only through their complete studs and undersides.
+
+    Promises: ``components >= regions`` (a component never spans two
+    regions); ``weak_points`` are brick ids sorted ascending; one
+    ``unconnectable`` entry for every region held by more than one
+    component, in region order.
+    """
+    filled = np.asarray(layout.grid.filled, dtype=bool)
+    region_lab, n_regions = regions(filled)
+    n = len(layout.bricks)
+    if n == 0:
+        return Stability(n_regions, 0)
+    lab = layout.labels()
+    graph = _graph_of_labels(lab, n, clamp)
+    n_comp, comp = connected_components(graph, directed=False)
+    art = articulation_points(graph.indptr.astype(np.int64), graph.indices.astype(np.int64), n)
+    weak = sorted(layout.bricks[b].id for b in np.flatnonzero(art))
+    brick_region = np.array([region_lab[b.cell] for b in layout.bricks], dtype=np.int64)
+    pairs = np.unique(np.stack([brick_region, comp], axis=1), axis=0)
+    per_region = np.bincount(pairs[:, 0], minlength=n_regions + 1)
+    boxes = ndimage.find_objects(region_lab)
+    unconnectable = []
+    for r in np.flatnonzero(per_region > 1):
+        box = boxes[r - 1]
+        region = region_lab[box] == r
+        unconnectable.append({
+            "region": int(r),
+            "components": int(per_region[r]),
+            "cells": int(np.count_nonzero(region)),
+            "reason": _why_split(filled[box], region, lab[box], comp, box[2].start),
+        })
+    return Stability(n_regions, int(n_comp), weak, unconnectable)
+
+
+def _why_split(filled: np.ndarray, region: np.ndarray, lab: np.ndarray, comp: np.ndarray,
+               k0: int) -> str:
+    """One sentence on why the bricks of ``region`` form several components.
+
+    The arrays are cut to the region's bounding box, whose lowest layer is
+    ``k0``.  A region of one layer is a sheet: its plates touch nothing
+    above or below.  Otherwise look at the cells where two components meet
+    side by side: where no such pair has both cells filled in the layer
+    above or both in the layer below, no part can span the seam and the
+    split is in the geometry; else a part could have bridged it and the
+    layout did not manage to.
+    """
+    layers = np.flatnonzero(region.any(axis=(0, 1)))
+    if layers.size == 1:
+        xs, ys = np.nonzero(region[:, :, layers[0]])
+        w, d = int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1
+        return (f"layer {k0 + int(layers[0])} is a single plate layer {w} x {d} studs with nothing "
+                "above or below: no part can span it, so its plates cannot be joined")
+    cl = np.where(region & (lab >= 0), comp[np.maximum(lab, 0)], -1)
+    seam_layers: set[int] = set()
+    spannable = 0
+    for axis in (0, 1):
+        a = [slice(None)] * 3
+        b = [slice(None)] * 3
+        a[axis] = slice(None, -1)
+        b[axis] = slice(1, None)
+        ca, cb = cl[tuple(a)], cl[tuple(b)]
+        seam = (ca >= 0) & (cb >= 0) & (ca != cb)
+        both = filled[tuple(a)] & filled[tuple(b)]
+        across = np.zeros_like(both)
+        across[:, :, :-1] |= both[:, :, 1:]
+        across[:, :, 1:] |= both[:, :, :-1]
+        spannable += int(np.count_nonzero(seam & across))
+        seam_layers.update(k0 + int(k) for k in np.flatnonzero(seam.any(axis=(0, 1))))
+    where = ", ".join(str(k) for k in sorted(seam_layers)[:6]) + (" ..." if len(seam_layers) > 6 else "")
+    if spannable == 0:
+        return (f"its parts touch only side by side in layer(s) {where} with nothing "
+                "filled across the seam above or below: no part can span it")
+    return (f"its parts touch side by side in layer(s) {where}; a part above or below "
+            f"could span {spannable} seam cell(s) there but the layout did not manage to")
