@@ -195,6 +195,7 @@ def report(fab: Fabrication) -> dict:
             "components": st.components,
             "weak_points": len(st.weak_points),
             "weak_point_bricks": list(st.weak_points),
+            "weak_points_holding_only_leaf_bricks": len(st.leaf_supports),
             "unconnectable": list(st.unconnectable),
             "incomplete_studs": incomplete,
         },

@@ -36,6 +36,9 @@ class Stability:
     ``components``: connected components of the brick graph; a layout that
     holds together has exactly one per region.  ``weak_points``: ids of the
     bricks that are articulation points of the brick graph.
+    ``leaf_supports``: those weak points that only hold single leaf bricks
+    (a brick resting on, or carrying, nothing but them); every other weak
+    point carries a substructure of two or more bricks.
     ``unconnectable``: one entry per region whose bricks form more than one
     component, ``{"region", "components", "cells", "reason"}``.
     """
@@ -44,10 +47,12 @@ class Stability:
     components: int
     weak_points: list[int] = field(default_factory=list)
     unconnectable: list[dict] = field(default_factory=list)
+    leaf_supports: list[int] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {"regions": self.regions, "components": self.components,
                 "weak_points": list(self.weak_points),
+                "leaf_supports": list(self.leaf_supports),
                 "unconnectable": list(self.unconnectable)}
 
 
@@ -186,6 +191,8 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
     n_comp, comp = connected_components(graph, directed=False)
     art = articulation_points(graph.indptr.astype(np.int64), graph.indices.astype(np.int64), n)
     weak = sorted(layout.bricks[b].id for b in np.flatnonzero(art))
+    leaf_only = art & ~_carries_substructure(graph)
+    leaf_supports = sorted(layout.bricks[b].id for b in np.flatnonzero(leaf_only))
     brick_region = np.array([region_lab[b.cell] for b in layout.bricks], dtype=np.int64)
     pairs = np.unique(np.stack([brick_region, comp], axis=1), axis=0)
     per_region = np.bincount(pairs[:, 0], minlength=n_regions + 1)
@@ -200,7 +207,23 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
             "cells": int(np.count_nonzero(region)),
             "reason": _why_split(filled[box], region, lab[box], comp, box[2].start),
         })
-    return Stability(n_regions, int(n_comp), weak, unconnectable)
+    return Stability(n_regions, int(n_comp), weak, unconnectable, leaf_supports)
+
+
+def _carries_substructure(graph: sparse.csr_matrix) -> np.ndarray:
+    """Per brick: is it an articulation point once all leaf bricks are removed?
+
+    A brick that splits the graph only by cutting off single leaf bricks
+    (degree 1) stops being an articulation point without them; one that
+    cuts off two or more bricks stays one.
+    """
+    n = graph.shape[0]
+    keep = np.flatnonzero(np.diff(graph.indptr) != 1)
+    sub = graph[keep][:, keep].tocsr()
+    art = articulation_points(sub.indptr.astype(np.int64), sub.indices.astype(np.int64), len(keep))
+    out = np.zeros(n, dtype=bool)
+    out[keep[np.asarray(art, dtype=bool)]] = True
+    return out
 
 
 def _why_split(filled: np.ndarray, region: np.ndarray, lab: np.ndarray, comp: np.ndarray,

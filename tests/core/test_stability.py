@@ -136,3 +136,20 @@ def test_empty_layout():
 def test_layout_of_a_block_analyses_as_one_piece(shape):
     stab = analyse(lay_out(Grid(np.zeros(3), np.array(CELL_MM), np.ones(shape, bool))))
     assert (stab.regions, stab.components) == (1, 1)
+
+
+def test_leaf_supports_tell_single_leaves_from_substructures():
+    """A brick holding one leaf brick is a weak point that only supports a leaf;
+    a brick holding a stack of two is a weak point carrying a substructure."""
+    filled = np.zeros((8, 1, 4), bool)
+    bricks = [Brick(0, "3460", (8, 1, 1), (0, 0, 0)),       # base 1x8 plate
+              Brick(1, "3024", (1, 1, 1), (0, 0, 1)),       # support A on the base
+              Brick(2, "3024", (1, 1, 1), (0, 0, 2)),       # leaf on A
+              Brick(3, "3024", (1, 1, 1), (7, 0, 1)),       # support B on the base
+              Brick(4, "3024", (1, 1, 1), (7, 0, 2)),       # stack on B ...
+              Brick(5, "3024", (1, 1, 1), (7, 0, 3))]       # ... of two bricks
+    for b in bricks:
+        filled[b.slices()] = True
+    st = analyse(Layout(Grid(np.zeros(3), np.array(CELL_MM), filled), bricks))
+    assert st.weak_points == [0, 1, 3, 4]
+    assert st.leaf_supports == [1, 4]
