@@ -1,12 +1,14 @@
 """Validation benchmark of printed parts (paper, "VALIDATION"): `make bench`.
 
 For each model with precision features, the high-res regions a designer
-would choose are written down below as boxes, in fractions of the model's
-bounding box (0 = min, 1 = max per axis; turned into model mm at run time),
-each with a comment saying what it is meant to keep exact.  For each model
-the table gives the whole model's print time, the printed parts' time (one
-plate), the bricks, the assembly estimate and the speed-up as the paper
-defines it: full print time / (parts print time + assembly).
+would choose are written down below as boxes in model mm (as loaded: the
+file's coordinates), each with a comment saying which feature it covers and
+where that feature was found (cross-sections of the model: round holes and
+bosses, their diameter and extent; CATALOG.md of the models lists the same
+"slice probe" holes).  For each model the table gives the whole model's
+print time, the printed parts' time (one plate), the LEGO bricks, the
+printed parts, the assembly estimate and the speed-up as the paper defines
+it: full print time / (parts print time + assembly).
 """
 
 from __future__ import annotations
@@ -20,46 +22,61 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core import mesh_io, pipeline  # noqa: E402
+from core import pipeline  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 OUT = ROOT / "bench" / "out"
 
-#: model file -> list of (box in bbox fractions (min xyz, max xyz), what it keeps exact).
+#: model file -> list of (box "X0,Y0,Z0,X1,Y1,Z1" in model mm, the feature it keeps exact).
 REGIONS = {
+    # Tube-shaped shell along y (x -88.5..88.5, y -35..57.7, z -42..42).  Four
+    # corner seats at x = +-65, z = +-30, y 26.25..30.25, each a 4 mm gusset
+    # plate with an M3 pilot hole (round hole d 2.8 along y): they carry the
+    # lens (eyes) panel.  One box per side, each holding its two seats (the
+    # air between them marks nothing).
     MODELS / "relativty_hmd_body.stl": [
-        ((0.35, 0.0, 0.0), (0.65, 0.25, 0.25), "screen/lens panel seat, front bottom edge"),
-        ((0.85, 0.4, 0.75), (1.0, 0.8, 1.0), "M3 screw seat on the right top corner"),
+        ("-72,24.5,-37,-58,32,37", "left lens-panel screw seats (x -65, z +-30, M3 d2.8)"),
+        ("58,24.5,-37,72,32,37", "right lens-panel screw seats (x 65, z +-30, M3 d2.8)"),
     ],
+    # Lens plate at y ~ 2..14 with two stepped lens bores (d 37.6 / 40.1 / 42.6,
+    # centres x 33 and 108, z 38) and the bayonet slots around them (y ~ 2).
     MODELS / "vr_phone_headset.stl": [
-        ((0.15, 0.7, 0.35), (0.4, 1.0, 0.65), "left lens bore with its bayonet slots"),
-        ((0.6, 0.7, 0.35), (0.85, 1.0, 0.65), "right lens bore with its bayonet slots"),
+        ("9,-1,14,57,15,62", "left lens bore with its bayonet slots (centre x 33, z 38)"),
+        ("84,-1,13,132,15,61", "right lens bore with its bayonet slots (centre x 108, z 37)"),
     ],
+    # Chassis floor z 0..4 with walls; six full-height screw seats (bosses with
+    # a d 3.4 hole through z 4.4..27.5 and a d 11.5 counterbore at the top) join
+    # the bottom to the top body.  One box per seat.
     MODELS / "openbot_body_bottom.step": [
-        ((0.0, 0.0, 0.0), (0.12, 0.2, 1.0), "front-left motor mount screw bosses"),
-        ((0.88, 0.8, 0.0), (1.0, 1.0, 1.0), "rear-right motor mount screw bosses"),
+        ("-95,-42,0,-81,-28,29.5", "screw seat, rear left (x -88, y -35)"),
+        ("-95,44,0,-81,58,29.5", "screw seat, rear right (x -88, y 51)"),
+        ("7,-62,0,21,-48,29.5", "screw seat, middle left (x 14, y -55)"),
+        ("7,64,0,21,78,29.5", "screw seat, middle right (x 14, y 71)"),
+        ("109,-42,0,123,-28,29.5", "screw seat, front left (x 116, y -35)"),
+        ("109,44,0,123,58,29.5", "screw seat, front right (x 116, y 51)"),
     ],
+    # Block x 0..~30 with the mounting screws; from x ~ 30 to 92 a C-shaped rail
+    # channel (inside y 3..17, z 3..19) open at y 17..20 between lips at z < 6 and
+    # z > 16.  In the channel at x ~ 36 a waisted boss (round pin d 4.9..7.5
+    # along y, centre z 11) is the screw boss of the sliding phone holder.
     MODELS / "openbot_phone_mount.stl": [
-        ((0.0, 0.0, 0.5), (1.0, 0.35, 1.0), "sliding rail channel along the top"),
+        ("30,14,0,92,20.5,22", "rail: the channel's lips and their outer wall (y 14..20)"),
+        ("30,0,4,44,14,18", "screw boss in the channel (x ~ 36, z 11)"),
     ],
+    # Tray 10 mm thick (z -5..5), its round end of radius 40 centred at x 0, y 0;
+    # the bottle seat is the conical pocket there (d ~ 50 at z -2, 56 at z 0,
+    # 62 at z 4) over a 3 mm floor.  The box holds the pocket's wall ring
+    # above the grid's first layer (z > -1.8); the flat floor stays LEGO.
     MODELS / "soap_dispenser_holder.stl": [
-        ((0.3, 0.3, 0.0), (0.7, 0.7, 1.0), "bottle seat ring in the middle"),
+        ("-41,-41,-1.7,36,36,5", "bottle seat: the pocket's wall ring above the floor"),
     ],
+    # examples/hmd.py: lens plate y 32..35 with two ring bosses (d 43, y 26..32)
+    # round the lens bores (d 37) at x = +-31.5, z 48.
     ROOT / "examples" / "build" / "hmd.step": [
-        ((0.1, 0.7, 0.6), (0.35, 1.0, 0.9), "left lens mount"),
-        ((0.65, 0.7, 0.6), (0.9, 1.0, 0.9), "right lens mount"),
+        ("-54,25,25.5,-9,36,70.5", "left lens mount (ring boss and seat bore, x -31.5, z 48)"),
+        ("9,25,25.5,54,36,70.5", "right lens mount (ring boss and seat bore, x 31.5, z 48)"),
     ],
 }
-
-
-def boxes_mm(path: Path, fractions) -> list[str]:
-    """The fraction boxes of ``path`` as "X0,Y0,Z0,X1,Y1,Z1" strings in model mm."""
-    lo, hi = mesh_io.load_model(path).mesh.bounds
-    out = []
-    for a, b, _ in fractions:
-        p0, p1 = lo + np.array(a) * (hi - lo), lo + np.array(b) * (hi - lo)
-        out.append(",".join(f"{v:.3f}" for v in (*p0, *p1)))
-    return out
 
 
 def main() -> int:
@@ -68,12 +85,12 @@ def main() -> int:
         print(f"skipped: {MODELS} not found")
         return 0
     rows, gains = [], []
-    for path, fractions in REGIONS.items():
+    for path, regions in REGIONS.items():
         if not path.exists():
             print(f"skipped {path.name}: not found (run `make demo` for hmd.step)")
             continue
         start = time.perf_counter()
-        doc = pipeline.fabricate(path, OUT / path.stem, high_res=boxes_mm(path, fractions),
+        doc = pipeline.fabricate(path, OUT / path.stem, high_res=[box for box, _ in regions],
                                  picture=False)
         pt = doc["print_time_s"]
         if pt is None:

@@ -7,18 +7,24 @@ volume; every brick with a touched filled cell becomes printed (paper,
 "Converting Lego bricks into 3D printable bricks").  By default the marked
 bricks of one connected region form one printed part (:func:`groups`);
 bricks are connected when they touch face to face, side by side or one on
-the other with overlapping footprints.
+the other with overlapping footprints.  Marks by box or solid are made
+before the layout: :func:`lay_out_around` lays out the marked cells and the
+rest separately, so printed and LEGO bricks meet cleanly on the region's
+boundary and a printed part is no larger than the cells the region touches.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from core import layout as layout_stage
 from core import mesh_io, voxelize
+from core.catalog import CATALOG, Part
 from core.errors import InputError
 from core.model import Grid, Layout
 
@@ -82,6 +88,25 @@ def marked_cells(grid: Grid, boxes=(), solids=(), units: str = "mm",
     for path in solids:
         out |= solid_cells(grid, path, units=units, scale=scale)
     return out & np.asarray(grid.filled, dtype=bool)
+
+
+def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,
+                   seed: int = 0) -> Layout:
+    """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
+
+    The filled cells outside ``cells`` and those inside are laid out on
+    their own (:func:`core.layout.lay_out`, same parts and seed), and the two
+    brick lists joined (ids renumbered 0..n-1, the outside bricks first).
+    So the bricks touching ``cells`` cover exactly the marked filled cells.
+    """
+    filled = np.asarray(grid.filled, dtype=bool)
+    inside = filled & np.asarray(cells, dtype=bool)
+    bricks = []
+    for mask in (filled & ~inside, inside):
+        if mask.any():
+            part = layout_stage.lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed)
+            bricks += part.bricks
+    return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])
 
 
 def touched_bricks(layout: Layout, cells: np.ndarray) -> list[int]:

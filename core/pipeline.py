@@ -64,7 +64,10 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     ``high_res`` are boxes (``"X0,Y0,Z0,X1,Y1,Z1"`` strings or (2, 3)
     arrays, model mm), ``high_res_solids`` region solid files (in ``units``),
     ``high_res_bricks`` brick ids: every brick they touch becomes printed,
-    one printed part per connected group (:mod:`core.high_res`,
+    one printed part per connected group; boxes and solids are marked before
+    the layout, which then keeps its bricks inside or outside the marked
+    cells (:func:`core.high_res.lay_out_around`; brick ids refer to that
+    layout) (:mod:`core.high_res`,
     :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter).  With
     printed parts and ``slice_parts``, the whole model and the plate of all
     printed parts are print-timed (:func:`core.print_time.print_time`); the
@@ -94,12 +97,15 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
     boxes = [high_res_stage.parse_box(b) if isinstance(b, str) else b for b in high_res]
-    layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
+    cells = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
+                  units=units, scale=scale)
+    if cells.any():
+        layout = timed("layout", 0.4, high_res_stage.lay_out_around, grid, cells, chosen, seed=seed)
+    else:
+        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
     made: list[printed_stage.PrintedPart] = []
     clamp = None
-    if boxes or high_res_solids or high_res_bricks:
-        cells = timed("high_res", 0.6, high_res_stage.marked_cells, grid, boxes, high_res_solids,
-                      units=units, scale=scale)
+    if cells.any() or high_res_bricks:
         ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
         groups = high_res_stage.groups(layout, ids)
         if groups:

@@ -36,6 +36,7 @@ tubes"):
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import cadquery as cq
@@ -43,11 +44,13 @@ import manifold3d as m3
 import numpy as np
 import trimesh
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 from OCP.gp import gp_Pnt
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.TopAbs import TopAbs_SOLID
+from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.TopTools import TopTools_ListOfShape
@@ -60,7 +63,17 @@ from core.mesh_io import LoadedModel
 from core.model import Brick, Layout
 
 #: Depth (mm) of the engraved part id.
-ENGRAVE_DEPTH_MM = 0.4
+ENGRAVE_DEPTH_MM = 0.5
+#: Wall (mm) that must stay behind the engraved letters.
+ENGRAVE_KEEP_MM = 0.4
+#: Free border (mm) around the text on its side face.
+ENGRAVE_MARGIN_MM = 0.4
+#: Font sizes (mm) tried for the id, largest first.
+ENGRAVE_FONT_SIZES = (5.0, 4.0, 3.0, 2.5)
+#: How far (mm) the cutting text starts outside the face (no coplanar Boolean faces).
+ENGRAVE_OVERSHOOT_MM = 0.2
+#: The font of the id (DejaVu Sans Bold, Debian fonts-dejavu-core).
+ENGRAVE_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
 #: Tolerance (mm) when assigning mesh triangles to studs, tubes and cavities.
 FEATURE_TOL_MM = 0.02
 #: Relative area a mesh feature may lose to rounding and still count as whole.
@@ -90,8 +103,11 @@ class PrintedPart:
     ``"<brick>:tube:a,b"``, ``"<brick>:pin:a"``, ``"<brick>:cavity"``) of the
     exposed features to True when complete.  ``top_ok`` / ``bottom_ok`` map a
     grid cell (i, j, k) of a brick's top / bottom layer to whether a brick
-    above / below can clamp there.  ``stl``, ``step`` and ``print_s`` are
-    filled by export and print time.
+    above / below can clamp there.  ``engraved`` says whether the id is cut
+    into a side; ``engraving`` is then a dict saying where (brick, side,
+    centre, outward normal, text size, font size, depth), else the reason
+    why not.  ``stl``, ``step`` and ``print_s`` are filled by export and
+    print time.
     """
 
     id: str
@@ -106,6 +122,7 @@ class PrintedPart:
     bottom_ok: dict[tuple[int, int, int], bool] = field(default_factory=dict)
     pieces: int = 1
     engraved: bool = False
+    engraving: dict | str = "not engraved: engraving switched off"
     stl: str | None = None
     step: str | None = None
     print_s: float | None = None
@@ -136,6 +153,7 @@ class PrintedPart:
             "incomplete_studs": self.incomplete_studs,
             "incomplete_tubes": self.incomplete_tubes,
             "engraved": self.engraved,
+            "engraving": self.engraving,
         }
 
 
@@ -147,9 +165,7 @@ def model_solid(model: LoadedModel) -> ModelSolid:
     """
     if model.brep is not None:
         return ModelSolid(brep=model.brep)
-    mesh = model.mesh
-    manifold = m3.Manifold(m3.Mesh64(vert_properties=np.ascontiguousarray(mesh.vertices, np.float64),
-                                     tri_verts=np.ascontiguousarray(mesh.faces, np.uint64)))
+    manifold = _manifold(model.mesh)
     if manifold.status() != m3.Error.NoError or manifold.is_empty():
         raise InputError(f"{model.path}: the mesh is not a closed manifold solid "
                          f"({manifold.status().name}), so printed parts cannot be cut from it")
@@ -228,6 +244,7 @@ class _Member:
     studs: list[tuple[int, int]]
     tubes: list[str]
     cavity: bool
+    open_sides: dict[str, float]
 
 
 def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelSolid,
@@ -262,7 +279,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
         for face, tag in tagged:
             hit = common.IsDeleted(face) or common.Modified(face).Size() > 0
             cut[tag] = cut.get(tag, False) or hit
-        solid = _unify(result)
+        solid = _unify(BRepBuilderAPI_Copy(result).Shape())
         if _count_solids(solid) == 0:
             raise InputError(f"printed part {part_id}: the model does not reach into its bricks")
         mesh = to_trimesh(solid)
@@ -305,8 +322,20 @@ def _members(bricks: list[Brick], layout: Layout, geometry: BrickGeometry) -> li
             tubes = [f"pin:{a}" for a in range(max(sx, sy) - 1) if not line[a:a + 2].any()]
         origin = grid.origin + np.array(b.cell) * grid.cell
         out.append(_Member(b, origin, tuple(sorted(flush & set(SIDE_TAGS))), studs, tubes,
-                           not below.all()))
+                           not below.all(), _open_sides(grid.filled, b)))
     return out
+
+
+def _open_sides(filled: np.ndarray, b: Brick) -> dict[str, float]:
+    """Per outer side of brick ``b``, the fraction of the cells just across it that are
+    empty (1.0 at the grid's border): how visible that side is on the finished model."""
+    i, j, k = b.cell
+    sx, sy, sz = b.size
+    padded = np.pad(np.asarray(filled, dtype=bool), 1)
+    i, j, k = i + 1, j + 1, k + 1
+    across = {"side-x": padded[i - 1, j:j + sy, k:k + sz], "side+x": padded[i + sx, j:j + sy, k:k + sz],
+              "side-y": padded[i:i + sx, j - 1, k:k + sz], "side+y": padded[i:i + sx, j + sy, k:k + sz]}
+    return {side: float(1.0 - cells.mean()) for side, cells in across.items()}
 
 
 def _fillers(members: list[_Member], geometry: BrickGeometry) -> list[TopoDS_Shape]:
@@ -346,7 +375,7 @@ def _run(op, argument, tools):
     """Run an OCC Boolean with history; its result shape."""
     op.SetArguments(_listed([argument]))
     op.SetTools(_listed(tools))
-    op.SetRunParallel(False)
+    op.SetRunParallel(True)
     op.SetToFillHistory(True)
     op.Build()
     if not op.IsDone():
@@ -388,8 +417,7 @@ def _mesh_common(envelope: TopoDS_Shape, members: list[_Member], model: m3.Manif
     """Envelope ∩ model with manifold3d, the model cropped to the envelope's box first;
     the result mesh and, per feature tag, whether it was cut (lost area)."""
     env_mesh = to_trimesh(envelope)
-    env = m3.Manifold(m3.Mesh64(vert_properties=np.ascontiguousarray(env_mesh.vertices, np.float64),
-                                tri_verts=np.ascontiguousarray(env_mesh.faces, np.uint64))).as_original()
+    env = _manifold(env_mesh).as_original()
     if env.status() != m3.Error.NoError:
         raise InputError("the printed part's brick envelope could not be meshed as a solid")
     lo, hi = env_mesh.bounds
@@ -505,4 +533,170 @@ def _tube_touches(tag: str, a: int, c: int) -> bool:
 
 
 def _engrave(part: PrintedPart, members: list[_Member], geometry: BrickGeometry) -> None:
-    """Cut the part id ENGRAVE_DEPTH_MM deep into an outer flat side where it fits."""
+    """Cut the part id ENGRAVE_DEPTH_MM deep into an outer flat side where it fits.
+
+    Candidates are the non-flush outer sides of the part's bricks: those that
+    take the largest text first, then those on the outside of the model (no
+    filled cells across them), then the largest.  For each, the biggest of
+    ENGRAVE_FONT_SIZES whose text (plus ENGRAVE_MARGIN_MM) fits the side is
+    placed centred on it, and the side is
+    taken only when the slab behind the text, ENGRAVE_DEPTH_MM +
+    ENGRAVE_KEEP_MM deep, lies wholly inside the part: then the part still
+    has the flat side there (the intersection did not cut it away) and at
+    least ENGRAVE_KEEP_MM of wall stays behind the letters.  Sets
+    ``engraved``, ``engraving`` (where, or why not) and updates the part's
+    solid, mesh and volume.
+    """
+    g = geometry
+    if ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM > g.printed_wall + 1e-9:
+        part.engraving = (f"not engraved: walls of {g.printed_wall:.2f} mm are too thin for "
+                          f"{ENGRAVE_DEPTH_MM} mm deep text")
+        return
+    if part.solid is None and _manifold(part.mesh).status() != m3.Error.NoError:
+        part.engraving = "not engraved: the part's mesh is not a closed manifold"
+        return
+    sizes = {f: _text_size(part.id, f) for f in ENGRAVE_FONT_SIZES}
+    candidates = []
+    for m in members:
+        for side in SIDE_TAGS:
+            if side in m.flush:
+                continue
+            face = _side_face(m, side, g)
+            fits = [f for f in ENGRAVE_FONT_SIZES
+                    if sizes[f][0] + 2 * ENGRAVE_MARGIN_MM <= face["width"]
+                    and sizes[f][1] + 2 * ENGRAVE_MARGIN_MM <= face["height"]]
+            if fits:
+                candidates.append((-max(fits), -m.open_sides[side], -face["width"] * face["height"],
+                                   m.brick.id, SIDE_TAGS.index(side), face, max(fits)))
+    candidates.sort(key=lambda c: c[:5])
+    inside = _inside_test(part)
+    for *_, face, font in candidates:
+        width, height = sizes[font]
+        behind = ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM
+        if not inside(_slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, behind)):
+            continue
+        text = _text_solid(part.id, font, face)
+        if part.solid is not None:
+            solid = _unify(_run(BRepAlgoAPI_Cut(), part.solid, [text]))
+            part.solid, part.mesh = solid, to_trimesh(solid)
+            part.volume_mm3 = float(cq.Shape.cast(solid).Volume())
+            part.pieces = _count_solids(solid)
+        else:
+            cut = _manifold(part.mesh) - _manifold(to_trimesh(text))
+            out = cut.to_mesh64()
+            mesh = trimesh.Trimesh(np.asarray(out.vert_properties, np.float64)[:, :3],
+                                   np.asarray(out.tri_verts, np.int64), process=False)
+            mesh.merge_vertices()
+            part.mesh, part.volume_mm3, part.pieces = mesh, float(cut.volume()), int(mesh.body_count)
+        part.engraved = True
+        part.engraving = {"brick": face["brick"], "side": face["side"],
+                          "centre_mm": [round(float(v), 4) for v in face["centre"]],
+                          "normal": [float(v) for v in face["normal"]],
+                          "text_mm": [round(width, 3), round(height, 3)],
+                          "font_size_mm": font, "depth_mm": ENGRAVE_DEPTH_MM}
+        return
+    part.engraving = ("not engraved: no outer flat side large enough for the id"
+                      if not candidates else
+                      "not engraved: no outer side large enough stays whole after the intersection")
+
+
+def _side_face(m: _Member, side: str, g: BrickGeometry) -> dict:
+    """The outer side ``side`` of member ``m``: centre, outward normal, horizontal
+    reading direction, width and height (mm) of its flat body (studs excluded)."""
+    b, (ox, oy, oz) = m.brick, m.origin
+    sx, sy, sz = b.size
+    axis = 0 if side[-1] == "x" else 1
+    sign = 1.0 if side[-2] == "+" else -1.0
+    lo = np.array([ox + g.play, oy + g.play, oz])
+    hi = np.array([ox + sx * g.pitch - g.play, oy + sy * g.pitch - g.play, oz + sz * g.plate_height])
+    centre = (lo + hi) / 2
+    centre[axis] = hi[axis] if sign > 0 else lo[axis]
+    normal = np.zeros(3)
+    normal[axis] = sign
+    return {"brick": b.id, "side": side, "centre": centre, "normal": normal,
+            "right": np.cross([0.0, 0.0, 1.0], normal),
+            "width": float(hi[1 - axis] - lo[1 - axis]), "height": float(hi[2] - lo[2])}
+
+
+def _font_path() -> str | None:
+    """The bundled-with-Debian DejaVu Sans Bold font when present (else cadquery's default)."""
+    return ENGRAVE_FONT if os.path.exists(ENGRAVE_FONT) else None
+
+
+def _text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.Shape:
+    """``text`` at ``font`` size centred at the plane's origin, extruded ``distance``
+    along the plane's normal (negative: into the part)."""
+    kwargs = {"fontPath": _font_path()} if _font_path() else {}
+    return cq.Workplane(plane).text(text, font, distance, combine=False, halign="center",
+                                    valign="center", kind="bold", **kwargs).val()
+
+
+def _text_size(text: str, font: float) -> tuple[float, float]:
+    """Width and height (mm) of ``text`` set at ``font`` size."""
+    box = _text_shape(text, font, cq.Plane.XY(), 1.0).BoundingBox()
+    return float(box.xlen), float(box.ylen)
+
+
+def _text_solid(text: str, font: float, face: dict) -> TopoDS_Shape:
+    """The cutting tool of the engraving: ``text`` centred on ``face``, from
+    ENGRAVE_OVERSHOOT_MM outside it to ENGRAVE_DEPTH_MM into the part."""
+    start = face["centre"] + ENGRAVE_OVERSHOOT_MM * face["normal"]
+    shape = _text_shape(text, font, cq.Plane(origin=tuple(start), xDir=tuple(face["right"]),
+                                             normal=tuple(face["normal"])),
+                        -(ENGRAVE_DEPTH_MM + ENGRAVE_OVERSHOOT_MM))
+    box = shape.BoundingBox()
+    shift = face["centre"] - np.array([box.center.x, box.center.y, box.center.z])
+    shift -= np.dot(shift, face["normal"]) * face["normal"]
+    return shape.translate(cq.Vector(*shift)).wrapped
+
+
+def _slab(face: dict, width: float, height: float, depth: float) -> np.ndarray:
+    """(2, 3) min/max corners of the box of ``width`` x ``height`` centred on ``face``,
+    reaching ``depth`` behind it into the part."""
+    right, normal = np.abs(face["right"]), face["normal"]
+    half = right * width / 2 + np.array([0.0, 0.0, height / 2])
+    a = face["centre"] - half
+    b = face["centre"] + half - normal * depth
+    return np.stack([np.minimum(a, b), np.maximum(a, b)])
+
+
+def _inside_test(part: PrintedPart):
+    """A function telling whether a box ((2, 3) corners) lies wholly inside the part.
+
+    Mesh parts: a manifold3d difference (milliseconds).  B-rep parts: a
+    grid of points in the box is classified first (a cheap rejection) and a
+    box that passes is confirmed with an OCC Boolean on the exact solid.
+    """
+    if part.solid is None:
+        solid = _manifold(part.mesh)
+
+        def inside_mesh(box: np.ndarray) -> bool:
+            tool = m3.Manifold.cube(list(box[1] - box[0])).translate(list(box[0]))
+            return (tool - solid).volume() <= 1e-6 * np.prod(box[1] - box[0])
+        return inside_mesh
+    classifier = BRepClass3d_SolidClassifier(part.solid)
+
+    def inside_brep(box: np.ndarray) -> bool:
+        inset = np.minimum(0.05, (box[1] - box[0]) / 4)
+        axes = [np.linspace(a, b, 4) for a, b in zip(box[0] + inset, box[1] - inset)]
+        for point in np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3):
+            classifier.Perform(gp_Pnt(*point), 1e-6)
+            if classifier.State() != TopAbs_IN:
+                return False
+        return _inside_brep(part.solid, box)
+    return inside_brep
+
+
+def _inside_brep(shape: TopoDS_Shape, box: np.ndarray) -> bool:
+    """True when the box ((2, 3) corners) lies wholly inside the OCC solid ``shape``."""
+    tool = BRepPrimAPI_MakeBox(gp_Pnt(*box[0]), gp_Pnt(*box[1])).Shape()
+    outside = BRepAlgoAPI_Cut(tool, shape)
+    if not outside.IsDone():
+        return False
+    return float(cq.Shape.cast(outside.Shape()).Volume()) <= 1e-6 * np.prod(box[1] - box[0])
+
+
+def _manifold(mesh: trimesh.Trimesh) -> m3.Manifold:
+    """``mesh`` (closed) as a manifold3d Manifold."""
+    return m3.Manifold(m3.Mesh64(vert_properties=np.ascontiguousarray(mesh.vertices, np.float64),
+                                 tri_verts=np.ascontiguousarray(mesh.faces, np.uint64)))

@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cadquery as cq
 import manifold3d as m3
 import numpy as np
 import pytest
@@ -31,7 +32,7 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
     g = Grid(origin=np.zeros(3), cell=np.array([8.0, 8.0, 3.2]), filled=np.ones((3, 3, 6), bool))
     lay = Layout(g, [Brick(0, "3003", (2, 2, 3), (0, 0, 0)), Brick(1, "3004", (1, 2, 3), (2, 0, 0)),
                      Brick(2, "3003", (2, 2, 3), (1, 1, 3))])
-    parts = printed.build_parts(lay, [[0, 1], [2]], source, engrave=False)
+    parts = printed.build_parts(lay, [[0, 1], [2]], source)
     names = export.export_parts(parts, tmp_path / "parts")
     assert names == ["P1.stl", "P1.step", "P2.stl", "P2.step", "plate.3mf"]
     outside_model = _manifold(model)
@@ -39,7 +40,9 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
         mesh = trimesh.load(tmp_path / p.stl, force="mesh")
         assert mesh.is_watertight
         assert (_manifold(mesh) - outside_model).volume() == pytest.approx(0.0, abs=1e-3)
-        assert (tmp_path / p.step).stat().st_size > 0
+        step = cq.importers.importStep(str(tmp_path / p.step)).val()
+        assert step.isValid() and len(step.Solids()) == p.pieces
+        assert step.Volume() == pytest.approx(mesh.volume, rel=1e-6)
     plate = trimesh.load(tmp_path / "parts" / "plate.3mf")
     assert len(plate.geometry) == 2 and plate.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
 

@@ -48,3 +48,16 @@ def test_touched_bricks_and_groups():
     assert high_res.groups(lay, [3, 0, 1]) == [[0, 1, 3]]
     with pytest.raises(InputError):
         high_res.check_ids(lay, [7])
+
+
+def test_lay_out_around_keeps_bricks_inside_or_outside_the_marked_cells():
+    grid = _grid((6, 6, 6))
+    cells = high_res.box_cells(grid, [[4, 4, 1], [20, 12, 10]])
+    lay = high_res.lay_out_around(grid, cells, seed=3)
+    lab = lay.labels()
+    assert (lab >= 0).all() and [b.id for b in lay.bricks] == list(range(len(lay.bricks)))
+    for n, b in enumerate(lay.bricks):
+        inside = cells[lab == n]
+        assert inside.all() or not inside.any()
+    touched = high_res.touched_bricks(lay, cells)
+    assert sum(int(np.prod(lay.bricks[i].size)) for i in touched) == int(cells.sum())

@@ -106,3 +106,41 @@ def test_merge_split_and_bad_groups():
         printed.build_parts(_layout(bricks), [[0, 1]], SOURCES["brep"]())
     with pytest.raises(InputError):
         _mesh_source(trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]))
+
+
+def _text_area(part_id, font):
+    return printed._text_shape(part_id, font, cq.Plane.XY(), 1.0).Volume()
+
+
+@pytest.mark.parametrize("kind", sorted(SOURCES))
+def test_engraved_id_is_a_shallow_cut_on_an_outer_side(kind):
+    lay = _layout([Brick(0, "3001", (2, 4, 3), (0, 0, 0))])
+    plain = printed.build_part("P1", lay.bricks, lay, SOURCES[kind](), engrave=False)
+    part = printed.build_part("P1", lay.bricks, lay, SOURCES[kind]())
+    assert part.engraved and part.pieces == 1 and part.mesh.is_watertight
+    where = part.engraving
+    assert where["side"] in ("side-x", "side+x") and where["depth_mm"] == printed.ENGRAVE_DEPTH_MM
+    expected = _text_area("P1", where["font_size_mm"]) * printed.ENGRAVE_DEPTH_MM
+    assert plain.volume_mm3 - part.volume_mm3 == pytest.approx(expected, rel=0.03)
+    removed = _mesh_source(plain.mesh).manifold - _mesh_source(part.mesh).manifold
+    lo, hi = np.array(removed.bounding_box()[:3]), np.array(removed.bounding_box()[3:])
+    normal, centre = np.array(where["normal"]), np.array(where["centre_mm"])
+    depth_lo, depth_hi = sorted(float(np.dot(c - centre, normal)) for c in (lo, hi))
+    assert depth_hi == pytest.approx(0.0, abs=1e-6)
+    assert depth_lo == pytest.approx(-printed.ENGRAVE_DEPTH_MM, abs=1e-6)
+    _, height = where["text_mm"]
+    assert hi[2] - lo[2] == pytest.approx(height, abs=0.05)
+    assert np.allclose((lo + hi) / 2 - centre, -normal * printed.ENGRAVE_DEPTH_MM / 2, atol=0.05)
+
+
+def test_no_engraving_without_a_flat_side_says_why():
+    # A sphere of radius 3 inside a 1x1 plate leaves no flat side at all.
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=3.0)
+    sphere.apply_translation([4.0, 4.0, 1.6])
+    lay = _layout([Brick(0, "3024", (1, 1, 1), (0, 0, 0))])
+    part = printed.build_part("P1", lay.bricks, lay, _mesh_source(sphere))
+    assert not part.engraved and part.engraving.startswith("not engraved: no outer")
+    # A box inside the brick's sides cuts every side face away.
+    box = trimesh.creation.box(bounds=[[0.3, 0.3, 0], [7.7, 7.7, 3.2]])
+    part = printed.build_part("P1", lay.bricks, lay, _mesh_source(box))
+    assert not part.engraved and "stays whole" in part.engraving
