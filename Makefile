@@ -40,7 +40,7 @@ demo: examples/build/hmd.step
 test: $(VENV)/.installed
 	$(PY) -m pytest tests/core -q
 
-bench: $(VENV)/.installed
+bench: examples/build/hmd.step
 	$(PY) bench/bench.py
 	$(PY) bench/bench_printed.py
 
