@@ -397,28 +397,43 @@ def _listed(shapes) -> TopTools_ListOfShape:
     return out
 
 
-def _boolean(op, argument: TopoDS_Shape, tools: list, tagged: list) -> TopoDS_Shape:
-    """Run the Boolean ``op`` and carry ``tagged`` (face, tag) pairs through it.
+class BooleanFailed(RuntimeError):
+    """OpenCascade could not compute a Boolean."""
 
-    ``tagged`` is rewritten in place: a deleted face drops out, a modified
-    face is replaced by the faces it became (same tag), an untouched face
-    stays.
+
+def run_boolean(op, argument: TopoDS_Shape, tools: list, tagged: list | None = None,
+                parallel: bool = False) -> TopoDS_Shape:
+    """Run the OCC Boolean ``op`` (argument op tools) with history; its result shape.
+
+    ``tagged`` (face, tag) pairs, if given, are carried through in place: a
+    deleted face drops out, a modified face is replaced by the faces it
+    became (same tag), an untouched face stays.  Raises :class:`BooleanFailed`
+    when OpenCascade gives up.
     """
     op.SetArguments(_listed([argument]))
     op.SetTools(_listed(tools))
-    op.SetRunParallel(False)
+    op.SetRunParallel(parallel)
     op.SetToFillHistory(True)
     op.Build()
     if not op.IsDone():
-        raise RuntimeError("OpenCascade Boolean failed while building a brick solid")
-    carried = []
-    for face, tag in tagged:
-        if op.IsDeleted(face):
-            continue
-        modified = list(op.Modified(face))
-        carried += [(TopoDS.Face_s(m), tag) for m in modified] if modified else [(face, tag)]
-    tagged[:] = carried
+        raise BooleanFailed("OpenCascade Boolean failed")
+    if tagged is not None:
+        carried = []
+        for face, tag in tagged:
+            if op.IsDeleted(face):
+                continue
+            modified = list(op.Modified(face))
+            carried += [(TopoDS.Face_s(m), tag) for m in modified] if modified else [(face, tag)]
+        tagged[:] = carried
     return op.Shape()
+
+
+def _boolean(op, argument: TopoDS_Shape, tools: list, tagged: list) -> TopoDS_Shape:
+    """:func:`run_boolean` for building a brick: a failure is a programming error."""
+    try:
+        return run_boolean(op, argument, tools, tagged)
+    except BooleanFailed:
+        raise RuntimeError("OpenCascade Boolean failed while building a brick solid") from None
 
 
 def _only_solid(shape: TopoDS_Shape) -> TopoDS_Shape:

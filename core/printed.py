@@ -45,19 +45,17 @@ import numpy as np
 import trimesh
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
-from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 from OCP.gp import gp_Pnt
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
-from OCP.TopoDS import TopoDS, TopoDS_Shape
-from OCP.TopTools import TopTools_ListOfShape
+from OCP.TopoDS import TopoDS_Shape
 
 from core import high_res
-from core.brick_solids import (SIDE_TAGS, BrickGeometry, brick_solid, face_list, facing_sides,
-                               to_trimesh)
+from core.brick_solids import (SIDE_TAGS, BooleanFailed, BrickGeometry, brick_solid, face_list,
+                               facing_sides, run_boolean, to_trimesh)
 from core.errors import InputError
 from core.mesh_io import LoadedModel
 from core.model import Brick, Layout
@@ -270,7 +268,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
             tagged += [(every[i], f"{b.id}:{tag}") for i in idx]
         shapes.append(solid.shape.wrapped)
     shapes += _fillers(members, geometry)
-    envelope = shapes[0] if len(shapes) == 1 else _carry(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:], tagged)
+    envelope = shapes[0] if len(shapes) == 1 else _run(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:], tagged)
     envelope = _unify(envelope) if len(shapes) > 1 and source.kind == "mesh" else envelope
     if source.kind == "brep":
         common = BRepAlgoAPI_Common()
@@ -364,36 +362,12 @@ def _fillers(members: list[_Member], geometry: BrickGeometry) -> list[TopoDS_Sha
     return out
 
 
-def _listed(shapes) -> TopTools_ListOfShape:
-    out = TopTools_ListOfShape()
-    for s in shapes:
-        out.Append(s)
-    return out
-
-
-def _run(op, argument, tools):
-    """Run an OCC Boolean with history; its result shape."""
-    op.SetArguments(_listed([argument]))
-    op.SetTools(_listed(tools))
-    op.SetRunParallel(True)
-    op.SetToFillHistory(True)
-    op.Build()
-    if not op.IsDone():
-        raise InputError("OpenCascade could not compute a printed part (Boolean failed)")
-    return op.Shape()
-
-
-def _carry(op, argument, tools, tagged: list) -> TopoDS_Shape:
-    """Run ``op`` and carry the (face, tag) pairs in ``tagged`` through it (in place)."""
-    shape = _run(op, argument, tools)
-    carried = []
-    for face, tag in tagged:
-        if op.IsDeleted(face):
-            continue
-        modified = list(op.Modified(face))
-        carried += [(TopoDS.Face_s(m), tag) for m in modified] if modified else [(face, tag)]
-    tagged[:] = carried
-    return shape
+def _run(op, argument, tools, tagged: list | None = None, parallel: bool = True):
+    """:func:`core.brick_solids.run_boolean` for a printed part; a failure is bad input."""
+    try:
+        return run_boolean(op, argument, tools, tagged, parallel)
+    except BooleanFailed:
+        raise InputError("OpenCascade could not compute a printed part (Boolean failed)") from None
 
 
 def _unify(shape: TopoDS_Shape) -> TopoDS_Shape:
