@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from core import catalog, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
+import numpy as np
+
+from core import catalog, connectors as connectors_stage, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
 from core import print_time as print_time_stage, stability as stability_stage, voxelize
 from core.brick_solids import BrickGeometry
 from core.errors import InputError
@@ -48,6 +50,7 @@ class Fabrication:
     print_full: print_time_stage.PrintEstimate | None = None
     print_parts: print_time_stage.PrintEstimate | None = None
     seconds_per_brick: float = SECONDS_PER_BRICK
+    connectors: connectors_stage.Connectors | None = None
 
 
 def _noop(fraction: float, message: str) -> None:
@@ -57,7 +60,8 @@ def _noop(fraction: float, message: str) -> None:
 def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: int = 0,
         parts: str | None = None, progress: Progress | None = None, high_res=(),
         high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
-        seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True) -> Fabrication:
+        seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
+        connectors: bool = True) -> Fabrication:
     """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
@@ -68,7 +72,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     the layout, which then keeps its bricks inside or outside the marked
     cells (:func:`core.high_res.lay_out_around`; brick ids refer to that
     layout) (:mod:`core.high_res`,
-    :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter).  With
+    :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter) and, unless
+    ``connectors`` is False, studs and sockets kept where a printed part
+    meets other bricks vertically (:mod:`core.connectors`).  With
     printed parts and ``slice_parts``, the whole model and the plate of all
     printed parts are print-timed (:func:`core.print_time.print_time`); the
     print times stay None without printed parts, so a plain run slices
@@ -104,19 +110,21 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     else:
         layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
     made: list[printed_stage.PrintedPart] = []
-    clamp = None
+    clamp, links = None, None
     if cells.any() or high_res_bricks:
         ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
         groups = high_res_stage.groups(layout, ids)
         if groups:
             source = printed_stage.model_solid(model)
+            links = connectors_stage.find(layout, groups if connectors else [], geometry)
+            source = timed("connectors", 0.6, connectors_stage.with_connectors, source, links)
             made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
                          source, geometry)
             printed_stage.apply(layout, made)
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
-                      seconds_per_brick=float(seconds_per_brick))
+                      seconds_per_brick=float(seconds_per_brick), connectors=links)
     if made and slice_parts:
         timed("print_time", 0.85, _print_times, fab)
     return fab
@@ -205,7 +213,7 @@ def report(fab: Fabrication) -> dict:
             "unconnectable": list(st.unconnectable),
             "incomplete_studs": incomplete,
         },
-        "printed_parts": [p.to_json() for p in fab.printed],
+        "printed_parts": [_part_json(fab, p) for p in fab.printed],
         "print_time_s": None if full is None else {
             "full_model": round(full.seconds, 1),
             "printed_parts": round(plate.seconds, 1),
@@ -217,6 +225,18 @@ def report(fab: Fabrication) -> dict:
         "speedup": None if gain is None else round(gain, 3),
         "timings_s": dict(fab.timings_s),
     }
+
+
+def _part_json(fab: Fabrication, part: printed_stage.PrintedPart) -> dict:
+    """A printed part's report entry, with its connector counts (:mod:`core.connectors`)."""
+    doc = part.to_json()
+    if fab.connectors is not None:
+        index = {b.id: b for b in fab.layout.bricks}
+        cells = {(i + c[0], j + c[1], k + c[2]) for bid in part.bricks
+                 for c in [index[bid].cell] for i, j, k in np.ndindex(*index[bid].size)}
+        top, bottom = fab.connectors.count_for(cells)
+        doc["connectors"] = {"studs_kept": top, "sockets_kept": bottom}
+    return doc
 
 
 def _prepare_out(out: Path) -> None:

@@ -149,21 +149,38 @@ def brick_graph(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = No
     the cell above counts only where ``studs_ok[i, j, k]`` (the lower
     brick's stud there is complete) and ``bottom_ok[i, j, k + 1]`` (the
     upper brick's underside there is complete); None means all complete.
+    Bricks of one printed part (same ``printed_part``) are one rigid piece:
+    each is adjacent to the next of its part, whatever their contact.
     """
-    return _graph_of_labels(layout.labels(), len(layout.bricks), clamp)
+    return _graph_of_labels(layout.labels(), len(layout.bricks), clamp, _rigid_pairs(layout))
+
+
+def _rigid_pairs(layout: Layout) -> np.ndarray:
+    """(m, 2) brick index pairs chaining the bricks of each printed part."""
+    members: dict[str, list[int]] = {}
+    for n, b in enumerate(layout.bricks):
+        if b.printed_part is not None:
+            members.setdefault(b.printed_part, []).append(n)
+    pairs = [(a, b) for idx in members.values() for a, b in zip(idx[:-1], idx[1:])]
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
 def _graph_of_labels(lab: np.ndarray, n: int,
-                     clamp: tuple[np.ndarray, np.ndarray] | None = None) -> sparse.csr_matrix:
-    """The brick graph of a grid of brick indices (-1 empty), vectorised over cells."""
+                     clamp: tuple[np.ndarray, np.ndarray] | None = None,
+                     rigid: np.ndarray | None = None) -> sparse.csr_matrix:
+    """The brick graph of a grid of brick indices (-1 empty), vectorised over cells;
+    ``rigid`` (m, 2) index pairs are adjacent whatever their contact."""
     lower = lab[:, :, :-1].ravel()
     upper = lab[:, :, 1:].ravel()
     touch = (lower >= 0) & (upper >= 0) & (lower != upper)
     if clamp is not None:
         studs_ok, bottom_ok = clamp
         touch &= np.asarray(studs_ok, bool)[:, :, :-1].ravel() & np.asarray(bottom_ok, bool)[:, :, 1:].ravel()
-    rows = np.concatenate([lower[touch], upper[touch]])
-    cols = np.concatenate([upper[touch], lower[touch]])
+    lower, upper = lower[touch], upper[touch]
+    if rigid is not None and len(rigid):
+        lower, upper = np.concatenate([lower, rigid[:, 0]]), np.concatenate([upper, rigid[:, 1]])
+    rows = np.concatenate([lower, upper])
+    cols = np.concatenate([upper, lower])
     graph = sparse.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n, n))
     graph.sum_duplicates()
     graph.data[:] = 1
@@ -187,7 +204,7 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
     if n == 0:
         return Stability(n_regions, 0)
     lab = layout.labels()
-    graph = _graph_of_labels(lab, n, clamp)
+    graph = _graph_of_labels(lab, n, clamp, _rigid_pairs(layout))
     n_comp, comp = connected_components(graph, directed=False)
     art = articulation_points(graph.indptr.astype(np.int64), graph.indices.astype(np.int64), n)
     weak = sorted(layout.bricks[b].id for b in np.flatnonzero(art))
@@ -198,16 +215,38 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
     per_region = np.bincount(pairs[:, 0], minlength=n_regions + 1)
     boxes = ndimage.find_objects(region_lab)
     unconnectable = []
-    for r in np.flatnonzero(per_region > 1):
+    split = np.flatnonzero(per_region > 1)
+    joined = _joined_without_clamp(layout, lab, clamp, brick_region, per_region) if split.size else {}
+    for r in split:
         box = boxes[r - 1]
         region = region_lab[box] == r
         unconnectable.append({
             "region": int(r),
             "components": int(per_region[r]),
             "cells": int(np.count_nonzero(region)),
-            "reason": _why_split(filled[box], region, lab[box], comp, box[2].start),
+            "reason": joined.get(int(r)) or _why_split(filled[box], region, lab[box], comp, box[2].start),
         })
     return Stability(n_regions, int(n_comp), weak, unconnectable, leaf_supports)
+
+
+def _joined_without_clamp(layout: Layout, lab: np.ndarray, clamp, brick_region: np.ndarray,
+                          per_region: np.ndarray) -> dict[int, str]:
+    """Per region that complete studs would hold together: why it falls apart
+    (printed parts meet their neighbours only through cut studs or undersides)."""
+    if clamp is None:
+        return {}
+    graph = _graph_of_labels(lab, len(layout.bricks), None, _rigid_pairs(layout))
+    _, comp = connected_components(graph, directed=False)
+    pairs = np.unique(np.stack([brick_region, comp], axis=1), axis=0)
+    free = np.bincount(pairs[:, 0], minlength=per_region.size)
+    out = {}
+    for r in np.flatnonzero(free < per_region):
+        parts = sorted({b.printed_part for b, reg in zip(layout.bricks, brick_region)
+                        if reg == r and b.printed_part is not None})
+        out[int(r)] = (f"printed part(s) {', '.join(parts)} meet the bricks above or below them "
+                       "only where the model cuts their studs or undersides, so they cannot "
+                       "clamp there; keep connectors on or mark a larger region")
+    return out
 
 
 def _carries_substructure(graph: sparse.csr_matrix) -> np.ndarray:

@@ -44,6 +44,14 @@ def test_plates_side_by_side_do_not_connect():
     assert stab.regions == 1 and stab.components == 2
 
 
+def test_bricks_of_one_printed_part_are_one_rigid_piece():
+    lay = layout_of((4, 1, 1), [("3023", (2, 1, 1), (0, 0, 0)), ("3023", (2, 1, 1), (2, 0, 0))])
+    for b in lay.bricks:
+        b.kind, b.printed_part = "printed", "P1"
+    assert edges(lay) == {(0, 1)}
+    assert analyse(lay).components == 1
+
+
 def test_plates_touching_only_at_an_edge_do_not_connect():
     lay = layout_of((2, 1, 2), [("3024", (1, 1, 1), (0, 0, 0)), ("3024", (1, 1, 1), (1, 0, 1))])
     assert edges(lay) == set()
