@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
                                      "standard LEGO plates and bricks.")
     fab.add_argument("model", metavar="MODEL")
     fab.add_argument("--out", required=True, metavar="DIR",
-                     help="output folder (report.json, layout.json, layout.png)")
+                     help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
     fab.add_argument("--units", choices=sorted(UNITS), default="mm",
                      help="unit of the file's coordinates (default mm)")
     fab.add_argument("--scale", type=float, default=1.0, metavar="S",
@@ -62,7 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--clearance", type=float, default=0.1, metavar="MM",
                      help="FDM clearance of printed studs and holes, a diameter (default 0.1)")
     fab.add_argument("--seconds-per-brick", type=float, default=10.0, metavar="S",
-                     help="assembly estimate per LEGO brick or printed part placed (default 10)")
+                     help="assembly estimate per LEGO brick placed (default 10)")
+    fab.add_argument("--seconds-per-part", type=float, default=30.0, metavar="S",
+                     help="assembly estimate per printed part inserted (default 30)")
     fab.add_argument("--no-picture", action="store_true", help="do not render layout.png")
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return parser
@@ -80,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
                                  picture=not args.no_picture, progress=progress,
                                  high_res=args.high_res, high_res_solids=args.high_res_solid,
                                  clearance=args.clearance,
-                                 seconds_per_brick=args.seconds_per_brick)
+                                 seconds_per_brick=args.seconds_per_brick,
+                                 seconds_per_part=args.seconds_per_part)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2

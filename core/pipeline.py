@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from core import catalog, connectors as connectors_stage, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
+from core import build_order, catalog, connectors as connectors_stage, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
 from core import print_time as print_time_stage, stability as stability_stage, voxelize
 from core.brick_solids import BrickGeometry
 from core.errors import InputError
@@ -28,8 +28,10 @@ from core.model import CELL_MM, Grid, Layout
 
 Progress = Callable[[float, str], None]
 
-#: Default assembly estimate: seconds to place one LEGO brick or printed part.
-SECONDS_PER_BRICK = 10.0
+#: Default assembly estimate: seconds to place one LEGO brick, and to find,
+#: turn and press on one printed part (:func:`core.build_order.assembly_seconds`).
+SECONDS_PER_BRICK = build_order.SECONDS_PER_BRICK
+SECONDS_PER_PART = build_order.SECONDS_PER_PART
 
 #: Files that mark a folder as an output of ours (and so safe to replace).
 OUTPUT_MARKERS = ("report.json", "layout.json")
@@ -51,6 +53,7 @@ class Fabrication:
     print_parts: print_time_stage.PrintEstimate | None = None
     seconds_per_brick: float = SECONDS_PER_BRICK
     connectors: connectors_stage.Connectors | None = None
+    seconds_per_part: float = SECONDS_PER_PART
 
 
 def _noop(fraction: float, message: str) -> None:
@@ -61,7 +64,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         parts: str | None = None, progress: Progress | None = None, high_res=(),
         high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
         seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
-        connectors: bool = True) -> Fabrication:
+        connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART) -> Fabrication:
     """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
@@ -98,8 +101,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
-    if not (isinstance(seconds_per_brick, (int, float)) and 0 <= seconds_per_brick < 1e6):
-        raise InputError(f"--seconds-per-brick {seconds_per_brick!r} must be a number of seconds >= 0")
+    for flag, value in (("--seconds-per-brick", seconds_per_brick), ("--seconds-per-part", seconds_per_part)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1e6):
+            raise InputError(f"{flag} {value!r} must be a number of seconds >= 0")
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
     boxes = [high_res_stage.parse_box(b) if isinstance(b, str) else b for b in high_res]
@@ -124,7 +128,8 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
-                      seconds_per_brick=float(seconds_per_brick), connectors=links)
+                      seconds_per_brick=float(seconds_per_brick), connectors=links,
+                      seconds_per_part=float(seconds_per_part))
     if made and slice_parts:
         timed("print_time", 0.85, _print_times, fab)
     return fab
@@ -154,9 +159,8 @@ def _print_times(fab: Fabrication) -> None:
 
 
 def assembly_seconds(fab: Fabrication) -> float:
-    """Assembly estimate: ``seconds_per_brick`` per LEGO brick and per printed part placed."""
-    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
-    return fab.seconds_per_brick * (lego + len(fab.printed))
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick, ``seconds_per_part`` per printed part."""
+    return build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, fab.seconds_per_part)
 
 
 def speedup(fab: Fabrication) -> float | None:
@@ -222,6 +226,7 @@ def report(fab: Fabrication) -> dict:
         },
         "assembly_s": round(assembly_seconds(fab), 1),
         "seconds_per_brick": fab.seconds_per_brick,
+        "seconds_per_part": fab.seconds_per_part,
         "speedup": None if gain is None else round(gain, 3),
         "timings_s": dict(fab.timings_s),
     }
@@ -250,7 +255,10 @@ def _prepare_out(out: Path) -> None:
 
 def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True,
                   progress: Progress | None = None) -> dict:
-    """Write ``report.json``, ``layout.json`` (and ``layout.png``) into ``out``.
+    """Write ``report.json``, ``layout.json`` (and ``layout.png``), the printed
+    parts (``parts/``) and the builder's files (``instructions.html``,
+    ``assembly.mpd``, ``bom.csv``, ``bricklink.xml``, :mod:`core.instructions`,
+    which also numbers every brick's assembly step) into ``out``.
 
     Everything is written into a temporary sibling folder first and moved
     into place at the end, replacing an earlier output; returns the report.
@@ -267,6 +275,11 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
             from core import export
             progress(0.9, "export")
             export.export_parts(fab.printed, tmp / "parts")
+        progress(0.92, "instructions")
+        from core import instructions
+        assembly = instructions.write_assembly(
+            fab.layout, fab.printed, tmp, title=Path(fab.model.path).name,
+            seconds_per_brick=fab.seconds_per_brick, seconds_per_part=fab.seconds_per_part)
         (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
         if picture:
             progress(0.95, "picture")
@@ -276,6 +289,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
                                        f"{len(fab.layout.bricks)} bricks")
         fab.timings_s["write"] = round(time.perf_counter() - start, 4)
         doc = report(fab)
+        doc["assembly"] = assembly
         doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
         (tmp / "report.json").write_text(json.dumps(doc, indent=2))
         if out.exists():
@@ -295,7 +309,7 @@ def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm"
 
     ``printing`` are the high-res keywords of :func:`run` (``high_res``,
     ``high_res_solids``, ``high_res_bricks``, ``clearance``,
-    ``seconds_per_brick``, ``slice_parts``).
+    ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``).
     """
     _prepare_out(Path(out))
     fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress, **printing)

@@ -61,6 +61,11 @@ def test_box_end_to_end(box_stl, tmp_path):
     assert (occupied == 1).all()
     assert (out / "layout.png").stat().st_size > 1000
     assert set(report["timings_s"]) >= {"load", "legofy", "layout", "stability"}
+    steps = {b["step"] for b in layout["bricks"]}
+    assert None not in steps and steps == set(range(1, report["assembly"]["steps"] + 1))
+    for name in ("instructions.html", "assembly.mpd", "bom.csv", "bricklink.xml"):
+        assert (out / name).stat().st_size > 100, name
+        assert name in report["outputs"]
 
 
 def test_seed_is_deterministic(box_stl, tmp_path):

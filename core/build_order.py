@@ -1,0 +1,326 @@
+"""Build order: the numbered assembly steps of a layout, bottom-up.
+
+A *unit* is what a person puts down in one motion: a LEGO brick, or a
+whole printed part (all bricks with the same ``printed_part``).  Two units
+*touch* where a cell of one lies directly under a cell of the other.
+
+Order (:func:`plan`):
+
+* A LEGO unit can be placed once it *attaches*: it stands on the base
+  (its lowest layer is ``k == 0``), or on a placed unit (studs below it),
+  or a placed unit sits directly on it (it is hung under an overhang).
+* A printed part can be placed once every unit directly under any of its
+  cells is in place and it attaches as above; it is then inserted as one
+  piece.
+* Among the units that can be placed, the one with the lowest layer goes
+  first, so the model grows bottom-up, layer by layer; within a layer the
+  units follow a serpentine over bands of :data:`BAND_STUDS` studs along y
+  (x rising in even bands, falling in odd ones), so consecutive units are
+  neighbours.  Placing a unit can only make more units placeable, so this is
+  one pass with a priority queue over the units.
+* A layout can contain units that never attach that way (a piece that
+  floats because the structure is split, or printed parts that carry each
+  other in a cycle).  When nothing attachable is left, a printed part that
+  touches a placed unit is inserted *early* (before everything under it is
+  in place); failing that, the lowest remaining unit is placed *unattached*.
+  Both are recorded, and the loop places one unit per round, so it ends.
+
+Steps (:func:`plan`): consecutive LEGO units of one layer are grouped into
+a step of at most ``bricks_per_step`` bricks while each new brick lies within
+:data:`NEAR_STUDS` studs of the step's footprint; a printed part is a step
+of its own.  Because a LEGO unit only ever attaches to units of another
+layer, every unit of a step attaches to units of earlier steps.
+
+Assembly time (:func:`assembly_seconds`): ``seconds_per_brick`` per LEGO
+brick plus ``seconds_per_part`` per printed part insertion (finding the part
+by its engraved ID, turning it the right way and pressing it onto its studs).
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+
+from core.errors import InputError
+from core.model import Layout
+
+#: Width (studs, along y) of the bands the serpentine order runs along.
+BAND_STUDS = 4
+#: A brick joins the current step only within this many studs of its footprint.
+NEAR_STUDS = 4
+#: Default largest number of LEGO bricks in one step.
+BRICKS_PER_STEP = 6
+#: Default assembly estimate: seconds per LEGO brick placed.
+SECONDS_PER_BRICK = 10.0
+#: Default assembly estimate: seconds per printed part inserted.
+SECONDS_PER_PART = 30.0
+
+
+@dataclass
+class Step:
+    """One assembly step.
+
+    ``number`` counts from 1; ``layer`` is the lowest plate layer (k) of its
+    bricks; ``bricks`` are layout brick ids in placing order;
+    ``printed_part`` names the printed part the step inserts (then
+    ``bricks`` are that part's bricks), else None.  ``attached`` is False
+    for a unit placed with nothing to attach to; ``early`` is True for a
+    printed part inserted before every unit under it was in place.
+    """
+
+    number: int
+    layer: int
+    bricks: list[int]
+    printed_part: str | None = None
+    attached: bool = True
+    early: bool = False
+
+    def to_json(self) -> dict:
+        return {"number": self.number, "layer": self.layer, "bricks": list(self.bricks),
+                "printed_part": self.printed_part, "attached": self.attached,
+                "early": self.early}
+
+
+@dataclass
+class BuildOrder:
+    """The steps of a layout, and what could not be ordered by the rules.
+
+    ``unattached`` are brick ids placed without anything to attach to;
+    ``early_parts`` printed part ids inserted before all units under them.
+    """
+
+    steps: list[Step] = field(default_factory=list)
+    unattached: list[int] = field(default_factory=list)
+    early_parts: list[str] = field(default_factory=list)
+
+    def step_of(self) -> dict[int, int]:
+        """Brick id -> step number."""
+        return {b: s.number for s in self.steps for b in s.bricks}
+
+    @property
+    def layers(self) -> int:
+        """Number of distinct layers the steps build."""
+        return len({s.layer for s in self.steps})
+
+
+@dataclass
+class _Units:
+    """Units of a layout: member brick indices, lowest layer, footprint box, kind."""
+
+    members: list[list[int]]
+    k0: np.ndarray
+    box: np.ndarray
+    part: list[str | None]
+    below: sparse.csr_matrix
+    above: sparse.csr_matrix
+
+
+def units(layout: Layout) -> tuple[np.ndarray, list[list[int]], list[str | None]]:
+    """Unit index per brick (by position in ``layout.bricks``), member lists and part ids.
+
+    Every LEGO brick is its own unit; the bricks of one printed part form one
+    unit.  Units are numbered in order of their first brick.
+    """
+    unit_of = np.empty(len(layout.bricks), dtype=np.int64)
+    members: list[list[int]] = []
+    part: list[str | None] = []
+    by_part: dict[str, int] = {}
+    for n, b in enumerate(layout.bricks):
+        if b.kind == "printed" and b.printed_part is not None:
+            u = by_part.get(b.printed_part)
+            if u is None:
+                u = by_part[b.printed_part] = len(members)
+                members.append([])
+                part.append(b.printed_part)
+        else:
+            u = len(members)
+            members.append([])
+            part.append(None)
+        unit_of[n] = u
+        members[u].append(n)
+    return unit_of, members, part
+
+
+def contacts(layout: Layout, unit_of: np.ndarray, count: int) -> sparse.csr_matrix:
+    """0/1 matrix ``M[lower, upper]``: a cell of unit ``upper`` lies directly on one of ``lower``."""
+    lab = layout.labels()
+    ul = np.where(lab >= 0, unit_of[np.maximum(lab, 0)], -1)
+    lower, upper = ul[:, :, :-1].ravel(), ul[:, :, 1:].ravel()
+    keep = (lower >= 0) & (upper >= 0) & (lower != upper)
+    m = sparse.csr_matrix((np.ones(int(keep.sum()), dtype=np.int8), (lower[keep], upper[keep])),
+                          shape=(count, count))
+    m.sum_duplicates()
+    m.data[:] = 1
+    return m
+
+
+def _units(layout: Layout) -> _Units:
+    unit_of, members, part = units(layout)
+    count = len(members)
+    cells = np.array([b.cell for b in layout.bricks], dtype=np.int64).reshape(-1, 3)
+    sizes = np.array([b.size for b in layout.bricks], dtype=np.int64).reshape(-1, 3)
+    k0 = np.full(count, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(k0, unit_of, cells[:, 2])
+    lo = np.full((count, 2), np.iinfo(np.int64).max, dtype=np.int64)
+    hi = np.full((count, 2), np.iinfo(np.int64).min, dtype=np.int64)
+    np.minimum.at(lo, unit_of, cells[:, :2])
+    np.maximum.at(hi, unit_of, cells[:, :2] + sizes[:, :2])
+    below = contacts(layout, unit_of, count)
+    return _Units(members, k0, np.concatenate([lo, hi], axis=1), part,
+                  below.T.tocsr(), below)
+
+
+def _serpentine(box: np.ndarray) -> np.ndarray:
+    """Sort keys (band, position along the band) of footprint boxes (x0, y0, x1, y1)."""
+    cx = (box[:, 0] + box[:, 2]) / 2.0
+    cy = (box[:, 1] + box[:, 3]) / 2.0
+    band = np.floor(cy / BAND_STUDS).astype(np.int64)
+    along = np.where(band % 2 == 0, cx, -cx)
+    return np.stack([band, along, cy], axis=1)
+
+
+def _check(layout: Layout, bricks_per_step: int) -> None:
+    if not isinstance(layout, Layout):
+        raise InputError(f"build order needs a Layout, got {type(layout).__name__}")
+    if not (isinstance(bricks_per_step, (int, np.integer)) and bricks_per_step >= 1):
+        raise InputError(f"bricks per step must be a whole number >= 1, got {bricks_per_step!r}")
+    ids = [b.id for b in layout.bricks]
+    if len(set(ids)) != len(ids):
+        raise InputError("the layout has bricks with the same id; cannot number the steps")
+
+
+def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
+    """The assembly steps of ``layout`` (see the module docstring for the rules).
+
+    Promises: every brick is in exactly one step; steps are numbered 1..n in
+    order; a printed part's bricks are all in one step of their own; every
+    unit of a step stands on the base or touches (directly above or below) a
+    unit of an earlier step, except the bricks listed in ``unattached``; a
+    printed part not listed in ``early_parts`` comes after every unit under
+    it.  Does not modify ``layout`` (see :func:`assign`).  Raises
+    InputError for a layout with duplicate brick ids or a bad step size.
+    """
+    _check(layout, bricks_per_step)
+    if not layout.bricks:
+        return BuildOrder()
+    u = _units(layout)
+    count = len(u.members)
+    is_part = np.array([p is not None for p in u.part], dtype=bool)
+    need_below = np.diff(u.below.indptr)
+    keys = _serpentine(u.box)
+    rank = np.empty(count, dtype=np.int64)
+    rank[np.lexsort((np.arange(count), keys[:, 2], keys[:, 1], keys[:, 0], u.k0))] = np.arange(count)
+
+    placed = np.zeros(count, dtype=bool)
+    queued = np.zeros(count, dtype=bool)
+    below_done = np.zeros(count, dtype=np.int64)
+    touching = np.zeros(count, dtype=np.int64)
+    heap: list[tuple[int, int, int]] = []
+
+    def ready(v: int) -> bool:
+        attaches = u.k0[v] == 0 or touching[v] > 0
+        return attaches and (not is_part[v] or below_done[v] == need_below[v])
+
+    def push(v: int) -> None:
+        if not queued[v] and not placed[v] and ready(v):
+            queued[v] = True
+            heapq.heappush(heap, (int(u.k0[v]), int(rank[v]), v))
+
+    for v in np.flatnonzero(u.k0 == 0):
+        push(int(v))
+    order: list[tuple[int, bool, bool]] = []
+    while len(order) < count:
+        if heap:
+            v = heapq.heappop(heap)[2]
+            attached, early = True, False
+        else:
+            left = ~placed
+            hooked = left & is_part & ((touching > 0) | (u.k0 == 0))
+            pool = np.flatnonzero(hooked if hooked.any() else left)
+            v = int(pool[np.argmin(rank[pool])])
+            attached, early = bool(hooked.any()), bool(hooked.any())
+        placed[v] = True
+        order.append((v, attached, early))
+        ups = u.above.indices[u.above.indptr[v]:u.above.indptr[v + 1]]
+        downs = u.below.indices[u.below.indptr[v]:u.below.indptr[v + 1]]
+        below_done[ups] += 1
+        touching[ups] += 1
+        touching[downs] += 1
+        for w in np.concatenate([ups, downs]):
+            push(int(w))
+    return _group(layout, u, order, bricks_per_step)
+
+
+def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
+           bricks_per_step: int) -> BuildOrder:
+    """Cut the unit order into steps (one layer, a few neighbouring bricks each)."""
+    ids = [b.id for b in layout.bricks]
+    result = BuildOrder()
+    current: list[int] = []
+    box = np.zeros(4, dtype=np.int64)
+
+    def close(units_: list[int], part: str | None = None, attached: bool = True,
+              early: bool = False) -> None:
+        bricks = [ids[n] for v in units_ for n in u.members[v]]
+        layer = int(min(u.k0[v] for v in units_))
+        result.steps.append(Step(len(result.steps) + 1, layer, bricks, part, attached, early))
+
+    for v, attached, early in order:
+        if not attached:
+            result.unattached.extend(ids[n] for n in u.members[v])
+        if early and u.part[v] is not None:
+            result.early_parts.append(u.part[v])
+        if u.part[v] is not None or not attached:
+            if current:
+                close(current)
+                current = []
+            close([v], u.part[v], attached, early)
+            continue
+        b = u.box[v]
+        if current:
+            near = (b[0] <= box[2] + NEAR_STUDS and b[2] >= box[0] - NEAR_STUDS
+                    and b[1] <= box[3] + NEAR_STUDS and b[3] >= box[1] - NEAR_STUDS)
+            if u.k0[v] != u.k0[current[0]] or len(current) >= bricks_per_step or not near:
+                close(current)
+                current = []
+        if not current:
+            box = b.copy()
+        else:
+            box = np.concatenate([np.minimum(box[:2], b[:2]), np.maximum(box[2:], b[2:])])
+        current.append(v)
+    if current:
+        close(current)
+    return result
+
+
+def assign(layout: Layout, order: BuildOrder) -> None:
+    """Write each brick's step number into ``brick.step``."""
+    step = order.step_of()
+    for b in layout.bricks:
+        b.step = step.get(b.id)
+
+
+def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRICK,
+                     seconds_per_part: float = SECONDS_PER_PART) -> float:
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick + ``seconds_per_part`` per printed part."""
+    for name, value in (("seconds per brick", seconds_per_brick),
+                        ("seconds per printed part", seconds_per_part)):
+        if not (isinstance(value, (int, float)) and 0 <= value < 1e6):
+            raise InputError(f"{name} must be a number of seconds >= 0, got {value!r}")
+    lego = sum(1 for b in layout.bricks if b.kind != "printed" or b.printed_part is None)
+    parts = len({b.printed_part for b in layout.bricks
+                 if b.kind == "printed" and b.printed_part is not None})
+    return float(seconds_per_brick) * lego + float(seconds_per_part) * parts
+
+
+def callout(layout: Layout, step: Step) -> list[tuple[str, int]]:
+    """The LEGO parts of a step as (design number, count), most frequent first."""
+    index = {b.id: b for b in layout.bricks}
+    counts: dict[str, int] = {}
+    if step.printed_part is None:
+        for bid in step.bricks:
+            counts[index[bid].part] = counts.get(index[bid].part, 0) + 1
+    return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))

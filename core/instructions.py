@@ -1,0 +1,713 @@
+"""Assembly instructions: one self-contained ``instructions.html`` a person builds from.
+
+The page holds a single isometric SVG picture of the whole model in which
+every brick is drawn once, as the three visible faces of its box (top, -x
+and -y side; view from the front left, above, as :mod:`core.render`), and a
+little script shows one step at a time by switching each brick's class:
+bricks of earlier steps grey, the step's bricks blue (dropping in when
+played), later bricks hidden.  Printed parts are orange boxes with their ID
+written on top.  Studs are an SVG pattern per layer on the top faces (a
+pattern's affine transform maps the stud lattice of the plane z = top onto
+the picture), so a 3,000-brick model stays a file of a few hundred kB and
+is written in well under a second.
+
+Drawing order.  Boxes are painted back to front in an order that is valid
+for every subset of them, so hiding the bricks of later steps never needs a
+new order: for two boxes whose pictures overlap (their intervals along the
+three picture directions ``x - y``, ``x + z``, ``y + z`` all overlap), the one
+on the far side of a separating plane (larger x, larger y, or lower z) is
+drawn first; the order is a topological sort of these pairs (Kahn's
+algorithm, farthest box first among the free ones).  Disjoint boxes can
+occlude each other in a cycle (staggered LEGO walls do: about one brick in
+six of a 40 x 40 stud box lies on one); :func:`drawing_pieces` draws the
+bricks on cycles as their 1 x 1-stud columns, which leaves no cycle, so the
+order is exact.
+
+The page needs no network: CSS, script, pictures and data are inline.
+Keys: right/down/PageDown/Enter = next step, left/up/PageUp = previous,
+Home/End, space = play/pause; a swipe left or right on a touch screen; a
+slider and buttons.  A panel shows the step's parts (part picture, count,
+design number, name, colour), the layer being built and the time estimate.
+
+:func:`write_assembly` is the pipeline's entry point: it orders the steps
+(:mod:`core.build_order`), sets ``brick.step`` and writes ``instructions.html``,
+``assembly.mpd`` (:mod:`core.ldraw`), ``bom.csv`` and ``bricklink.xml``
+(:mod:`core.bom`).
+"""
+
+from __future__ import annotations
+
+import heapq
+import html
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+
+from core import bom, build_order, ldraw
+from core.catalog import BY_NUMBER
+from core.errors import InputError
+from core.model import Layout
+
+#: Picture directions: screen right and screen down of a model vector (mm).
+SQ2, SQ6 = np.sqrt(2.0), np.sqrt(6.0)
+#: View direction towards the scene (far side = larger depth).
+VIEW = np.array([1.0, 1.0, -1.0]) / np.sqrt(3.0)
+#: Stud radius and height (mm) as drawn.
+STUD_R_MM = 2.4
+STUD_H_MM = 1.7
+#: Face colours per state: (top, -x side, -y side, stud side, stud top).
+LEGO_DONE = ("#c9cdd1", "#8d9398", "#a9aeb3", "#979da2", "#dde0e3")
+LEGO_NOW = ("#5c9be6", "#245aa8", "#3673c7", "#2f66b5", "#8bbcf2")
+PRINTED = ("#fe9a3c", "#b85f0a", "#dc7a18")
+#: Seconds between steps in play mode.
+PLAY_MS = 1400
+
+FILES = {"instructions": "instructions.html", "ldraw": "assembly.mpd",
+         "bom": "bom.csv", "bricklink": "bricklink.xml"}
+
+
+def screen(points_mm: np.ndarray) -> np.ndarray:
+    """Picture coordinates (..., 2), x right and y down, of model points (..., 3) in mm."""
+    p = np.asarray(points_mm, dtype=float)
+    return np.stack([(p[..., 0] - p[..., 1]) / SQ2,
+                     -(p[..., 0] + p[..., 1] + 2.0 * p[..., 2]) / SQ6], axis=-1)
+
+
+def brick_boxes(layout: Layout) -> np.ndarray:
+    """(n, 2, 3) min and max corner of every brick in mm, relative to the grid origin."""
+    cell = np.asarray(layout.grid.cell, dtype=float)
+    c = np.array([b.cell for b in layout.bricks], dtype=float).reshape(-1, 3)
+    s = np.array([b.size for b in layout.bricks], dtype=float).reshape(-1, 3)
+    return np.stack([c * cell, (c + s) * cell], axis=1)
+
+
+def _front_pairs(boxes: np.ndarray, block: int = 512) -> tuple[np.ndarray, np.ndarray]:
+    """(back, front) index pairs of boxes whose pictures overlap, back drawn first."""
+    lo, hi = boxes[:, 0], boxes[:, 1]
+    # interval of each picture direction: x - y, x + z, y + z
+    a_lo = np.stack([lo[:, 0] - hi[:, 1], lo[:, 0] + lo[:, 2], lo[:, 1] + lo[:, 2]], axis=1)
+    a_hi = np.stack([hi[:, 0] - lo[:, 1], hi[:, 0] + hi[:, 2], hi[:, 1] + hi[:, 2]], axis=1)
+    eps = 1e-6
+    backs, fronts = [], []
+    n = len(boxes)
+    for s in range(0, n, block):
+        i = np.arange(s, min(n, s + block))
+        over = np.ones((len(i), n), dtype=bool)
+        for d in range(3):
+            over &= (a_lo[i, d][:, None] < a_hi[None, :, d] - eps) & \
+                    (a_lo[None, :, d] < a_hi[i, d][:, None] - eps)
+        over[np.arange(len(i)), i] = False
+        over[:, :s] = False
+        ii, jj = np.nonzero(over)
+        ii = i[ii]
+        # i in front of j: separated with i on the near side
+        i_front = (hi[ii, 0] <= lo[jj, 0] + eps) | (hi[ii, 1] <= lo[jj, 1] + eps) | \
+                  (lo[ii, 2] >= hi[jj, 2] - eps)
+        j_front = (hi[jj, 0] <= lo[ii, 0] + eps) | (hi[jj, 1] <= lo[ii, 1] + eps) | \
+                  (lo[jj, 2] >= hi[ii, 2] - eps)
+        keep_i = i_front & ~j_front
+        keep_j = j_front & ~i_front
+        backs += [jj[keep_i], ii[keep_j]]
+        fronts += [ii[keep_i], jj[keep_j]]
+    if not backs:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(backs), np.concatenate(fronts)
+
+
+def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
+    """Drawing order of boxes (n, 2, 3), back to front, and the number of cycles broken.
+
+    Without occlusion cycles the order is exact and stays exact for every
+    subset of the boxes (see the module docstring); where the sort stalls on a
+    cycle, the farthest remaining box goes first and is counted.
+    """
+    n = len(boxes)
+    if n == 0:
+        return np.zeros(0, np.int64), 0
+    back, front = _front_pairs(boxes)
+    order_e = np.argsort(back, kind="stable")
+    back, front = back[order_e], front[order_e]
+    start = np.searchsorted(back, np.arange(n + 1))
+    indeg = np.bincount(front, minlength=n)
+    depth = (boxes.mean(axis=1) @ VIEW)
+    heap = [(-depth[v], int(v)) for v in np.flatnonzero(indeg == 0)]
+    heapq.heapify(heap)
+    done = np.zeros(n, dtype=bool)
+    out: list[int] = []
+    cycles = 0
+    front_list = front.tolist()
+    while len(out) < n:
+        if not heap:
+            left = np.flatnonzero(~done)
+            v = int(left[np.argmax(depth[left])])
+            cycles += 1
+            indeg[v] = 0
+            heapq.heappush(heap, (-depth[v], v))
+        _, v = heapq.heappop(heap)
+        if done[v]:
+            continue
+        done[v] = True
+        out.append(v)
+        for w in front_list[start[v]:start[v + 1]]:
+            indeg[w] -= 1
+            if indeg[w] == 0 and not done[w]:
+                heapq.heappush(heap, (-depth[w], w))
+    return np.array(out, dtype=np.int64), cycles
+
+
+def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Boxes to paint, back to front, so that no occlusion cycle is left.
+
+    Returns ``(pieces, owner, order, split)``: piece boxes (m, 2, 3) in mm,
+    the index in ``layout.bricks`` each piece draws, the painting order (a
+    permutation of the pieces) and the number of bricks split.  A brick is
+    one piece, unless it lies on an occlusion cycle (a strongly connected
+    component of the "drawn before" graph); such bricks are split into their
+    1 x 1-stud columns.  Columns alone never form a cycle (along a view ray
+    the stud indices i and j never decrease, and within one column the ray
+    only descends), and every cycle after the split would map to a cycle of
+    bricks that were all split, so one round of splitting leaves an acyclic
+    graph and the order is exact.
+    """
+    boxes = brick_boxes(layout)
+    n = len(boxes)
+    owner = np.arange(n, dtype=np.int64)
+    if n == 0:
+        return boxes, owner, np.zeros(0, np.int64), 0
+    back, front = _front_pairs(boxes)
+    graph = sparse.csr_matrix((np.ones(len(back), dtype=np.int8), (back, front)), shape=(n, n))
+    _, label = connected_components(graph, directed=True, connection="strong")
+    split = np.bincount(label)[label] > 1
+    if split.any():
+        cell = np.asarray(layout.grid.cell, dtype=float)
+        pieces, owners = [boxes[~split]], [owner[~split]]
+        for b in np.flatnonzero(split):
+            brick = layout.bricks[b]
+            i, j = np.meshgrid(np.arange(brick.size[0]), np.arange(brick.size[1]), indexing="ij")
+            ij = np.stack([i.ravel(), j.ravel()], axis=1) + np.asarray(brick.cell[:2])
+            lo = np.column_stack([ij * cell[:2], np.full(len(ij), boxes[b, 0, 2])])
+            hi = np.column_stack([(ij + 1) * cell[:2], np.full(len(ij), boxes[b, 1, 2])])
+            pieces.append(np.stack([lo, hi], axis=1))
+            owners.append(np.full(len(ij), b, dtype=np.int64))
+        boxes, owner = np.concatenate(pieces), np.concatenate(owners)
+    order, _ = painter_order(boxes)
+    return boxes, owner, order, int(split.sum())
+
+
+def _f(v: float) -> str:
+    """A picture coordinate with one decimal (mm), no trailing zeros."""
+    s = f"{v:.1f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+def _face_paths(lo, hi) -> tuple[str, str, str]:
+    """SVG path data of the top, -x and -y faces of the box ``lo``..``hi`` (mm)."""
+    ex = screen(np.array([1.0, 0, 0]))
+    ey = screen(np.array([0, 1.0, 0]))
+    ez = screen(np.array([0, 0, 1.0]))
+    L = np.asarray(hi, float) - np.asarray(lo, float)
+    top0 = screen(np.array([lo[0], lo[1], hi[2]]))
+    base = screen(np.asarray(lo, float))
+
+    def pair(p) -> str:
+        y = _f(p[1])
+        return _f(p[0]) + ("" if y.startswith("-") else " ") + y
+
+    def path(start, u, v) -> str:
+        return f"M{pair(start)}l{pair(u)}l{pair(v)}l{pair(-u)}z"
+
+    return (path(top0, ex * L[0], ey * L[1]),
+            path(base, ey * L[1], ez * L[2]),
+            path(base, ex * L[0], ez * L[2]))
+
+
+def _column_paths(lo, hi, brick_lo, brick_hi) -> tuple[list[tuple[str, str]], str]:
+    """Faces (class, path data) and outline path data of a 1 x 1 column of a split brick.
+
+    The column shows its top, and its -x / -y side where that side is on the
+    brick's boundary; the outline keeps only the brick's own edges, so the
+    columns of a brick look like the brick.
+    """
+    top, left, front = _face_paths(lo, hi)
+    faces = [("t", top)]
+    x0, y0, z0 = (float(v) for v in lo)
+    x1, y1, z1 = (float(v) for v in hi)
+    on = {"x0": np.isclose(x0, brick_lo[0]), "x1": np.isclose(x1, brick_hi[0]),
+          "y0": np.isclose(y0, brick_lo[1]), "y1": np.isclose(y1, brick_hi[1])}
+    segments = []
+    if on["x0"]:
+        faces.insert(0, ("l", left))
+        segments += [((x0, y0, z1), (x0, y1, z1)), ((x0, y0, z0), (x0, y1, z0))]
+        if on["y1"]:
+            segments.append(((x0, y1, z0), (x0, y1, z1)))
+    if on["y0"]:
+        faces.insert(0, ("f", front))
+        segments += [((x0, y0, z1), (x1, y0, z1)), ((x0, y0, z0), (x1, y0, z0))]
+        if on["x1"]:
+            segments.append(((x1, y0, z0), (x1, y0, z1)))
+    if on["x0"] and on["y0"]:
+        segments.append(((x0, y0, z0), (x0, y0, z1)))
+    if on["x1"]:
+        segments.append(((x1, y0, z1), (x1, y1, z1)))
+    if on["y1"]:
+        segments.append(((x0, y1, z1), (x1, y1, z1)))
+    pts = screen(np.array(segments, dtype=float).reshape(-1, 2, 3)) if segments else np.zeros((0, 2, 2))
+    edges = "".join(f"M{_f(a[0])} {_f(a[1])}L{_f(b[0])} {_f(b[1])}" for a, b in pts)
+    return faces, edges
+
+
+def _stud_pattern(pid: str, z_mm: float, cell, colors) -> str:
+    """An SVG pattern of studs on the plane z = ``z_mm`` in picture coordinates."""
+    cx, cy = float(cell[0]), float(cell[1])
+    a, b, c, d = 1 / SQ2, -1 / SQ6, -1 / SQ2, -1 / SQ6
+    f = -2.0 * z_mm / SQ6
+    r, h = STUD_R_MM, STUD_H_MM
+    mx, my = cx / 2, cy / 2
+    n = np.array([1.0, -1.0]) / SQ2 * r
+    quad = [(mx + n[0], my + n[1]), (mx + h + n[0], my + h + n[1]),
+            (mx + h - n[0], my + h - n[1]), (mx - n[0], my - n[1])]
+    pts = " ".join(f"{_f(x)},{_f(y)}" for x, y in quad)
+    return (f'<pattern id="{pid}" patternUnits="userSpaceOnUse" width="{_f(cx)}" height="{_f(cy)}" '
+            f'patternTransform="matrix({a:.6f} {b:.6f} {c:.6f} {d:.6f} 0 {f:.4f})">'
+            f'<rect width="{_f(cx)}" height="{_f(cy)}" fill="{colors[0]}"/>'
+            f'<circle cx="{_f(mx)}" cy="{_f(my)}" r="{_f(r)}" fill="{colors[3]}"/>'
+            f'<polygon points="{pts}" fill="{colors[3]}"/>'
+            f'<circle cx="{_f(mx + h)}" cy="{_f(my + h)}" r="{_f(r)}" fill="{colors[4]}" '
+            f'stroke="{colors[1]}" stroke-width="0.25"/></pattern>')
+
+
+def _icon(number: str, cell) -> str:
+    """A ``<symbol>`` picture of catalog part ``number`` (long side along x), studs drawn."""
+    part = BY_NUMBER[number]
+    w, d = part.footprint
+    cell = np.asarray(cell, float)
+    hi = np.array([d, w, part.layers]) * cell
+    lo = np.zeros(3)
+    top, left, front = _face_paths(lo, hi)
+    rx, ry = STUD_R_MM, STUD_R_MM / np.sqrt(3.0)
+    hs = 2 * STUD_H_MM / SQ6
+    studs = []
+    for i in range(d):
+        for j in range(w):
+            cxy = screen(np.array([(i + 0.5) * cell[0], (j + 0.5) * cell[1], hi[2]]))
+            studs.append(f'<ellipse cx="{_f(cxy[0])}" cy="{_f(cxy[1])}" rx="{_f(rx)}" ry="{_f(ry)}" class="ss"/>'
+                         f'<rect x="{_f(cxy[0] - rx)}" y="{_f(cxy[1] - hs)}" width="{_f(2 * rx)}" '
+                         f'height="{_f(hs)}" class="ss" stroke="none"/>'
+                         f'<ellipse cx="{_f(cxy[0])}" cy="{_f(cxy[1] - hs)}" rx="{_f(rx)}" ry="{_f(ry)}" class="st"/>')
+    corners = screen(np.array([[x, y, z] for x in (0, hi[0]) for y in (0, hi[1])
+                               for z in (0, hi[2] + STUD_H_MM)]))
+    (x0, y0), (x1, y1) = corners.min(axis=0) - 1, corners.max(axis=0) + 1
+    # far studs (larger i + j) first
+    studs = [s for _, s in sorted(zip([-(i + j) for i in range(d) for j in range(w)], studs),
+                                  key=lambda t: t[0])]
+    return (f'<symbol id="i{number}" viewBox="{_f(x0)} {_f(y0)} {_f(x1 - x0)} {_f(y1 - y0)}">'
+            f'<path class="l" d="{left}"/><path class="f" d="{front}"/><path class="t" d="{top}"/>'
+            + "".join(studs) + "</symbol>")
+
+
+def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1) -> tuple[str, dict]:
+    """The model picture as an ``<svg>`` element, with every brick's group classed for step
+    ``current``, and facts about it (``pieces`` drawn, ``split_bricks``, ``view_box``).
+
+    Each brick is one ``<g class="b ...">`` with ``data-s`` (its step) and
+    ``data-id``, or one such group per column where :func:`drawing_pieces`
+    split it."""
+    grid = layout.grid
+    cell = np.asarray(grid.cell, dtype=float)
+    boxes = brick_boxes(layout)
+    pieces, owner, order_idx, split = drawing_pieces(layout)
+    step_of = order.step_of()
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    nx, ny, nz = grid.shape
+    extent = np.array([nx, ny, nz]) * cell + [0, 0, STUD_H_MM]
+    pts = screen(corners * extent)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.04 * float(max(hi - lo)) + 4.0
+    vb = (lo[0] - pad, lo[1] - pad, hi[0] - lo[0] + 2 * pad, hi[1] - lo[1] + 2 * pad)
+
+    tops = sorted({int(round(b.cell[2] + b.size[2])) for b in layout.bricks if b.kind != "printed"})
+    defs = [_stud_pattern(f"d{k}", k * cell[2], cell, LEGO_DONE) for k in tops]
+    defs += [_stud_pattern(f"n{k}", k * cell[2], cell, LEGO_NOW) for k in tops]
+    base = screen(np.array([[0, 0, 0], [nx * cell[0], 0, 0], [nx * cell[0], ny * cell[1], 0],
+                            [0, ny * cell[1], 0]]))
+    ground = " ".join(f"{_f(x)},{_f(y)}" for x, y in base)
+    groups = []
+    for piece in order_idx:
+        n = int(owner[piece])
+        b = layout.bricks[n]
+        s = step_of.get(b.id, 0)
+        state = "done" if s < current else "now" if s == current else "todo"
+        printed = b.kind == "printed"
+        top_class = "t" if printed else f"t z{int(b.cell[2] + b.size[2])}"
+        head = f'<g class="b{" pp" if printed else ""} {state}" data-s="{s}" data-id="{b.id}">'
+        if np.array_equal(pieces[piece], boxes[n]):
+            top, left, front = _face_paths(boxes[n, 0], boxes[n, 1])
+            groups.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'
+                          f'<path class="{top_class}" d="{top}"/></g>')
+        else:
+            faces, edges = _column_paths(pieces[piece, 0], pieces[piece, 1], boxes[n, 0], boxes[n, 1])
+            body = "".join(f'<path class="cf {top_class if c == "t" else c}" d="{d}"/>' for c, d in faces)
+            groups.append(f'{head}{body}<path class="e" d="{edges}"/></g>')
+    labels = []
+    font = max(4.0, 0.035 * float(max(hi - lo)))
+    parts: dict[str, list[int]] = {}
+    for n, b in enumerate(layout.bricks):
+        if b.kind == "printed" and b.printed_part is not None:
+            parts.setdefault(b.printed_part, []).append(n)
+    for pid, members in parts.items():
+        top_z = boxes[members, 1, 2].max()
+        highest = [n for n in members if boxes[n, 1, 2] == top_z]
+        centre = np.array([(boxes[highest, 0, :2].min(axis=0) + boxes[highest, 1, :2].max(axis=0)) / 2])
+        xy = screen(np.array([centre[0, 0], centre[0, 1], top_z]))
+        s = step_of.get(layout.bricks[members[0]].id, 0)
+        state = "done" if s < current else "now" if s == current else "todo"
+        labels.append(f'<text class="lbl {state}" data-s="{s}" x="{_f(xy[0])}" y="{_f(xy[1])}" '
+                      f'font-size="{_f(font)}">{html.escape(pid)}</text>')
+    css = "".join(f"#model .done .t.z{k}{{fill:url(#d{k})}}#model .now .t.z{k}{{fill:url(#n{k})}}"
+                  for k in tops)
+    svg = (f'<svg id="model" xmlns="http://www.w3.org/2000/svg" viewBox="{" ".join(_f(v) for v in vb)}" '
+           f'preserveAspectRatio="xMidYMid meet" role="img" aria-label="model picture">'
+           f'<style>{css}</style><defs>{"".join(defs)}</defs>'
+           f'<polygon class="ground" points="{ground}"/>'
+           f'<g id="bricks">{"".join(groups)}</g><g id="labels">{"".join(labels)}</g></svg>')
+    return svg, {"pieces": len(groups), "split_bricks": split, "view_box": vb}
+
+
+def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> list[dict]:
+    """JSON-ready step list for the page's script."""
+    info = {p.id: p for p in printed_parts}
+    out = []
+    lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
+    for s in order.steps:
+        item = {"n": s.number, "k": s.layer, "a": s.attached, "e": s.early,
+                "nb": len(s.bricks), "p": s.printed_part, "c": []}
+        for number, count in build_order.callout(layout, s):
+            part = BY_NUMBER.get(number)
+            item["c"].append([number, part.name if part else number, count, lego_color])
+        if s.printed_part is not None:
+            p = info.get(s.printed_part)
+            item["pv"] = None if p is None else round(float(p.volume_mm3) / 1000.0, 1)
+            item["pf"] = None if p is None else (p.stl or f"parts/{p.id}.stl")
+        out.append(item)
+    return out
+
+
+def _minutes(seconds: float) -> str:
+    m = int(round(seconds / 60.0))
+    return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"
+
+
+def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title: str = "",
+         assembly_s: float | None = None) -> tuple[str, dict]:
+    """The whole ``instructions.html`` text, and facts about its picture.
+
+    Raises InputError when ``order`` does not cover every brick of ``layout``.
+    """
+    step_of = order.step_of()
+    missing = [b.id for b in layout.bricks if b.id not in step_of]
+    if missing:
+        raise InputError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
+    svg, facts = svg_picture(layout, order, current=1)
+    used = sorted({b.part for b in layout.bricks if b.kind != "printed" and b.part in BY_NUMBER})
+    icons = "".join(_icon(n, layout.grid.cell) for n in used)
+    rows = bom.lines(layout, printed_parts)
+    bom_rows = "".join(
+        f"<tr><td><svg class='ic'><use href='#i{html.escape(r.part)}'/></svg></td>"
+        f"<td>{r.count}</td><td>{html.escape(r.part)}</td><td>{html.escape(r.name)}</td>"
+        f"<td>{html.escape(r.color)}</td></tr>" if r.kind == "lego" else
+        f"<tr><td><span class='pp-sw'></span></td><td>1</td><td>{html.escape(r.part)}</td>"
+        f"<td>Printed part ({r.bricks_replaced} bricks' place, {r.volume_mm3 / 1000:.1f} cm³, "
+        f"print ≈ {_minutes(r.print_s or 0)})</td><td>{html.escape(r.file)}</td></tr>"
+        for r in rows)
+    nz = layout.grid.shape[2]
+    data = {"steps": _step_data(layout, order, printed_parts), "layers": int(nz),
+            "layer_mm": float(layout.grid.cell[2]), "play_ms": PLAY_MS}
+    blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    lego = sum(1 for b in layout.bricks if b.kind != "printed")
+    n_parts = len({b.printed_part for b in layout.bricks if b.kind == "printed"})
+    summary = (f"{lego} LEGO bricks, {n_parts} printed part{'s' if n_parts != 1 else ''}, "
+               f"{len(order.steps)} steps")
+    if assembly_s is not None:
+        summary += f", about {_minutes(assembly_s)} to build"
+    warn = ""
+    if order.unattached or order.early_parts:
+        bits = []
+        if order.unattached:
+            bits.append(f"{len(order.unattached)} brick(s) attach to nothing when placed "
+                        "(the layout is not connected there): hold them in place")
+        if order.early_parts:
+            bits.append("printed part(s) " + ", ".join(order.early_parts)
+                        + " go in before everything under them is built")
+        warn = f'<p class="warn">{html.escape("; ".join(bits))}.</p>'
+    title = title or "Fabrickator assembly"
+    text = _TEMPLATE.format(title=html.escape(title), summary=html.escape(summary), warn=warn,
+                            svg=svg, icons=icons, bom_rows=bom_rows, data=blob,
+                            nsteps=len(order.steps), css=_css(), js=_JS)
+    return text, facts
+
+
+def write_instructions(layout: Layout, order: build_order.BuildOrder, path: str | os.PathLike,
+                       printed_parts=(), title: str = "", assembly_s: float | None = None) -> dict:
+    """Write ``instructions.html`` at ``path``; returns facts about its picture and size."""
+    text, facts = page(layout, order, printed_parts, title, assembly_s)
+    Path(path).write_text(text, encoding="utf-8")
+    facts["bytes"] = len(text.encode("utf-8"))
+    return facts
+
+
+def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, title: str = "",
+                   seconds_per_brick: float = build_order.SECONDS_PER_BRICK,
+                   seconds_per_part: float = build_order.SECONDS_PER_PART,
+                   bricks_per_step: int = build_order.BRICKS_PER_STEP) -> dict:
+    """Order the assembly, set every ``brick.step`` and write the builder's files into ``folder``.
+
+    Writes ``instructions.html``, ``assembly.mpd`` (LDraw MPD with ``0 STEP``
+    per step and the printed parts embedded), ``bom.csv`` and
+    ``bricklink.xml``.  Returns a dict for ``report.json``: ``steps``,
+    ``layers``, ``bricks_per_step``, ``assembly_s`` (``seconds_per_brick``
+    per LEGO brick + ``seconds_per_part`` per printed part, both echoed),
+    ``unattached_bricks`` and ``early_parts`` (see
+    :class:`core.build_order.BuildOrder`), ``split_bricks`` (bricks the
+    picture draws as columns, see :func:`drawing_pieces`), ``files`` (role ->
+    file name) and ``timings_s``.  Raises
+    InputError for a folder that does not exist or bad numbers.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"cannot write the assembly files: folder {folder} does not exist")
+    printed_parts = list(printed_parts or [])
+    timings = {}
+    t = time.perf_counter()
+    seconds = build_order.assembly_seconds(layout, seconds_per_brick, seconds_per_part)
+    order = build_order.plan(layout, bricks_per_step)
+    build_order.assign(layout, order)
+    timings["order"] = time.perf_counter() - t
+    t = time.perf_counter()
+    facts = write_instructions(layout, order, folder / FILES["instructions"], printed_parts,
+                               title, seconds)
+    timings["html"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title)
+    timings["ldraw"] = time.perf_counter() - t
+    t = time.perf_counter()
+    bom.write_csv(bom.lines(layout, printed_parts), folder / FILES["bom"])
+    bom.write_wanted_list(layout, folder / FILES["bricklink"], remarks=title)
+    timings["bom"] = time.perf_counter() - t
+    return {
+        "steps": len(order.steps),
+        "layers": order.layers,
+        "bricks_per_step": bricks_per_step,
+        "assembly_s": round(seconds, 1),
+        "seconds_per_brick": float(seconds_per_brick),
+        "seconds_per_part": float(seconds_per_part),
+        "unattached_bricks": list(order.unattached),
+        "early_parts": list(order.early_parts),
+        "split_bricks": facts["split_bricks"],
+        "files": dict(FILES),
+        "timings_s": {k: round(v, 4) for k, v in timings.items()},
+    }
+
+
+_CSS_TEMPLATE = """
+*{box-sizing:border-box}
+html,body{margin:0;height:100%;font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;
+ background:#f4f5f7;color:#1d2329}
+body{display:flex;flex-direction:column;touch-action:pan-y}
+header{display:flex;align-items:center;gap:1em;padding:.4em .8em;background:#1f3a5f;color:#fff;flex-wrap:wrap}
+header h1{font-size:1.1em;margin:0;font-weight:600}
+header .sum{opacity:.85;font-size:.9em}
+main{flex:1;display:flex;min-height:0}
+#stage{flex:1;min-width:0;position:relative;display:flex}
+#model{width:100%;height:100%;display:block}
+aside{width:19em;max-width:45%;padding:.8em;background:#fff;border-left:1px solid #d9dde2;
+ overflow:auto;display:flex;flex-direction:column;gap:.8em}
+#stepline{font-size:1.6em;font-weight:700}
+#stepline small{font-size:.55em;font-weight:400;color:#5b6670}
+#callout{list-style:none;margin:0;padding:0;display:flex;flex-direction:column;gap:.4em}
+#callout li{display:flex;align-items:center;gap:.6em;padding:.3em;border:1px solid #e1e5ea;border-radius:6px}
+#callout .cnt{font-size:1.3em;font-weight:700;min-width:2.2em;text-align:right}
+#callout .ic{width:4.2em;height:3em}
+#callout .nm{font-size:.9em;line-height:1.2}
+#callout .nm b{display:block}
+#callout li.printed{background:#fff3e6;border-color:#fe9a3c}
+.ic{width:3em;height:2.2em}
+#layer{display:flex;gap:.6em;align-items:stretch}
+#lbar{width:1.2em;height:7em;background:#e6e9ed;border-radius:4px;position:relative;overflow:hidden}
+#lfill{position:absolute;left:0;right:0;bottom:0;background:#3673c7}
+#ltext{font-size:.9em;align-self:center}
+footer{display:flex;align-items:center;gap:.6em;padding:.5em .8em;background:#fff;border-top:1px solid #d9dde2}
+footer button{font-size:1.2em;min-width:2.6em;padding:.25em .5em;border-radius:6px;border:1px solid #aab2bb;background:#f7f8fa}
+#slider{flex:1}
+.warn{color:#8a4b00;background:#fff3e0;padding:.4em;border-radius:4px;font-size:.85em;margin:0}
+details{font-size:.85em}
+details table{border-collapse:collapse;width:100%}
+details td{border-bottom:1px solid #eceff2;padding:.15em .3em;vertical-align:middle}
+.pp-sw{display:inline-block;width:1.4em;height:1em;background:#fe9a3c;border-radius:2px}
+.hint{font-size:.8em;color:#6b7680}
+#model .ground{fill:#e3e7eb;stroke:#c4cad1;stroke-width:.4}
+#model .b path{stroke:#2b3036;stroke-width:.3;stroke-linejoin:round}
+#model .todo{display:none}
+#model .done .l{fill:@dl@}#model .done .f{fill:@df@}#model .done .t{fill:@dt@}
+#model .now .l{fill:@nl@}#model .now .f{fill:@nf@}#model .now .t{fill:@nt@}
+#model .pp path{stroke:#7a3f06;stroke-width:.15}
+#model .pp .l{fill:@pl@}#model .pp .f{fill:@pf@}#model .pp .t{fill:@pt@}
+#model .pp.now path{stroke:#1d4e9e;stroke-width:.5}
+#model .b path.cf{stroke-width:.3}
+#model .done path.cf.t{stroke:@dt@}#model .done path.cf.l{stroke:@dl@}#model .done path.cf.f{stroke:@df@}
+#model .now path.cf.t{stroke:@nt@}#model .now path.cf.l{stroke:@nl@}#model .now path.cf.f{stroke:@nf@}
+#model .pp path.cf.t{stroke:@pt@}#model .pp path.cf.l{stroke:@pl@}#model .pp path.cf.f{stroke:@pf@}
+#model .b path.e{fill:none;stroke:#2b3036;stroke-width:.3}
+#model .pp path.e{stroke:#7a3f06;stroke-width:.15}#model .pp.now path.e{stroke:#1d4e9e;stroke-width:.5}
+#model .lbl{font-weight:700;fill:#5a2a00;stroke:#fff;stroke-width:.8;paint-order:stroke;
+ text-anchor:middle;dominant-baseline:middle;font-family:sans-serif}
+#model .lbl.now{fill:#0d3a80}
+#model .lbl.done{opacity:.7}
+#attach:empty{display:none}
+#model .drop{animation:drop .45s ease-out}
+@keyframes drop{from{transform:translateY(-14px);opacity:0}to{transform:none;opacity:1}}
+symbol .t{fill:@dt@}symbol .l{fill:@dl@}symbol .f{fill:@df@}
+symbol path,symbol ellipse{stroke:#2b3036;stroke-width:.3}
+symbol .ss{fill:@ds@}symbol .st{fill:@dst@}
+@media (max-aspect-ratio:1/1){main{flex-direction:column}#stage{min-height:0}
+ aside{flex:0 0 auto;width:auto;max-width:none;border-left:0;border-top:1px solid #d9dde2;max-height:42%}}
+"""
+
+
+def _css() -> str:
+    """The page's stylesheet with the state colours filled in."""
+    colors = {"dt": LEGO_DONE[0], "dl": LEGO_DONE[1], "df": LEGO_DONE[2], "ds": LEGO_DONE[3],
+              "dst": LEGO_DONE[4], "nt": LEGO_NOW[0], "nl": LEGO_NOW[1], "nf": LEGO_NOW[2],
+              "pt": PRINTED[0], "pl": PRINTED[1], "pf": PRINTED[2]}
+    text = _CSS_TEMPLATE
+    for key, value in colors.items():
+        text = text.replace(f"@{key}@", value)
+    return text
+
+
+_JS = r"""
+(function(){
+const D = JSON.parse(document.getElementById('data').textContent);
+const N = D.steps.length;
+const groups = Array.from(document.querySelectorAll('#bricks > g, #labels > text'));
+const stepOf = groups.map(g => +g.getAttribute('data-s'));
+const state = groups.map(g => g.classList.contains('now') ? 1 : g.classList.contains('done') ? 0 : 2);
+const el = id => document.getElementById(id);
+let cur = 1, timer = null;
+function show(s, animate){
+  if (!N){ el('stepno').textContent = '0'; el('callout').textContent = 'No bricks to place.'; return; }
+  s = Math.max(1, Math.min(N, s));
+  const forward = s === cur + 1;
+  cur = s;
+  for (let i = 0; i < groups.length; i++){
+    const want = stepOf[i] < s ? 0 : stepOf[i] === s ? 1 : 2;
+    if (want === state[i]) continue;
+    const c = groups[i].classList;
+    c.remove('done', 'now', 'todo', 'drop');
+    c.add(want === 0 ? 'done' : want === 1 ? 'now' : 'todo');
+    if (want === 1 && animate && forward) c.add('drop');
+    state[i] = want;
+  }
+  const st = D.steps[s - 1];
+  el('stepno').textContent = s;
+  el('slider').value = s;
+  el('layerno').textContent = st.k + 1;
+  el('lfill').style.height = (100 * (st.k + 1) / D.layers) + '%';
+  el('lheight').textContent = ((st.k) * D.layer_mm).toFixed(1);
+  const ul = el('callout');
+  ul.textContent = '';
+  if (st.p){
+    const li = document.createElement('li');
+    li.className = 'printed';
+    li.innerHTML = '<span class="pp-sw"></span><span class="nm"><b>Insert printed part ' + st.p +
+      '</b>find the ID ' + st.p + ' engraved on its side' + (st.pv != null ? ' · ' + st.pv + ' cm³' : '') +
+      (st.pf ? ' · ' + st.pf : '') + (st.e ? ' · goes in before all under it is built' : '') + '</span>';
+    ul.appendChild(li);
+  }
+  for (const [num, name, count, color] of st.c){
+    const li = document.createElement('li');
+    li.innerHTML = '<span class="cnt">' + count + '×</span><svg class="ic"><use href="#i' + num +
+      '"/></svg><span class="nm"><b>' + name + '</b>' + num + ' · ' + color + '</span>';
+    ul.appendChild(li);
+  }
+  el('attach').textContent = st.a ? '' : 'Nothing to attach this to yet: hold it in place.';
+  document.title = 'Step ' + s + ' / ' + N;
+}
+function go(d){ show(cur + d, true); }
+function play(on){
+  if (on === undefined) on = !timer;
+  if (timer){ clearInterval(timer); timer = null; }
+  if (on){
+    if (cur >= N) show(1, false);
+    timer = setInterval(() => { if (cur >= N) play(false); else go(1); }, D.play_ms);
+  }
+  el('play').textContent = timer ? '❚❚' : '▶';
+  el('play').setAttribute('aria-pressed', timer ? 'true' : 'false');
+}
+document.addEventListener('keydown', e => {
+  if (e.target && e.target.tagName === 'INPUT' && e.target.type !== 'range') return;
+  const k = e.key;
+  if (k === 'ArrowRight' || k === 'ArrowDown' || k === 'PageDown' || k === 'Enter'){ go(1); }
+  else if (k === 'ArrowLeft' || k === 'ArrowUp' || k === 'PageUp' || k === 'Backspace'){ go(-1); }
+  else if (k === 'Home'){ show(1, false); }
+  else if (k === 'End'){ show(N, false); }
+  else if (k === ' ' || k === 'Spacebar'){ play(); }
+  else return;
+  e.preventDefault();
+});
+let tx = null, ty = null;
+const stage = el('stage');
+stage.addEventListener('touchstart', e => { const t = e.changedTouches[0]; tx = t.clientX; ty = t.clientY; }, {passive:true});
+stage.addEventListener('touchend', e => {
+  if (tx === null) return;
+  const t = e.changedTouches[0], dx = t.clientX - tx, dy = t.clientY - ty;
+  tx = ty = null;
+  if (Math.abs(dx) > 40 && Math.abs(dx) > 1.5 * Math.abs(dy)) go(dx < 0 ? 1 : -1);
+}, {passive:true});
+el('slider').addEventListener('input', e => show(+e.target.value, false));
+el('next').addEventListener('click', () => go(1));
+el('prev').addEventListener('click', () => go(-1));
+el('play').addEventListener('click', () => play());
+window.fabrickator = {show: s => show(s, false), current: () => cur, steps: N, playing: () => !!timer};
+show(1, false);
+})();
+"""
+
+_TEMPLATE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{title}</title>
+<style>{css}</style>
+</head>
+<body>
+<header><h1>{title}</h1><span class="sum">{summary}</span></header>
+{warn}
+<main>
+<div id="stage">{svg}</div>
+<aside>
+<div id="stepline">Step <span id="stepno">1</span> <small>of {nsteps}</small></div>
+<ul id="callout"></ul>
+<p id="attach" class="warn" role="status"></p>
+<div id="layer"><div id="lbar"><div id="lfill"></div></div>
+<div id="ltext">Layer <b id="layerno">1</b><br>at <span id="lheight">0.0</span> mm</div></div>
+<details><summary>All parts</summary><table>{bom_rows}</table></details>
+<p class="hint">Keys: → / ← step, space play, Home / End. Swipe on a tablet.
+Grey: built; blue: this step; orange: printed parts.</p>
+</aside>
+</main>
+<footer><button id="prev" aria-label="previous step">◀</button>
+<button id="play" aria-label="play" aria-pressed="false">▶</button>
+<button id="next" aria-label="next step">▶▶</button>
+<input id="slider" type="range" min="1" max="{nsteps}" value="1" aria-label="step"></footer>
+<svg width="0" height="0" style="position:absolute"><defs>{icons}</defs></svg>
+<script id="data" type="application/json">{data}</script>
+<script>{js}</script>
+</body>
+</html>
+"""

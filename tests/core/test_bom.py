@@ -1,0 +1,112 @@
+"""Tests of core.bom: bom.csv and the BrickLink wanted list add up to the layout."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from lxml import etree
+
+from core import bom, ldraw, pipeline
+from core.catalog import BY_NUMBER
+from core.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT.parent / "shared" / "models"
+HMD_HIGH_RES = ["-54,25,25.5,-9,36,70.5", "9,25,25.5,54,36,70.5"]
+
+
+def hmd_step(folder: Path) -> Path:
+    """The bundled example's STEP: examples/build/hmd.step, or built into ``folder``."""
+    built = ROOT / "examples" / "build" / "hmd.step"
+    if built.is_file():
+        return built
+    spec = importlib.util.spec_from_file_location("fabrickator_example_hmd", ROOT / "examples" / "hmd.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    step, _ = module.export_hmd(folder)
+    return Path(step)
+
+
+@pytest.fixture(scope="module")
+def hmd(tmp_path_factory):
+    step = hmd_step(tmp_path_factory.mktemp("hmd"))
+    return pipeline.run(step, high_res=HMD_HIGH_RES, slice_parts=False)
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def test_csv_totals_match_the_layout(hmd, tmp_path):
+    path = bom.write_csv(bom.lines(hmd.layout, hmd.printed), tmp_path / "bom.csv")
+    rows = read_csv(path)
+    assert list(rows[0]) == list(bom.COLUMNS)
+    lego = [r for r in rows if r["kind"] == "lego"]
+    want = Counter(b.part for b in hmd.layout.bricks if b.kind == "lego")
+    assert {r["part"]: int(r["count"]) for r in lego} == dict(want)
+    assert len({r["part"] for r in lego}) == len(lego)
+    for r in lego:
+        assert r["name"] == BY_NUMBER[r["part"]].name
+        assert r["color"] == "Light Bluish Grey" and r["ldraw_color"] == "71" and r["bricklink_color"] == "86"
+    printed = [r for r in rows if r["kind"] == "printed"]
+    assert [r["part"] for r in printed] == [p.id for p in hmd.printed]
+    for r, p in zip(printed, hmd.printed):
+        assert float(r["volume_mm3"]) == pytest.approx(p.volume_mm3, abs=0.05)
+        assert int(r["bricks_replaced"]) == len(p.bricks)
+        assert float(r["print_s"]) > 60 and r["print_method"].startswith("estimate")
+        assert r["file"].endswith(f"{p.id}.stl") and r["count"] == "1"
+    assert sum(int(r["count"]) for r in rows) == sum(want.values()) + len(hmd.printed)
+
+
+def test_slicer_time_is_used_when_there(hmd):
+    part = hmd.printed[0]
+    old = part.print_s
+    try:
+        part.print_s = 1234.0
+        row = next(r for r in bom.lines(hmd.layout, hmd.printed) if r.part == part.id)
+        assert row.print_s == 1234.0 and row.print_method.startswith("slicer")
+    finally:
+        part.print_s = old
+
+
+def test_wanted_list_is_bricklink_xml_of_the_missing_bricks(hmd, tmp_path):
+    path = bom.write_wanted_list(hmd.layout, tmp_path / "bricklink.xml", remarks="hmd & co")
+    text = path.read_text(encoding="utf-8")
+    assert text.startswith("<INVENTORY>")          # BrickLink refuses an XML declaration
+    root = etree.fromstring(text.encode())
+    items = root.findall("ITEM")
+    want = Counter(b.part for b in hmd.layout.bricks if b.kind == "lego")
+    got = {i.findtext("ITEMID"): int(i.findtext("MINQTY")) for i in items}
+    assert got == dict(want)
+    for i in items:
+        assert i.findtext("ITEMTYPE") == "P"
+        assert i.findtext("COLOR") == str(ldraw.COLORS[ldraw.LEGO_COLOR][1])
+        assert i.findtext("REMARKS") == "hmd & co"
+    owned = {"3001": 10_000, next(iter(want)): 1}
+    got = {i.findtext("ITEMID"): int(i.findtext("MINQTY"))
+           for i in etree.fromstring(bom.write_wanted_list(hmd.layout, tmp_path / "w.xml", owned)
+                                     .read_bytes()).findall("ITEM")}
+    assert "3001" not in got
+    first = next(iter(want))
+    assert got.get(first, 0) == want[first] - 1
+
+
+def test_owned_counts_must_be_whole_numbers(hmd):
+    for bad in (-1, 1.5, "3"):
+        with pytest.raises(InputError, match="owned count"):
+            bom.wanted(hmd.layout, {"3001": bad})
+
+
+def test_a_shared_model_without_printed_parts(tmp_path):
+    path = MODELS / "xyz_calibration_cube.stl"
+    if not path.is_file():
+        pytest.skip(f"shared test models not found at {MODELS}")
+    fab = pipeline.run(path)
+    rows = read_csv(bom.write_csv(bom.lines(fab.layout, fab.printed), tmp_path / "bom.csv"))
+    assert all(r["kind"] == "lego" for r in rows)
+    assert sum(int(r["count"]) for r in rows) == len(fab.layout.bricks)
