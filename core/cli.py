@@ -45,34 +45,63 @@ def _parser() -> argparse.ArgumentParser:
                                      "standard LEGO plates and bricks.")
     fab.add_argument("model", metavar="MODEL")
     fab.add_argument("--out", required=True, metavar="DIR",
-                     help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
-    fab.add_argument("--units", choices=sorted(UNITS), default="mm",
-                     help="unit of the file's coordinates (default mm)")
-    fab.add_argument("--scale", type=float, default=1.0, metavar="S",
-                     help="extra scale factor applied after --units")
-    fab.add_argument("--seed", type=int, default=0, metavar="N",
-                     help="seed of the layout (same seed, same layout)")
-    fab.add_argument("--parts", default=None, metavar="SET",
-                     help="brick set: all, plates, bricks, design numbers (3001,3024) "
-                          "or plate2x4-style names, comma-separated; must contain 3024")
-    fab.add_argument("--high-res", action="append", default=[], metavar="X0,Y0,Z0,X1,Y1,Z1",
-                     help="box in model mm whose bricks become printed parts (repeatable; write --high-res=-5,... when it starts with a minus)")
-    fab.add_argument("--high-res-solid", action="append", default=[], metavar="FILE",
-                     help="region solid (STL/STEP/...) whose bricks become printed (repeatable)")
-    fab.add_argument("--clearance", type=float, default=0.1, metavar="MM",
-                     help="FDM clearance of printed studs and holes, a diameter (default 0.1)")
+               help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
+    _model_options(fab)
     fab.add_argument("--seconds-per-brick", type=float, default=10.0, metavar="S",
-                     help="assembly estimate per LEGO brick placed (default 10)")
+               help="assembly estimate per LEGO brick placed (default 10)")
     fab.add_argument("--seconds-per-part", type=float, default=30.0, metavar="S",
-                     help="assembly estimate per printed part inserted (default 30)")
+               help="assembly estimate per printed part inserted (default 30)")
+    fab.add_argument("--previous", default=None, metavar="DIR",
+               help="an earlier --out of the same object: align, diff, keep its layout "
+                          "where nothing changed, reprint only changed parts (changes.html)")
+    fab.add_argument("--no-connectors", action="store_true",
+               help="cut printed parts exactly, even where that cuts the studs and "
+                          "sockets they clamp with")
     fab.add_argument("--no-picture", action="store_true", help="do not render layout.png")
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    wat = sub.add_parser("watch", help="fabricate every new version of a model saved into a folder",
+                         description="Watch FOLDER for STL/OBJ/PLY/3MF/STEP files that appear or "
+                                     "change (e.g. exported by Blender with "
+                                     "tools/blender/fabrickator_blender.py) and fabricate each as "
+                                     "the next iteration of the previous one, into "
+                                     "OUT/<name>-<n>. Ctrl-C ends it.")
+    wat.add_argument("folder", metavar="FOLDER")
+    wat.add_argument("--out", required=True, metavar="ROOT", help="folder for the outputs")
+    wat.add_argument("--previous", default=None, metavar="DIR",
+               help="iterate the first version on this earlier output")
+    wat.add_argument("--existing", action="store_true",
+               help="also fabricate the files already in FOLDER")
+    wat.add_argument("--timeout", type=float, default=None, metavar="S",
+               help="stop after S seconds (default: run until Ctrl-C)")
+    _model_options(wat)
+    wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return parser
+
+
+def _model_options(p: argparse.ArgumentParser) -> None:
+    """The options that say how to read a model and what to print (fabricate and watch)."""
+    p.add_argument("--units", choices=sorted(UNITS), default="mm",
+                   help="unit of the file's coordinates (default mm)")
+    p.add_argument("--scale", type=float, default=1.0, metavar="S",
+                   help="extra scale factor applied after --units")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="seed of the layout (same seed, same layout)")
+    p.add_argument("--parts", default=None, metavar="SET",
+                   help="brick set: all, plates, bricks, design numbers (3001,3024) "
+                        "or plate2x4-style names, comma-separated; must contain 3024")
+    p.add_argument("--high-res", action="append", default=[], metavar="X0,Y0,Z0,X1,Y1,Z1",
+                   help="box in model mm whose bricks become printed parts (repeatable; write --high-res=-5,... when it starts with a minus)")
+    p.add_argument("--high-res-solid", action="append", default=[], metavar="FILE",
+                   help="region solid (STL/STEP/...) whose bricks become printed (repeatable)")
+    p.add_argument("--clearance", type=float, default=0.1, metavar="MM",
+                   help="FDM clearance of printed studs and holes, a diameter (default 0.1)")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 bad input)."""
     args = _parser().parse_args(argv)
+    if args.command == "watch":
+        return _watch(args)
     from core import pipeline
 
     progress = None if args.quiet else _progress_printer(sys.stderr)
@@ -83,20 +112,68 @@ def main(argv: list[str] | None = None) -> int:
                                  high_res=args.high_res, high_res_solids=args.high_res_solid,
                                  clearance=args.clearance,
                                  seconds_per_brick=args.seconds_per_brick,
-                                 seconds_per_part=args.seconds_per_part)
+                                 seconds_per_part=args.seconds_per_part,
+                                 previous=args.previous, connectors=not args.no_connectors)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2
+    _summary(doc, args.out)
+    return 0
+
+
+def _watch(args) -> int:
+    """The ``watch`` command: each new version fabricated as an iteration on the last output."""
+    from pathlib import Path
+
+    from core import pipeline, watch
+
+    progress = None if args.quiet else _progress_printer(sys.stderr)
+    root, previous, runs = Path(args.out), args.previous, 0
+    try:
+        files = watch.watch(args.folder, include_existing=args.existing, timeout_s=args.timeout)
+        sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
+        for path in files:
+            runs += 1
+            out = root / f"{path.stem}-{runs}"
+            try:
+                doc = pipeline.fabricate(path, out, units=args.units, scale=args.scale,
+                                         seed=args.seed, parts=args.parts, progress=progress,
+                                         high_res=args.high_res,
+                                         high_res_solids=args.high_res_solid,
+                                         clearance=args.clearance, previous=previous)
+            except InputError as err:
+                sys.stderr.write(f"error: {path.name}: {err}\n")
+                continue
+            _summary(doc, out)
+            previous = out
+    except InputError as err:
+        sys.stderr.write(f"error: {err}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write(f"stopped after {runs} version(s)\n")
+    return 0
+
+
+def _summary(doc: dict, out) -> None:
+    """The short summary of one fabricate run on stdout."""
     for warning in doc["model"]["warnings"]:
         sys.stderr.write(f"warning: {warning}\n")
     st, br = doc["stability"], doc["bricks"]
     print(f"{doc['plates']} cells -> {br['total']} bricks "
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
-          f"{st['weak_points']} weak point(s); written to {args.out}")
+          f"{st['weak_points']} weak point(s); written to {out}")
     if doc["printed_parts"]:
         pt = doc["print_time_s"] or {}
         print(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
               f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts "
               f"+ {doc['assembly_s']} s assembly: speed-up {doc['speedup']}")
-    return 0
+    ch = doc.get("changes")
+    if ch:
+        t = ch["transform"]
+        if not t.get("confident", True):
+            sys.stderr.write(f"warning: {t.get('message')}\n")
+        print(f"changes: {ch['cells_added']} cell(s) added, {ch['cells_removed']} removed; "
+              f"{ch['bricks_kept']} brick(s) kept, {len(ch['take_off'])} to take off, "
+              f"{len(ch['add'])} to add; reprint {', '.join(ch['parts_reprinted']) or 'nothing'} "
+              f"(see changes.html)")

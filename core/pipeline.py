@@ -54,6 +54,17 @@ class Fabrication:
     seconds_per_brick: float = SECONDS_PER_BRICK
     connectors: connectors_stage.Connectors | None = None
     seconds_per_part: float = SECONDS_PER_PART
+    clearance: float = BrickGeometry.clearance
+    iteration: object | None = None
+
+    @property
+    def to_print(self) -> list[printed_stage.PrintedPart]:
+        """The printed parts to print now: all of them, or after an iteration
+        (``--previous``) only those it must reprint."""
+        if self.iteration is None:
+            return list(self.printed)
+        again = set(self.iteration.reprinted)
+        return [p for p in self.printed if p.id in again]
 
 
 def _noop(fraction: float, message: str) -> None:
@@ -64,7 +75,8 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         parts: str | None = None, progress: Progress | None = None, high_res=(),
         high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
         seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
-        connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART) -> Fabrication:
+        connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART,
+        previous: str | os.PathLike | None = None) -> Fabrication:
     """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
@@ -81,7 +93,11 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     printed parts and ``slice_parts``, the whole model and the plate of all
     printed parts are print-timed (:func:`core.print_time.print_time`); the
     print times stay None without printed parts, so a plain run slices
-    nothing.
+    nothing.  ``previous`` is an earlier output folder of the same object:
+    the model is then an iteration on it (:func:`core.iterate.iterate`:
+    aligned, diffed on the previous grid, the old layout kept where nothing
+    changed, only changed printed parts reprinted and print-timed; high-res
+    boxes in the new file's coordinates add to the earlier marks).
     Raises :class:`~core.errors.InputError` for bad input; otherwise returns
     a :class:`Fabrication` whose layout covers every filled cell once.
     """
@@ -97,13 +113,19 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         return value
 
     model = timed("load", 0.0, mesh_io.load_model, path, units=units, scale=scale)
+    for flag, value in (("--seconds-per-brick", seconds_per_brick), ("--seconds-per-part", seconds_per_part)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1e6):
+            raise InputError(f"{flag} {value!r} must be a number of seconds >= 0")
+    if previous is not None:
+        return _iterate(previous, model, chosen, seed, timed, timings, progress, high_res=high_res,
+                        high_res_solids=high_res_solids, units=units, scale=scale,
+                        clearance=float(clearance), connectors=connectors,
+                        seconds_per_brick=float(seconds_per_brick),
+                        seconds_per_part=float(seconds_per_part), slice_parts=slice_parts)
     grid = timed("legofy", 0.2, voxelize.legofy, model.mesh, closed=model.watertight)
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
-    for flag, value in (("--seconds-per-brick", seconds_per_brick), ("--seconds-per-part", seconds_per_part)):
-        if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1e6):
-            raise InputError(f"{flag} {value!r} must be a number of seconds >= 0")
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
     boxes = [high_res_stage.parse_box(b) if isinstance(b, str) else b for b in high_res]
@@ -129,9 +151,23 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
                       seconds_per_brick=float(seconds_per_brick), connectors=links,
-                      seconds_per_part=float(seconds_per_part))
+                      seconds_per_part=float(seconds_per_part), clearance=float(clearance))
     if made and slice_parts:
         timed("print_time", 0.85, _print_times, fab)
+    return fab
+
+
+def _iterate(previous, model, chosen, seed, timed, timings: dict, progress, slice_parts: bool,
+             seconds_per_brick: float, seconds_per_part: float, **marks) -> Fabrication:
+    """:func:`run` with ``previous``: the iteration stage, as a Fabrication."""
+    from core import iterate as iterate_stage
+    before = timed("previous", 0.05, iterate_stage.load_previous, previous)
+    it = iterate_stage.iterate(before, model, chosen, seed, progress=progress, **marks)
+    fab = iterate_stage.to_fabrication(it, seconds_per_brick)
+    fab.seconds_per_part, fab.clearance, fab.iteration = seconds_per_part, marks["clearance"], it
+    if fab.printed and slice_parts:
+        timed("print_time", 0.85, _print_times, fab)
+    fab.timings_s = {**timings, **it.timings_s}
     return fab
 
 
@@ -146,25 +182,40 @@ def _print_times(fab: Fabrication) -> None:
     from concurrent.futures import ThreadPoolExecutor
 
     from core.export import plate
-    meshes = plate(fab.printed)
+    printing = fab.to_print
+    meshes = plate(printing)
     with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work, \
             ThreadPoolExecutor(max_workers=2) as pool:
         full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work)
-        parts = pool.submit(print_time_stage.print_time, meshes, work)
-        fab.print_full, fab.print_parts = full.result(), parts.result()
+        parts = pool.submit(print_time_stage.print_time, meshes, work) if meshes else None
+        fab.print_full = full.result()
+        fab.print_parts = parts.result() if parts else print_time_stage.PrintEstimate(
+            0.0, "nothing to print: no printed part changed", None)
     weights = [print_time_stage.estimate_seconds([m]) for m in meshes]
     total = sum(weights) or 1.0
-    for p, w in zip(fab.printed, weights):
+    for p, w in zip(printing, weights):
         p.print_s = fab.print_parts.seconds * w / total
 
 
 def assembly_seconds(fab: Fabrication) -> float:
-    """Assembly estimate: ``seconds_per_brick`` per LEGO brick, ``seconds_per_part`` per printed part."""
-    return build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, fab.seconds_per_part)
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick, ``seconds_per_part`` per printed part.
+
+    After an iteration (``--previous``) it is the rework only: each LEGO brick
+    to take off or add, each reprinted part to insert.
+    """
+    if fab.iteration is None:
+        return build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, fab.seconds_per_part)
+    ch = fab.iteration.changes
+    moves = sum(1 for b in ch["take_off"] + ch["add"] if b.get("kind", "lego") == "lego")
+    return fab.seconds_per_brick * moves + fab.seconds_per_part * len(fab.iteration.reprinted)
 
 
 def speedup(fab: Fabrication) -> float | None:
-    """The paper's speed-up: full print time / (printed parts' print time + assembly), or None."""
+    """The paper's speed-up: full print time / (printed parts' print time + assembly), or None.
+
+    After an iteration: printing the new version whole / (printing the
+    changed parts + the rework), the paper's "faster iteration".
+    """
     if fab.print_full is None or fab.print_parts is None:
         return None
     return fab.print_full.seconds / max(fab.print_parts.seconds + assembly_seconds(fab), 1e-9)
@@ -229,6 +280,7 @@ def report(fab: Fabrication) -> dict:
         "seconds_per_part": fab.seconds_per_part,
         "speedup": None if gain is None else round(gain, 3),
         "timings_s": dict(fab.timings_s),
+        **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
 
 
@@ -288,6 +340,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
                                  title=f"{Path(fab.model.path).name}: "
                                        f"{len(fab.layout.bricks)} bricks")
         fab.timings_s["write"] = round(time.perf_counter() - start, 4)
+        from core import iterate as iterate_stage
+        iterate_stage.snapshot(fab, tmp, clearance=fab.clearance)
+        if fab.iteration is not None:
+            iterate_stage.changes_page(fab.iteration, tmp / "changes.html")
         doc = report(fab)
         doc["assembly"] = assembly
         doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
@@ -307,7 +363,7 @@ def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm"
               picture: bool = True, progress: Progress | None = None, **printing) -> dict:
     """Run the pipeline on ``path`` and write its outputs into ``out``; returns the report.
 
-    ``printing`` are the high-res keywords of :func:`run` (``high_res``,
+    ``printing`` are the high-res and iteration keywords of :func:`run` (``previous``, ``high_res``,
     ``high_res_solids``, ``high_res_bricks``, ``clearance``,
     ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``).
     """

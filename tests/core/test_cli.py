@@ -147,3 +147,53 @@ def test_triangle_soup_refused(tmp_path):
         pytest.skip(f"{MODELS} is absent: the shared benchmark models are not here")
     assert_refused(fabricate(str(soup), "--out", str(tmp_path / "o")), "volume")
     assert not (tmp_path / "o").exists()
+
+
+def _l_block(extra: bool) -> trimesh.Trimesh:
+    """An L-shaped block 48 x 32 x 19.2 mm; ``extra`` adds a 16 x 16 x 9.6 mm boss on top of one end."""
+    parts = [trimesh.creation.box((48.0, 16.0, 19.2)), trimesh.creation.box((16.0, 32.0, 19.2))]
+    parts[1].apply_translation((-16.0, 8.0, 0.0))
+    if extra:
+        parts.append(trimesh.creation.box((16.0, 16.0, 9.6)))
+        parts[-1].apply_translation((16.0, 0.0, 14.4))
+    mesh = trimesh.boolean.union(parts, engine="manifold")
+    mesh.apply_translation(-mesh.bounds[0])
+    return mesh
+
+
+def test_previous_keeps_the_layout_of_a_moved_and_edited_part(tmp_path):
+    first, second = tmp_path / "v1.stl", tmp_path / "v2.stl"
+    _l_block(False).export(first)
+    moved = _l_block(True)
+    moved.apply_transform(trimesh.transformations.rotation_matrix(0.7, [1.0, 2.0, 3.0]))
+    moved.apply_translation((30.0, -12.0, 7.0))
+    moved.export(second)
+    assert fabricate(str(first), "--out", str(tmp_path / "o1"), "--no-picture").returncode == 0
+    proc = fabricate(str(second), "--previous", str(tmp_path / "o1"), "--out", str(tmp_path / "o2"),
+                     "--no-picture")
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((tmp_path / "o2" / "report.json").read_text())
+    ch = report["changes"]
+    assert ch["transform"]["confident"]
+    assert ch["transform"]["rotation_deg"] == pytest.approx(np.degrees(0.7), abs=0.05)
+    assert ch["cells_added"] == 2 * 2 * 3 and ch["cells_removed"] == 0
+    before = json.loads((tmp_path / "o1" / "layout.json").read_text())["bricks"]
+    assert ch["bricks_kept"] >= len(before) - 2 and ch["add"]
+    assert "changes:" in proc.stdout and (tmp_path / "o2" / "changes.html").exists()
+
+
+def test_previous_that_is_not_an_output_is_refused(box_stl, tmp_path):
+    assert_refused(fabricate(str(box_stl), "--previous", str(tmp_path), "--out", str(tmp_path / "o")),
+                   "--previous", "not an output folder")
+
+
+def test_watch_fabricates_each_new_version(box_stl, tmp_path):
+    folder = tmp_path / "inbox"
+    folder.mkdir()
+    (folder / "part.stl").write_bytes(box_stl.read_bytes())
+    proc = subprocess.run([sys.executable, "-m", "core", "watch", str(folder), "--out",
+                           str(tmp_path / "runs"), "--existing", "--timeout", "4", "--quiet"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((tmp_path / "runs" / "part-1" / "report.json").read_text())
+    assert report["plates"] == 90 and "written to" in proc.stdout

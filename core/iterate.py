@@ -1,0 +1,864 @@
+"""Design iteration: a new version of the part against an earlier output folder.
+
+The paper's second key benefit ("Faster iteration through localized
+changes", "Calculating changes between design iterations"): the user edits
+the part, and only what changed is rebuilt and reprinted.
+
+* :func:`snapshot` writes into an output folder (``iteration/``) what a
+  later iteration needs: the model mesh (``model.ply``) and B-rep
+  (``model.brep``, binary OpenCascade), each printed part's mesh and B-rep,
+  and ``state.json`` (layout, stability, printed-part records).
+* :func:`load_previous` reads it back as a :class:`Previous`.
+* :func:`iterate` runs the iteration stage on a newly loaded model:
+
+  1. **Align** (:mod:`core.align`) the new version onto the previous one.
+  2. **Legofy** it on the previous grid's lattice and **diff** the cells
+     (:mod:`core.diff`).
+  3. **High-res marks** carry over: previous printed cells that are still
+     filled, plus every connected piece of added cells that touches them
+     (a lengthened nose piece stays printed), plus new ``high_res`` boxes
+     or solids (given in the new file's coordinates).
+  4. **Keep** every previous brick whose cells are all still filled and
+     whose kind (LEGO / printed) still fits the marks; a printed part is
+     kept whole or not at all (not when a freed marked cell touches it).
+     The rest (*freed* cells: added cells and the cells of bricks not
+     kept) is laid out anew with :func:`core.layout.lay_out`, LEGO and
+     marked cells separately.  :func:`core.stability.analyse` then checks
+     the joined layout; while it has more extra components than the
+     previous layout or new weak points that carry more than single leaf
+     bricks (a brick standing alone on one brick is a leaf), one ring of
+     LEGO bricks around the freed cells (bricks touching them face to face,
+     also above and below) is freed too and the neighbourhood laid out
+     again, at most :data:`MAX_RINGS` times; the best attempt (extra
+     components, new weak points, new leaf-only weak points, bricks placed)
+     wins.
+  5. **Printed parts**: a kept part whose surroundings changed (changed
+     surface near it, :func:`core.diff.changed_boxes`, or other connector
+     cells) and every new group of printed bricks is cut from the aligned
+     model (:func:`core.printed.build_part`).  A new group takes the id of
+     the previous part it overlaps most.  A part is *reprinted* when it is
+     new or its symmetric difference with the previous print exceeds
+     :func:`core.diff.reprint_threshold`; otherwise the old print still
+     fits.
+  6. The ``changes`` document: transform, cells added/removed, bricks
+     kept/added/taken off, parts reprinted, and the instructions diff.
+
+* :func:`changes_page` writes the self-contained HTML page of the
+  instructions diff: what to take off, what to add, what to reprint.
+
+Brick ids are stable: a kept brick keeps its id, new bricks get ids above
+the previous largest, so "take off brick 17" means the brick 17 of the
+previous instructions.  The new version is expressed in the *previous*
+frame: ``changes["transform"]["matrix"]`` maps the new file's coordinates
+into it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import trimesh
+from scipy import ndimage
+
+from core import align as align_stage
+from core import connectors as connectors_stage
+from core import diff as diff_stage
+from core import high_res, layout as layout_stage, mesh_io, printed as printed_stage
+from core import stability as stability_stage, voxelize
+from core.brick_solids import BrickGeometry
+from core.catalog import BY_NUMBER, CATALOG, Part
+from core.errors import InputError
+from core.model import Brick, Grid, Layout
+
+Progress = Callable[[float, str], None]
+
+#: Folder inside an output folder that holds the iteration snapshot.
+SNAPSHOT_DIR = "iteration"
+#: Version of the snapshot format.
+SNAPSHOT_VERSION = 1
+#: Rings of LEGO bricks the re-laid-out neighbourhood may grow by.
+MAX_RINGS = 4
+#: Margin (mm) around a printed part's bricks within which a changed surface
+#: makes it be cut again (its studs stand above the bricks).
+PART_MARGIN_MM = 0.5
+#: Distance (mm) within which triangles / faces of the two versions are the same.
+SAME_SURFACE_MM = diff_stage.SAME_SURFACE_MM
+
+
+def _noop(fraction: float, message: str) -> None:
+    """Progress sink that ignores everything."""
+
+
+# --------------------------------------------------------------------------- snapshot
+
+
+def snapshot(fab, folder: str | os.PathLike, clearance: float | None = None) -> Path:
+    """Write what a later iteration needs into ``folder/iteration/``; returns that folder.
+
+    ``fab`` is a :class:`core.pipeline.Fabrication`.  Written: ``model.ply``
+    (the repaired model mesh, mm), ``model.brep`` for B-rep input,
+    ``parts/<id>.ply`` (and ``.brep``) per printed part, and ``state.json``
+    with the layout, its stability, the brick set, seed, ``clearance``
+    (when given) and every printed part's record (bricks, studs, tubes,
+    clamp cells, engraving).
+    """
+    out = Path(folder) / SNAPSHOT_DIR
+    (out / "parts").mkdir(parents=True, exist_ok=True)
+    model = fab.model
+    model.mesh.export(out / "model.ply", file_type="ply")
+    if model.brep is not None:
+        _write_brep(model.brep, out / "model.brep")
+    records = []
+    for p in fab.printed:
+        p.mesh.export(out / "parts" / f"{p.id}.ply", file_type="ply")
+        if p.solid is not None:
+            _write_brep(p.solid, out / "parts" / f"{p.id}.brep")
+        records.append(_part_record(p))
+    st = fab.stability
+    state = {
+        "version": SNAPSHOT_VERSION,
+        "model": {"path": str(model.path), "format": model.format,
+                  "watertight": bool(model.watertight), "brep": model.brep is not None},
+        "layout": fab.layout.to_json(),
+        "stability": {"regions": st.regions, "components": st.components,
+                      "weak_points": list(st.weak_points)},
+        "brick_set": [p.number for p in fab.parts],
+        "seed": fab.seed,
+        "clearance": None if clearance is None else float(clearance),
+        "printed": records,
+    }
+    (out / "state.json").write_text(json.dumps(state))
+    return out
+
+
+def _write_brep(shape, path: Path) -> None:
+    from OCP.BinTools import BinTools
+    BinTools.Write_s(shape, str(path))
+
+
+def _read_brep(path: Path):
+    from OCP.BinTools import BinTools
+    from OCP.TopoDS import TopoDS_Shape
+    shape = TopoDS_Shape()
+    BinTools.Read_s(shape, str(path))
+    return shape
+
+
+#: PrintedPart fields kept as grid-cell maps; they are stored as [i, j, k, value] rows.
+_CELL_MAPS = ("top_ok", "bottom_ok")
+
+
+def _part_record(p: printed_stage.PrintedPart) -> dict:
+    """A printed part as JSON: every field but its geometry (``solid``, ``mesh``)."""
+    out = {}
+    for f in dataclasses.fields(p):
+        value = getattr(p, f.name)
+        if f.name in ("solid", "mesh"):
+            continue
+        if f.name in _CELL_MAPS:
+            value = [[*map(int, c), bool(v)] for c, v in value.items()]
+        out[f.name] = value
+    return out
+
+
+@dataclass
+class Previous:
+    """An earlier output folder as the iteration sees it.
+
+    ``grid`` and ``layout`` as that run made them; ``mesh`` / ``brep`` its
+    model (mm, its frame); ``parts`` its printed parts by id (cells in its
+    grid); ``state`` the raw ``state.json``.
+    """
+
+    folder: Path
+    grid: Grid
+    layout: Layout
+    mesh: trimesh.Trimesh
+    brep: object | None
+    watertight: bool
+    parts: dict[str, printed_stage.PrintedPart]
+    state: dict
+
+    @property
+    def weak_points(self) -> set[int]:
+        return set(self.state["stability"]["weak_points"])
+
+    @property
+    def extra_components(self) -> int:
+        st = self.state["stability"]
+        return max(0, int(st["components"]) - int(st["regions"]))
+
+
+def load_previous(folder: str | os.PathLike) -> Previous:
+    """Read the snapshot of an earlier output folder (``--previous DIR``).
+
+    Raises :class:`InputError` when ``folder`` is missing, is not an output
+    folder, or was written without a snapshot (then it must be made again).
+    """
+    folder = Path(folder)
+    state_file = folder / SNAPSHOT_DIR / "state.json"
+    if not folder.is_dir():
+        raise InputError(f"--previous {folder}: no such folder")
+    if not state_file.is_file():
+        raise InputError(f"--previous {folder}: not an output folder with an iteration snapshot "
+                         f"({SNAPSHOT_DIR}/state.json is missing); fabricate that version again")
+    try:
+        state = json.loads(state_file.read_text())
+        if state.get("version") != SNAPSHOT_VERSION:
+            raise InputError(f"--previous {folder}: snapshot version {state.get('version')} "
+                             f"is not {SNAPSHOT_VERSION}; fabricate that version again")
+        lay = state["layout"]
+        bricks = [Brick(int(b["id"]), str(b["part"]), tuple(b["size"]), tuple(b["cell"]),
+                        b["kind"], b["printed_part"], None) for b in lay["bricks"]]
+        filled = np.zeros(tuple(lay["shape"]), dtype=bool)
+        for b in bricks:
+            filled[b.slices()] = True
+        grid = Grid(origin=np.array(lay["origin_mm"], dtype=np.float64),
+                    cell=np.array(lay["cell_mm"], dtype=np.float64), filled=filled)
+        snap = folder / SNAPSHOT_DIR
+        mesh = trimesh.load(snap / "model.ply", file_type="ply", process=False, force="mesh")
+        brep = _read_brep(snap / "model.brep") if state["model"]["brep"] else None
+        parts = {}
+        for rec in state["printed"]:
+            part_mesh = trimesh.load(snap / "parts" / f"{rec['id']}.ply", file_type="ply",
+                                     process=False, force="mesh")
+            brep_file = snap / "parts" / f"{rec['id']}.brep"
+            parts[rec["id"]] = _part_from_record(rec, part_mesh,
+                                                 _read_brep(brep_file) if brep_file.exists() else None)
+    except InputError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
+        raise InputError(f"--previous {folder}: the iteration snapshot cannot be read "
+                         f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from None
+    return Previous(folder, grid, Layout(grid, bricks), mesh, brep,
+                    bool(state["model"]["watertight"]), parts, state)
+
+
+def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> printed_stage.PrintedPart:
+    """The :class:`~core.printed.PrintedPart` of a record and its geometry (fields
+    the record lacks keep their defaults; fields it has that the class lacks are dropped)."""
+    names = {f.name for f in dataclasses.fields(printed_stage.PrintedPart)} - {"solid", "mesh"}
+    values = {k: v for k, v in rec.items() if k in names}
+    for key in _CELL_MAPS:
+        if key in values:
+            values[key] = {tuple(int(v) for v in c[:3]): bool(c[3]) for c in values[key]}
+    values["bricks"] = [int(i) for i in values.get("bricks", [])]
+    return printed_stage.PrintedPart(solid=solid, mesh=mesh, **values)
+
+
+def _shifted_part(part: printed_stage.PrintedPart, shift) -> printed_stage.PrintedPart:
+    """A copy of ``part`` with its clamp cells moved by ``shift`` cells."""
+    s = tuple(int(v) for v in shift)
+
+    def move(cells: dict) -> dict:
+        return {(c[0] + s[0], c[1] + s[1], c[2] + s[2]): v for c, v in cells.items()}
+
+    return dataclasses.replace(part, top_ok=move(part.top_ok), bottom_ok=move(part.bottom_ok),
+                               stl=None, step=None)
+
+
+# --------------------------------------------------------------------------- iterate
+
+
+@dataclass
+class Iteration:
+    """What :func:`iterate` produced.
+
+    ``model`` is the new version moved into the previous frame (mesh and
+    B-rep); ``grid`` its legofication on the previous lattice (``diff.offset``:
+    previous index = index + offset); ``layout`` covers ``grid`` with kept
+    and new bricks; ``printed`` are all printed parts of the new layout
+    (kept ones unchanged), ``reprinted`` the ids of those to print now;
+    ``changes`` is the report's ``changes`` document.
+    """
+
+    previous: Previous
+    model: mesh_io.LoadedModel
+    alignment: align_stage.Alignment
+    diff: diff_stage.CellDiff
+    grid: Grid
+    layout: Layout
+    stability: stability_stage.Stability
+    printed: list[printed_stage.PrintedPart]
+    reprinted: list[str]
+    connectors: connectors_stage.Connectors | None
+    changes: dict
+    parts: tuple[Part, ...]
+    seed: int
+    rings: int
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, ...] = CATALOG,
+            seed: int = 0, high_res=(), high_res_solids=(), units: str = "mm", scale: float = 1.0,
+            clearance: float = BrickGeometry.clearance, connectors: bool = True,
+            progress: Progress | None = None) -> Iteration:
+    """The new version ``model`` as an iteration on ``previous`` (module docstring, steps 1-6).
+
+    ``high_res`` boxes ("X0,Y0,Z0,X1,Y1,Z1" or (2, 3) arrays) and
+    ``high_res_solids`` (files in ``units``/``scale``) are in the new
+    file's coordinates and mark cells in addition to the carried-over
+    marks.  Promises: the layout covers every filled cell of the new grid
+    exactly once; every kept brick has its previous id, part, size and
+    (shifted) cell; every printed part not in ``reprinted`` is either the
+    previous print itself (same bricks, surface unchanged around it) or was
+    cut again and differs from the previous print by at most
+    :func:`core.diff.reprint_threshold`.  Raises :class:`InputError` for
+    bad input.
+    """
+    progress = progress or _noop
+    timings: dict[str, float] = {}
+    geometry = BrickGeometry(clearance=float(clearance))
+    geometry.check(1)
+    allowed = {p.number for p in parts}
+
+    clock = time.perf_counter()
+    progress(0.0, "align")
+    alignment = align_stage.align(model.mesh, previous.mesh, model.brep, previous.brep,
+                                  model.watertight, previous.watertight)
+    aligned = align_stage.transform_model(model, alignment.transform)
+    timings["align"] = _lap(clock)
+
+    clock = time.perf_counter()
+    progress(0.2, "legofy on the previous grid")
+    grid, offset = diff_stage.legofy_on(previous.grid, aligned.mesh, aligned.watertight)
+    cells = diff_stage.cell_diff(previous.grid, grid, offset)
+    marked = _marks(previous, cells, high_res, high_res_solids, alignment.transform, units, scale)
+    plan = _keep(previous, cells, marked, allowed)
+    changed = np.zeros((0, 2, 3))
+    if plan.kept_parts:
+        tol = SAME_SURFACE_MM + 4.0 * min(alignment.residual_mm, 1.0)
+        changed = diff_stage.changed_boxes(previous.mesh, aligned.mesh, previous.brep, aligned.brep, tol)
+    timings["diff"] = _lap(clock)
+
+    clock = time.perf_counter()
+    progress(0.35, "layout of the changed neighbourhood")
+    layout, rings = _relayout(previous, grid, plan, marked, parts, seed)
+    timings["layout"] = _lap(clock)
+
+    clock = time.perf_counter()
+    progress(0.6, "printed parts")
+    made, reprint_info, links = _printed(previous, layout, plan, aligned, changed, geometry,
+                                         connectors)
+    timings["printed_parts"] = _lap(clock)
+
+    clock = time.perf_counter()
+    progress(0.9, "stability")
+    clamp = printed_stage.clamp_masks(layout, made) if made else None
+    st = stability_stage.analyse(layout, clamp)
+    timings["stability"] = _lap(clock)
+
+    changes = _changes(previous, alignment, cells, layout, plan, made, reprint_info, rings)
+    progress(1.0, "iteration done")
+    return Iteration(previous=previous, model=aligned, alignment=alignment, diff=cells, grid=grid,
+                     layout=layout, stability=st, printed=made,
+                     reprinted=[r["id"] for r in reprint_info if r["reprint"]],
+                     connectors=links, changes=changes, parts=tuple(parts), seed=seed,
+                     rings=rings, timings_s=timings)
+
+
+def _lap(start: float) -> float:
+    return round(time.perf_counter() - start, 4)
+
+
+def _marks(previous: Previous, cells: diff_stage.CellDiff, boxes, solids, transform: np.ndarray,
+           units: str, scale: float) -> np.ndarray:
+    """Cells to print in the new grid: carried-over marks, added pieces touching them,
+    and the new boxes / solids (new-file coordinates, moved by ``transform``)."""
+    grid = cells.grid
+    filled = np.asarray(grid.filled, dtype=bool)
+    before = np.zeros(previous.grid.shape, dtype=bool)
+    for b in previous.layout.bricks:
+        if b.kind == "printed":
+            before[b.slices()] = True
+    carried = diff_stage.shift_into(before, -cells.offset, grid.shape) & filled
+    marked = carried.copy()
+    if carried.any() and cells.added.any():
+        pieces, count = ndimage.label(cells.added, structure=stability_stage.FACE_STRUCTURE)
+        near = ndimage.binary_dilation(carried, structure=stability_stage.FACE_STRUCTURE)
+        touching = np.unique(pieces[near & (pieces > 0)])
+        marked |= np.isin(pieces, touching[touching > 0])
+    shape = np.array(grid.shape, dtype=np.int64)
+    for box in boxes:
+        corners = high_res.parse_box(box) if isinstance(box, str) else np.asarray(box, np.float64)
+        solid = trimesh.creation.box(bounds=corners)
+        moved = align_stage.transform_mesh(solid, transform)
+        marked |= voxelize.legofy(moved, cell=grid.cell, origin=grid.origin, shape=shape,
+                                  closed=True).filled
+    for path in solids:
+        region = mesh_io.load_model(path, units=units, scale=scale)
+        moved = align_stage.transform_mesh(region.mesh, transform)
+        marked |= voxelize.legofy(moved, cell=grid.cell, origin=grid.origin, shape=shape,
+                                  closed=region.watertight).filled
+    return marked & filled
+
+
+@dataclass
+class _Plan:
+    """Which previous bricks stay: shifted copies by id, and the kept printed parts."""
+
+    shifted: dict[int, Brick]
+    kept: set[int]
+    kept_parts: set[str]
+    next_id: int
+    offset: np.ndarray
+
+
+def _keep(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray,
+          allowed: set[str]) -> _Plan:
+    """Decide which previous bricks are kept (module docstring, step 4)."""
+    grid = cells.grid
+    shape = np.array(grid.shape)
+    filled = np.asarray(grid.filled, dtype=bool)
+    shifted: dict[int, Brick] = {}
+    fits: dict[int, bool] = {}
+    for b in previous.layout.bricks:
+        c = np.array(b.cell) - cells.offset
+        s = dataclasses.replace(b, cell=tuple(int(v) for v in c), step=None)
+        shifted[b.id] = s
+        inside = bool(np.all(c >= 0) and np.all(c + np.array(b.size) <= shape))
+        ok = inside and bool(filled[s.slices()].all())
+        if ok and b.kind == "printed":
+            ok = bool(marked[s.slices()].all())
+        elif ok:
+            ok = not marked[s.slices()].any() and b.part in allowed
+        fits[b.id] = ok
+    by_part: dict[str, list[int]] = {}
+    for b in previous.layout.bricks:
+        if b.kind == "printed" and b.printed_part is not None:
+            by_part.setdefault(b.printed_part, []).append(b.id)
+    kept_parts = {pid for pid, ids in by_part.items() if all(fits[i] for i in ids)}
+    while True:
+        covered = np.zeros(grid.shape, dtype=bool)
+        for pid in kept_parts:
+            for i in by_part[pid]:
+                covered[shifted[i].slices()] = True
+        free_marks = ndimage.binary_dilation(marked & ~covered,
+                                             structure=stability_stage.FACE_STRUCTURE)
+        drop = {pid for pid in kept_parts
+                if any(free_marks[shifted[i].slices()].any() for i in by_part[pid])}
+        if not drop:
+            break
+        kept_parts -= drop
+    kept = {b.id for b in previous.layout.bricks
+            if fits[b.id] and (b.kind != "printed" or b.printed_part in kept_parts)}
+    next_id = max((b.id for b in previous.layout.bricks), default=-1) + 1
+    return _Plan(shifted, kept, kept_parts, next_id, np.asarray(cells.offset, dtype=np.int64))
+
+
+def _lay_out_mask(grid: Grid, mask: np.ndarray, parts: tuple[Part, ...], seed: int) -> list[Brick]:
+    """Bricks covering the cells of ``mask`` (laid out on the mask's bounding box alone)."""
+    if not mask.any():
+        return []
+    idx = np.argwhere(mask)
+    a, b = idx.min(axis=0), idx.max(axis=0) + 1
+    sub = np.ascontiguousarray(mask[a[0]:b[0], a[1]:b[1], a[2]:b[2]])
+    part = layout_stage.lay_out(Grid(origin=grid.origin + a * grid.cell, cell=grid.cell, filled=sub),
+                                parts, seed=seed)
+    return [dataclasses.replace(x, cell=tuple(int(v) for v in np.array(x.cell) + a)) for x in part.bricks]
+
+
+def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
+              parts: tuple[Part, ...], seed: int) -> tuple[Layout, int]:
+    """Kept bricks plus the freed neighbourhood laid out anew, grown ring by ring
+    while the joined layout is less stable than the previous one (step 4)."""
+    filled = np.asarray(grid.filled, dtype=bool)
+    kept_cells = np.zeros(grid.shape, dtype=bool)
+    for i in plan.kept:
+        kept_cells[plan.shifted[i].slices()] = True
+    free = filled & ~kept_cells
+    kept = [plan.shifted[b.id] for b in previous.layout.bricks if b.id in plan.kept]
+    if not free.any():
+        return Layout(grid, kept), 0
+    lego_kept = {b.id for b in kept if b.kind != "printed"}
+    label = np.full(grid.shape, -1, dtype=np.int64)
+    for b in kept:
+        label[b.slices()] = b.id
+    clamp = _kept_clamp(previous, plan, grid)
+    best = None
+    freed: set[int] = set()
+    for ring in range(MAX_RINGS + 1):
+        if ring:
+            near = ndimage.binary_dilation(free, structure=stability_stage.FACE_STRUCTURE)
+            grow = {int(i) for i in np.unique(label[near & ~free]) if i in lego_kept} - freed
+            if not grow:
+                break
+            freed |= grow
+            for i in grow:
+                free[plan.shifted[i].slices()] = True
+        new = _lay_out_mask(grid, free & ~marked, parts, seed) + _lay_out_mask(grid, free & marked, parts, seed)
+        new = [dataclasses.replace(b, id=plan.next_id + n, kind="lego", printed_part=None, step=None)
+               for n, b in enumerate(new)]
+        for b in new:
+            if marked[b.slices()].all():
+                b.kind = "printed"
+        bricks = [b for b in kept if b.id not in freed] + new
+        joined = Layout(grid, bricks)
+        st = stability_stage.analyse(joined, clamp)
+        extra = max(0, st.components - st.regions - previous.extra_components)
+        weak = set(st.weak_points) - previous.weak_points
+        leaf = weak & set(st.leaf_supports)
+        key = (extra, len(weak - leaf), len(leaf), len(new))
+        if best is None or key < best[0]:
+            best = (key, joined, ring)
+        if key[:2] == (0, 0):
+            break
+    return best[1], best[2]
+
+
+def _kept_clamp(previous: Previous, plan: _Plan, grid: Grid) -> tuple[np.ndarray, np.ndarray] | None:
+    """Clamp masks of the kept printed parts in the new grid (None without any)."""
+    if not plan.kept_parts:
+        return None
+    kept = [_shifted_part(previous.parts[p], -plan.offset) for p in sorted(plan.kept_parts)
+            if p in previous.parts]
+    return printed_stage.clamp_masks(Layout(grid, []), kept)
+
+
+def _part_region(grid: Grid, bricks: list[Brick], geometry: BrickGeometry) -> np.ndarray:
+    """Boxes (n, 2, 3) mm around each brick of a printed part, its studs and a margin."""
+    out = []
+    for b in bricks:
+        lo = grid.origin + np.array(b.cell) * grid.cell - PART_MARGIN_MM
+        hi = grid.origin + (np.array(b.cell) + np.array(b.size)) * grid.cell + PART_MARGIN_MM
+        hi[2] += geometry.stud_height
+        out.append([lo, hi])
+    return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
+
+
+def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.LoadedModel,
+             changed: np.ndarray, geometry: BrickGeometry, connectors: bool):
+    """Printed parts of the new layout: kept, rebuilt or new (step 5).
+
+    Returns (parts, one reprint record per part, connectors of all parts).
+    """
+    index = {b.id: b for b in layout.bricks}
+    kept_groups = {pid: sorted(i for i in plan.kept if plan.shifted[i].printed_part == pid)
+                   for pid in sorted(plan.kept_parts)}
+    new_ids = [b.id for b in layout.bricks if b.kind == "printed" and b.id >= plan.next_id]
+    new_groups = high_res.groups(layout, new_ids) if new_ids else []
+    named = _name_groups(previous, new_groups, index, plan.offset, set(kept_groups))
+    all_groups = list(kept_groups.values()) + [g for _, g in named]
+    if not all_groups:
+        return [], [], None
+    links = connectors_stage.find(layout, all_groups if connectors else [], geometry)
+    rebuild: list[tuple[str, list[int], str | None]] = []
+    made: dict[str, printed_stage.PrintedPart] = {}
+    shift = -plan.offset
+    for pid, group in kept_groups.items():
+        old = previous.parts.get(pid)
+        bricks = [index[i] for i in group]
+        why = None
+        if old is None:
+            why = "no previous print on record"
+        elif diff_stage.boxes_meet(changed, _part_region(layout.grid, bricks, geometry)):
+            why = "the model's surface changed at the part"
+        elif connectors and (_connector_cells(layout, group, geometry)
+                             != _connector_cells(previous.layout, group, geometry, shift)):
+            why = "bricks above or below it changed, so its connectors change"
+        elif previous.state.get("clearance") not in (None, geometry.clearance):
+            why = "the printing clearance changed"
+        if why is None:
+            made[pid] = _shifted_part(old, shift)
+        else:
+            rebuild.append((pid, group, why))
+    rebuild += [(pid, group, None) for pid, group in named]
+    records = {pid: {"id": pid, "reprint": False, "reason": "unchanged", "replaces": pid,
+                     "symmetric_difference_mm3": 0.0} for pid in made}
+    if rebuild:
+        source = printed_stage.model_solid(model)
+        build_links = connectors_stage.find(layout, [g for _, g, _ in rebuild] if connectors else [],
+                                            geometry)
+        source = connectors_stage.with_connectors(source, build_links)
+        if source.manifold is not None:
+            # Evaluate manifold3d's lazy union once: an unevaluated Boolean shared by
+            # several parts' intersections crashes manifold3d 3.0.1 (its issue #1378).
+            source = printed_stage.ModelSolid(manifold=source.manifold.as_original())
+        for pid, group, why in rebuild:
+            part = printed_stage.build_part(pid, [index[i] for i in group], layout, source, geometry)
+            made[pid] = part
+            records[pid] = _compare(previous.parts.get(pid), part, why)
+    printed_stage.apply(layout, list(made.values()))
+    order = sorted(made, key=_id_key)
+    return [made[p] for p in order], [records[p] for p in order], links
+
+
+def _connector_cells(layout: Layout, group: list[int], geometry: BrickGeometry,
+                     shift=(0, 0, 0)) -> tuple[frozenset, frozenset]:
+    """The top and bottom connector cells of one printed group, moved by ``shift``."""
+    found = connectors_stage.find(layout, [group], geometry)
+    s = np.asarray(shift, dtype=np.int64)
+    return (frozenset(map(tuple, (found.top + s).tolist())),
+            frozenset(map(tuple, (found.bottom + s).tolist())))
+
+
+def _name_groups(previous: Previous, groups: list[list[int]], index: dict[int, Brick],
+                 offset: np.ndarray, taken: set[str]) -> list[tuple[str, list[int]]]:
+    """Ids for new printed groups: the previous part overlapping a group most
+    (not yet taken), else the next free ``P<n>``."""
+    owner: dict[tuple[int, int, int], str] = {}
+    for b in previous.layout.bricks:
+        if b.kind == "printed" and b.printed_part:
+            for c in np.ndindex(*b.size):
+                owner[tuple(int(v) for v in np.array(b.cell) + c)] = b.printed_part
+    used = set(taken)
+    numbers = [_id_key(p)[0] for p in list(previous.parts) + list(taken)]
+    fresh = max([n for n in numbers if n >= 0], default=0) + 1
+    out = []
+    for g in groups:
+        votes: dict[str, int] = {}
+        for i in g:
+            b = index[i]
+            for c in np.ndindex(*b.size):
+                key = tuple(int(v) for v in np.array(b.cell) + c + offset)
+                if key in owner:
+                    votes[owner[key]] = votes.get(owner[key], 0) + 1
+        choice = max((p for p in votes if p not in used), key=lambda p: (votes[p], p), default=None)
+        if choice is None:
+            choice = f"P{fresh}"
+            fresh += 1
+        used.add(choice)
+        out.append((choice, g))
+    return out
+
+
+def _id_key(pid: str) -> tuple[int, str]:
+    """Sort key of part ids: P2 before P10."""
+    digits = pid[1:] if pid[:1] == "P" else ""
+    return (int(digits), pid) if digits.isdigit() else (-1, pid)
+
+
+def _compare(old: printed_stage.PrintedPart | None, new: printed_stage.PrintedPart,
+             why: str | None) -> dict:
+    """Reprint record of a part cut again: new, or compared with its previous print."""
+    if old is None:
+        return {"id": new.id, "reprint": True, "reason": why or "new printed part",
+                "replaces": None, "symmetric_difference_mm3": None}
+    volume = diff_stage.symmetric_difference_volume(old.mesh, new.mesh)
+    limit = diff_stage.reprint_threshold(old.volume_mm3)
+    changed = volume > limit
+    reason = (f"{why or 'its bricks changed'}: {volume:.1f} mm³ differ (threshold {limit:.1f} mm³)"
+              if changed else f"cut again ({why or 'its bricks changed'}) but only "
+                              f"{volume:.2f} mm³ differ (threshold {limit:.1f} mm³): the old print fits")
+    return {"id": new.id, "reprint": bool(changed), "reason": reason, "replaces": old.id,
+            "symmetric_difference_mm3": round(volume, 3), "threshold_mm3": round(limit, 3)}
+
+
+def _brick_entry(b: Brick, offset: np.ndarray) -> dict:
+    """A brick of the instructions diff: part, name, size, cell in both frames."""
+    part = BY_NUMBER.get(b.part)
+    return {"id": b.id, "part": b.part, "name": part.name if part else b.part,
+            "size": list(b.size), "cell": list(b.cell),
+            "cell_previous": [int(v) for v in np.array(b.cell) + offset],
+            "kind": b.kind, "printed_part": b.printed_part}
+
+
+def _changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_stage.CellDiff,
+             layout: Layout, plan: _Plan, made: list[printed_stage.PrintedPart],
+             reprint: list[dict], rings: int) -> dict:
+    """The report's ``changes`` document with the instructions diff.
+
+    ``take_off`` / ``add`` list every brick (LEGO or printed) that leaves or
+    enters the layout, ``add`` entries with the previous bricks whose cells
+    they take (``replaces``).  ``parts_out`` are the previous prints to take
+    out (reprinted or no longer used), ``parts_in`` the prints to insert,
+    each with the previous part and LEGO bricks it replaces.
+    """
+    offset = cells.offset
+    present = {b.id for b in layout.bricks}
+    kept = sorted(i for i in plan.kept if i in present)
+    taken = [plan.shifted[b.id] for b in previous.layout.bricks if b.id not in present]
+    added = [b for b in layout.bricks if b.id >= plan.next_id]
+    old_label = np.full(previous.grid.shape, -1, dtype=np.int64)
+    for b in previous.layout.bricks:
+        old_label[b.slices()] = b.id
+    old_kind = {b.id: b.kind for b in previous.layout.bricks}
+    add = []
+    for b in added:
+        entry = _brick_entry(b, offset)
+        idx = np.argwhere(np.ones(b.size, dtype=bool)) + np.array(b.cell) + offset
+        inside = np.all((idx >= 0) & (idx < np.array(previous.grid.shape)), axis=1)
+        hit = old_label[tuple(idx[inside].T)]
+        entry["replaces"] = sorted(int(i) for i in np.unique(hit[hit >= 0]))
+        add.append(entry)
+    parts_now = {p.id for p in made}
+    removed = sorted((p for p in previous.parts if p not in parts_now), key=_id_key)
+    printing = [r for r in reprint if r["reprint"]]
+    parts_in = []
+    for r in printing:
+        bricks = [e for e in add if e["printed_part"] == r["id"]]
+        lego = sorted({i for e in bricks for i in e["replaces"] if old_kind.get(i) == "lego"})
+        parts_in.append({"id": r["id"], "replaces_part": r["replaces"], "replaces_bricks": lego})
+    parts_out = sorted({r["replaces"] for r in printing if r["replaces"]} | set(removed), key=_id_key)
+    return {
+        "transform": alignment.to_json(),
+        "grid_offset": [int(v) for v in offset],
+        "cells_added": cells.cells_added,
+        "cells_removed": cells.cells_removed,
+        "bricks_changed": len(added),
+        "bricks_removed": len(taken),
+        "bricks_kept": len(kept),
+        "neighbourhood_rings": rings,
+        "parts_reprinted": [r["id"] for r in printing],
+        "parts_kept": [r["id"] for r in reprint if not r["reprint"]],
+        "parts_removed": removed,
+        "parts_out": parts_out,
+        "parts_in": parts_in,
+        "take_off": [_brick_entry(b, offset) for b in taken],
+        "add": add,
+        "reprint": reprint,
+    }
+
+
+def to_fabrication(iteration: Iteration, seconds_per_brick: float | None = None):
+    """The iteration as a :class:`core.pipeline.Fabrication` (for ``report`` and
+    ``write_outputs``); its report gets ``changes`` from ``iteration.changes``."""
+    from core import pipeline
+    fab = pipeline.Fabrication(iteration.model, iteration.parts, iteration.grid, iteration.layout,
+                               iteration.stability, iteration.seed, dict(iteration.timings_s),
+                               list(iteration.printed), connectors=iteration.connectors)
+    if seconds_per_brick is not None:
+        fab.seconds_per_brick = float(seconds_per_brick)
+    return fab
+
+
+# --------------------------------------------------------------------------- page
+
+
+_PAGE_STYLE = """
+body{font-family:sans-serif;margin:1.5em;color:#222;max-width:70em}
+h1{font-size:1.4em}h2{font-size:1.15em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.4em 0}td,th{border:1px solid #bbb;padding:.2em .5em;text-align:left}
+th{background:#eee}.off{color:#b00020}.on{color:#00703c}.print{color:#0050b0}
+.layers{display:flex;flex-wrap:wrap;gap:1em}.layer{border:1px solid #ccc;padding:.4em}
+.note{color:#555;font-size:.9em}
+"""
+
+
+def changes_page(iteration: Iteration, path: str | os.PathLike, title: str | None = None) -> Path:
+    """Write the instructions diff as one self-contained HTML file at ``path``.
+
+    Sections: what changed (alignment, cells); 1. take off: LEGO bricks (by
+    previous id, part, layer and stud position in the previous build, top
+    down) and printed parts to take out; 2. add: LEGO bricks (bottom up)
+    and printed parts to insert, with the bricks they replace; 3. print:
+    every printed part, whether it must be printed and why; then a top view
+    of every layer that changes (kept bricks grey, taken off red dashed,
+    added green, printed blue).  Returns the path written.
+    """
+    ch = iteration.changes
+    tr = ch["transform"]
+    name = title or f"{Path(iteration.model.path).name}: changes since {iteration.previous.folder.name}"
+    e = html.escape
+    rows = [f"<h1>{e(name)}</h1>",
+            f"<p>{e(tr['message'])}. Rotation {tr['rotation_deg']:.3g}°, translation "
+            f"{', '.join(f'{v:.3g}' for v in tr['translation_mm'])} mm.</p>",
+            f"<p>Cells: <span class='on'>+{ch['cells_added']}</span>, "
+            f"<span class='off'>-{ch['cells_removed']}</span>. Bricks: {ch['bricks_kept']} kept, "
+            f"<span class='off'>{ch['bricks_removed']} to take off</span>, "
+            f"<span class='on'>{ch['bricks_changed']} to add</span>; "
+            f"<span class='print'>{len(ch['parts_reprinted'])} part(s) to print</span>.</p>",
+            "<p class='note'>Layers count plate heights (3.2 mm) from the base; positions are "
+            "studs from the corner of the previous build (x, y).</p>"]
+    lego_off = [b for b in ch["take_off"] if b["kind"] != "printed"]
+    lego_on = [b for b in ch["add"] if b["kind"] != "printed"]
+    rows.append("<h2 class='off'>1. Take off</h2>")
+    rows.append(_brick_table(sorted(lego_off, key=lambda b: (-b["cell_previous"][2], b["id"])),
+                             "no LEGO bricks to take off", replaces=False))
+    if ch["parts_out"]:
+        rows.append(f"<p>Take out printed part(s): <b>{e(', '.join(ch['parts_out']))}</b>.</p>")
+    rows.append("<h2 class='on'>2. Add (bottom up)</h2>")
+    rows.append(_brick_table(sorted(lego_on, key=lambda b: (b["cell_previous"][2], b["id"])),
+                             "no LEGO bricks to add", replaces=True))
+    for p in ch["parts_in"]:
+        what = []
+        if p["replaces_part"]:
+            what.append(f"the old print of {p['replaces_part']}" if p["replaces_part"] == p["id"]
+                        else f"printed part {p['replaces_part']}")
+        if p["replaces_bricks"]:
+            what.append("LEGO brick(s) " + ", ".join(map(str, p["replaces_bricks"])))
+        rows.append(f"<p>Insert printed part <b>{e(p['id'])}</b>"
+                    + (f" in place of {e(' and '.join(what))}" if what else "") + ".</p>")
+    rows.append("<h2 class='print'>3. Print</h2>")
+    if ch["reprint"]:
+        rows.append("<table><tr><th>part</th><th>print</th><th>why</th></tr>")
+        for r in ch["reprint"]:
+            rows.append(f"<tr><td>{e(r['id'])}</td><td>{'yes' if r['reprint'] else 'no, keep'}</td>"
+                        f"<td>{e(r['reason'])}</td></tr>")
+        rows.append("</table>")
+    else:
+        rows.append("<p>no printed parts</p>")
+    if ch["parts_removed"]:
+        rows.append(f"<p>Printed part(s) no longer used: {e(', '.join(ch['parts_removed']))}.</p>")
+    rows.append("<h2>Layers that change</h2><div class='layers'>")
+    rows += _layer_views(iteration)
+    rows.append("</div>")
+    text = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>" + e(name) + "</title><style>"
+            + _PAGE_STYLE + "</style></head><body>" + "\n".join(rows) + "</body></html>\n")
+    path = Path(path)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _brick_table(entries: list[dict], empty: str, replaces: bool) -> str:
+    """An HTML table of instruction-diff LEGO bricks."""
+    if not entries:
+        return f"<p>{html.escape(empty)}</p>"
+    head = "<tr><th>brick</th><th>part</th><th>layer</th><th>at (x, y)</th><th>size</th>"
+    head += "<th>replaces</th></tr>" if replaces else "</tr>"
+    out = ["<table>", head]
+    for b in entries:
+        x, y, k = b["cell_previous"]
+        row = (f"<tr><td>{b['id']}</td><td>{html.escape(b['part'] + ' ' + b['name'])}</td>"
+               f"<td>{k}</td><td>{x}, {y}</td>"
+               f"<td>{b['size'][0]} x {b['size'][1]} x {b['size'][2]}</td>")
+        if replaces:
+            row += f"<td>{', '.join(map(str, b['replaces'])) or '-'}</td>"
+        out.append(row + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def _layer_views(iteration: Iteration, px: int = 14) -> list[str]:
+    """One small SVG top view per changed layer, in previous-build coordinates:
+    kept bricks grey, taken off red (dashed), added LEGO green, added printed blue."""
+    ch = iteration.changes
+    offset = np.asarray(ch["grid_offset"])
+    first_new = _next_id(iteration)
+    boxes = [(np.array(b.cell) + offset, b.size, "#ccc") for b in iteration.layout.bricks
+             if b.id < first_new]
+    boxes += [(b["cell_previous"], b["size"], "#d33") for b in ch["take_off"]]
+    boxes += [(b["cell_previous"], b["size"], "#36c" if b["kind"] == "printed" else "#2a2")
+              for b in ch["add"]]
+    layers = sorted({k for c, s, colour in boxes if colour != "#ccc" for k in range(c[2], c[2] + s[2])})
+    if not layers:
+        return ["<p>no layer changes</p>"]
+    lo = np.min([np.asarray(c[:2]) for c, _, _ in boxes], axis=0)
+    hi = np.max([np.asarray(c[:2]) + np.asarray(s[:2]) for c, s, _ in boxes], axis=0)
+    w, h = (hi - lo) * px
+    out = []
+    for k in layers:
+        shapes = []
+        for c, s, colour in boxes:
+            if not c[2] <= k < c[2] + s[2]:
+                continue
+            x, y = (c[0] - lo[0]) * px, (hi[1] - c[1] - s[1]) * px
+            style = "fill-opacity:0.25;stroke-dasharray:3,2" if colour == "#d33" else "fill-opacity:0.85"
+            shapes.append(f"<rect x='{x}' y='{y}' width='{s[0] * px}' height='{s[1] * px}' "
+                          f"style='fill:{colour};stroke:#333;stroke-width:1;{style}'/>")
+        out.append(f"<div class='layer'>layer {k}<br><svg xmlns='http://www.w3.org/2000/svg' "
+                   f"width='{w}' height='{h}' viewBox='0 0 {w} {h}'>{''.join(shapes)}</svg></div>")
+    return out
+
+
+def _next_id(iteration: Iteration) -> int:
+    """The first id given to a brick of this iteration."""
+    return max((b.id for b in iteration.previous.layout.bricks), default=-1) + 1

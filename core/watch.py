@@ -1,0 +1,165 @@
+"""Watch folder: model files that appear or change, once completely written.
+
+A modeller (Blender with ``tools/blender/fabrickator_blender.py``, or any
+tool the user exports from) writes a new version of the part into a
+folder; Fabrickator picks it up as the next iteration.  The watcher polls
+(no platform file-notification API, so it behaves the same on every
+system and inside FreeCAD's Qt timer):
+
+* a file is *new or changed* when its (size, modification time) differs
+  from what was last reported for that name;
+* it is reported only once it is *complete*: the signature has stayed the
+  same for :data:`SETTLE_S` seconds and the format's own end marker is
+  there (:func:`is_complete`: a binary STL's size matches its triangle
+  count, an ASCII STL ends with ``endsolid``, a STEP file with
+  ``END-ISO-10303-21;``, a 3MF is a whole zip archive);
+* hidden files (``.name``) and other suffixes (``.part``, ``.tmp``) are
+  ignored, so a writer that writes aside and renames is picked up at the
+  rename.
+
+:class:`FolderWatcher` does one scan per :meth:`~FolderWatcher.poll` (for a
+Qt timer); :func:`watch` is the blocking generator the CLI ``watch``
+command loops over.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import time
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator
+
+from core.errors import InputError
+
+#: Suffixes of the model files that are watched.
+WATCHED_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".step", ".stp")
+#: Seconds a file's size and time must stay the same before it counts as written.
+SETTLE_S = 1.0
+#: Seconds between two scans of :func:`watch`.
+POLL_S = 0.5
+
+
+def is_complete(path: str | os.PathLike) -> bool:
+    """Whether the file at ``path`` looks completely written for its format.
+
+    Binary STL: the size is 84 + 50 x the triangle count in its header.
+    ASCII STL: it ends with an ``endsolid`` line.  STEP: it ends with
+    ``END-ISO-10303-21;``.  3MF: a readable zip archive.  OBJ, PLY: not
+    empty (their end is not marked; the settle time decides).  A file that
+    cannot be read is not complete.
+    """
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        if size == 0:
+            return False
+        suffix = p.suffix.lower()
+        if suffix == ".stl":
+            with p.open("rb") as f:
+                head = f.read(84)
+                if len(head) == 84 and size == 84 + 50 * struct.unpack("<I", head[80:84])[0]:
+                    return True
+                f.seek(max(0, size - 256))
+                tail = f.read().rstrip().lower()
+            return head[:5].lower() == b"solid" and b"endsolid" in tail.rsplit(b"\n", 1)[-1]
+        if suffix in (".step", ".stp"):
+            with p.open("rb") as f:
+                f.seek(max(0, size - 256))
+                return f.read().rstrip().endswith(b"END-ISO-10303-21;")
+        if suffix == ".3mf":
+            with zipfile.ZipFile(p) as archive:
+                return archive.testzip() is None
+        return True
+    except (OSError, zipfile.BadZipFile, struct.error):
+        return False
+
+
+@dataclass
+class FolderWatcher:
+    """Scans ``folder`` for new or changed model files (module docstring).
+
+    Files present when the watcher is made count as already seen unless
+    ``include_existing``.  Raises :class:`InputError` when ``folder`` is
+    not a folder.
+    """
+
+    folder: Path
+    suffixes: tuple[str, ...] = WATCHED_SUFFIXES
+    settle_s: float = SETTLE_S
+    include_existing: bool = False
+    clock: Callable[[], float] = time.monotonic
+    _reported: dict[str, tuple[int, int]] = field(default_factory=dict, init=False, repr=False)
+    _pending: dict[str, tuple[tuple[int, int], float]] = field(default_factory=dict, init=False,
+                                                               repr=False)
+
+    def __post_init__(self):
+        self.folder = Path(self.folder)
+        if not self.folder.is_dir():
+            raise InputError(f"watch folder {self.folder} does not exist or is not a folder")
+        self.suffixes = tuple(s.lower() for s in self.suffixes)
+        if not self.include_existing:
+            self._reported = dict(self._scan())
+
+    def _scan(self) -> Iterator[tuple[str, tuple[int, int]]]:
+        """(name, (size, mtime_ns)) of every watched file in the folder now."""
+        try:
+            entries = list(os.scandir(self.folder))
+        except OSError as err:
+            raise InputError(f"watch folder {self.folder} cannot be read: {err.strerror}") from None
+        for entry in entries:
+            if entry.name.startswith(".") or not entry.name.lower().endswith(self.suffixes):
+                continue
+            try:
+                st = entry.stat()
+            except OSError:
+                continue
+            if entry.is_file():
+                yield entry.name, (st.st_size, st.st_mtime_ns)
+
+    def poll(self) -> list[Path]:
+        """One scan: the files that became complete since the last report, by name.
+
+        A file is returned once per version: again only after it changes.
+        """
+        now = self.clock()
+        ready = []
+        seen = set()
+        for name, signature in self._scan():
+            seen.add(name)
+            if self._reported.get(name) == signature:
+                self._pending.pop(name, None)
+                continue
+            pending = self._pending.get(name)
+            if pending is None or pending[0] != signature:
+                self._pending[name] = (signature, now)
+                continue
+            if now - pending[1] >= self.settle_s and is_complete(self.folder / name):
+                self._reported[name] = signature
+                del self._pending[name]
+                ready.append(self.folder / name)
+        for name in set(self._pending) - seen:
+            del self._pending[name]
+        return sorted(ready)
+
+
+def watch(folder: str | os.PathLike, suffixes: tuple[str, ...] = WATCHED_SUFFIXES,
+          settle_s: float = SETTLE_S, poll_s: float = POLL_S, include_existing: bool = False,
+          stop: Callable[[], bool] | None = None, timeout_s: float | None = None,
+          sleep: Callable[[float], None] = time.sleep,
+          clock: Callable[[], float] = time.monotonic) -> Iterator[Path]:
+    """Yield each model file of ``folder`` that appears or changes, once it is complete.
+
+    Polls every ``poll_s`` seconds until ``stop()`` returns True or
+    ``timeout_s`` seconds have passed (forever by default; a CLI ends it
+    with Ctrl-C).  Raises :class:`InputError` when ``folder`` is not a folder.
+    """
+    watcher = FolderWatcher(Path(folder), suffixes, settle_s, include_existing, clock)
+    start = clock()
+    while True:
+        yield from watcher.poll()
+        if (stop is not None and stop()) or (timeout_s is not None and clock() - start >= timeout_s):
+            return
+        sleep(poll_s)
