@@ -4,7 +4,9 @@
 ``prusa-slicer`` command line and the flat profile kept in
 ``core/data`` (MK3S, 0.20 mm QUALITY, Prusament PLA; made by
 ``tools/make_prusa_profile.py``), and reads the slicer's own estimate from
-the G-code.  Where no slicer is installed, it is disabled
+the G-code; a plate the slicer refuses for want of support is sliced
+again with supports, then with supports on a raft.  Where no slicer is
+installed, it is disabled
 (``FABRICKATOR_SLICER=none``) or it fails (parts too large for the bed,
 timeout), :func:`estimate_seconds` stands in: a linear model in volume,
 surface area and layers fitted against real PrusaSlicer runs.  The returned
@@ -53,6 +55,21 @@ ESTIMATE_LAYER_MM = 0.2
 #: leave-one-out rms 14 %, max 31 %.  Held out: relativty_hmd_body -18 %,
 #: vr_phone_headset -4 %, openbot_body_bottom -11 %, 3dbenchy -10 %.
 ESTIMATE_COEFFS = (0.04172, 0.2796, 5.67, 0.5232, 53.98)
+
+#: Slicer settings tried in turn, (label, extra prusa-slicer options): as
+#: the profile says (no supports), then with automatic supports, then with
+#: supports on a 2-layer raft.  The next one is tried only when PrusaSlicer
+#: refuses a plate or warns for want of support (:data:`_NEEDS_SUPPORT`).
+RETRY_SETTINGS = (
+    ("", ()),
+    ("with supports", ("--support-material", "--support-material-auto")),
+    ("with supports and a 2-layer raft", ("--support-material", "--support-material-auto",
+                                          "--raft-layers", "2")),
+)
+
+#: PrusaSlicer's messages that supports or a raft can cure: a part touching
+#: the bed only at a point or thin edge, a piece hovering above the rest.
+_NEEDS_SUPPORT = re.compile(r"no extrusions in the first layer|empty layer between", re.I)
 
 _TIME_LINE = re.compile(r"^; estimated printing time \(normal mode\) = (.+)$", re.M)
 _DURATION = re.compile(r"^\s*(?:(\d+)d)?\s*(?:(\d+)h)?\s*(?:(\d+)m)?\s*(?:(\d+)s)?\s*$")
@@ -228,9 +245,15 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
 
     Writes the parts as STL and the G-code into a new folder under
     ``workdir``; several parts are arranged on the plate by the slicer
-    (``--merge``), each part keeps its orientation.  Raises _SlicerFailed
-    with a one-line reason when a part exceeds the build volume, the parts
-    do not fit the bed together, the slicer fails or exceeds
+    (``--merge``), each part keeps its orientation.  When PrusaSlicer
+    refuses the plate for want of support ("no extrusions in the first
+    layer": a part touches the bed only at a point or a thin edge) or
+    warns of empty layers (a piece hovers), the plate is sliced again with
+    the next of :data:`RETRY_SETTINGS` (automatic supports, then supports
+    and a raft), and ``method`` ends with the settings that were needed
+    (``"...; with supports"``).  Raises _SlicerFailed with a one-line reason
+    when a part exceeds the build volume, the parts do not fit the bed
+    together, the slicer fails (also with every retry setting) or exceeds
     SLICER_TIMEOUT_S.
     """
     slicer = slicer or slicer_path()
@@ -250,18 +273,26 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
     for index, mesh in enumerate(parts):
         stls.append(str(folder / f"part_{index:03d}.stl"))
         mesh.export(stls[-1])
-    gcode = folder / "plate.gcode"
-    command = [slicer, "--loglevel", "1", "--load", str(Path(profile).resolve()), "--export-gcode",
-               *(["--merge"] if len(stls) > 1 else []), "--output", str(gcode), *stls]
-    try:
-        run = subprocess.run(command, cwd=folder, capture_output=True, text=True,
-                             timeout=SLICER_TIMEOUT_S, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        raise _SlicerFailed(f"{Path(slicer).name} timed out after {SLICER_TIMEOUT_S:.0f} s") from None
-    except OSError as exc:
-        raise _SlicerFailed(f"cannot run {slicer}: {exc.strerror or exc}") from None
-    if run.returncode != 0 or not gcode.exists():
-        raise _SlicerFailed(f"{Path(slicer).name} failed: {_last_message(run)}")
+    for attempt, (label, options) in enumerate(RETRY_SETTINGS):
+        last = attempt == len(RETRY_SETTINGS) - 1
+        gcode = folder / f"plate{'-' + str(attempt) if attempt else ''}.gcode"
+        command = [slicer, "--loglevel", "1", "--load", str(Path(profile).resolve()), *options,
+                   "--export-gcode", *(["--merge"] if len(stls) > 1 else []), "--output", str(gcode), *stls]
+        try:
+            run = subprocess.run(command, cwd=folder, capture_output=True, text=True,
+                                 timeout=SLICER_TIMEOUT_S, stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            raise _SlicerFailed(f"{Path(slicer).name} timed out after {SLICER_TIMEOUT_S:.0f} s") from None
+        except OSError as exc:
+            raise _SlicerFailed(f"cannot run {slicer}: {exc.strerror or exc}") from None
+        refused = run.returncode != 0 or not gcode.exists()
+        needs_support = bool(_NEEDS_SUPPORT.search(run.stderr + run.stdout))
+        if needs_support and not last:
+            continue
+        if refused:
+            tried = f" (even {label})" if attempt else ""
+            raise _SlicerFailed(f"{Path(slicer).name} failed{tried}: {_last_message(run)}")
+        break
     try:
         seconds = gcode_seconds(gcode)
     except ValueError as exc:
@@ -269,7 +300,9 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
     with open(gcode, encoding="utf-8", errors="replace") as head:
         version = _VERSION.search(head.read(4096))
     name = f"prusa-slicer {version[1]}" if version else Path(slicer).name
-    return PrintEstimate(seconds, f"{name} ({profile_label(config)})", str(gcode))
+    needed = "".join(f"; {text}" for text in (label, "slicer still warns of empty layers" if needs_support else "")
+                     if text)
+    return PrintEstimate(seconds, f"{name} ({profile_label(config)}{needed})", str(gcode))
 
 
 def _last_message(run: subprocess.CompletedProcess) -> str:
@@ -287,7 +320,9 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike = 
     With a slicer (``slicer="auto"``: :func:`slicer_path`; a path: that
     binary; None or ``"none"``: no slicer) the parts are sliced as given
     (the caller lays them flat; the slicer places them on the bed) and the
-    seconds are PrusaSlicer's normal-mode estimate.  Without one, or when
+    seconds are PrusaSlicer's normal-mode estimate, with supports and then
+    a raft where the slicer needs them (:func:`slice_plate`; ``method``
+    names the settings used).  Without one, or when
     slicing fails, the result is :func:`estimate_seconds` and ``method``
     says ``"estimate (...; <reason>)"``.  Never raises for parts that do not
     fit; raises InputError only for meshes that cannot be read or an

@@ -4,18 +4,21 @@ The paper's central idea ("Converting Lego bricks into 3D printable
 bricks", "Merging and splitting", "Detecting the completeness of knobs and
 tubes"):
 
-* **Envelope.**  The bricks of one part are built by
-  :func:`core.brick_solids.brick_solid` with the sides they share with
-  another brick of the part *flush* (on the cell boundary, no play), so
-  facing side faces coincide.  Where a brick of the part stands on another
-  one, a filler box closes its cavity over the shared footprint (the
-  studs below vanish into it), so the part has no internal voids.  The
-  pieces are joined by one OpenCascade Boolean fuse of the flush solids
-  (not by deleting the coincident faces and sewing, as the paper did: the
-  fuse of exactly coincident planar faces is robust in OCC 7.7 and also
-  handles partial contacts), and ``ShapeUpgrade_UnifySameDomain`` then
-  merges the coplanar pieces of the outer faces, so a merged part has no
-  internal faces and its volume is that of the union of the flush bricks.
+* **Envelope.**  The bricks of one part are merged by
+  :func:`core.brick_solids.merged_solid` the paper's way, by removing
+  faces, not by a Boolean union: each brick is built with the sides it
+  shares with another brick of the part *flush* (on the cell boundary, no
+  play), without studs where a brick of the part stands on it and with a
+  solid underside where it stands on one, and with its faces split along
+  every rectangle where it touches another brick, so the two bricks have
+  one exactly coincident, tagged face there.  Those faces are dropped, the
+  rest is sewn into one closed solid and ``ShapeUpgrade_UnifySameDomain``
+  merges the coplanar pieces of the outer faces: a merged part has no
+  internal faces and no internal voids, and its volume is that of the
+  union of the bricks.  A Boolean fuse of the same brick solids is only the
+  fallback when sewing does not give one valid solid
+  (``PrintedPart.merge_method`` says which).  Splitting a part rebuilds
+  each piece from its own bricks, so the faces along the split come back.
 * **Intersection.**  Printed part = envelope ∩ model.  For B-rep input
   (STEP, FCStd) this is ``BRepAlgoAPI_Common`` with the model's solid.  For
   mesh input it is a manifold3d Boolean: the model mesh (converted to a
@@ -26,7 +29,7 @@ tubes"):
   brick of the same part covers them (a stud with a part brick above is
   internal).  An exposed feature is complete when the intersection left it
   whole.  With OCC this is read from the Common's history: the feature's
-  tagged faces (carried through the fuse) must be neither modified (split)
+  tagged faces (carried through the merge) must be neither modified (split)
   nor deleted.  With manifold3d it is the equivalent from manifold's
   provenance tracking: the triangles of the result that come from the
   envelope (by mesh run / original id) are assigned to features by
@@ -43,7 +46,7 @@ import cadquery as cq
 import manifold3d as m3
 import numpy as np
 import trimesh
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 from OCP.gp import gp_Pnt
@@ -54,8 +57,8 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Shape
 
 from core import high_res
-from core.brick_solids import (SIDE_TAGS, BooleanFailed, BrickGeometry, brick_solid, face_list,
-                               facing_sides, run_boolean, to_trimesh)
+from core.brick_solids import (SIDE_TAGS, BooleanFailed, BrickGeometry, merged_solid, part_contacts,
+                               run_boolean, to_trimesh)
 from core.errors import InputError
 from core.mesh_io import LoadedModel
 from core.model import Brick, Layout
@@ -72,6 +75,8 @@ ENGRAVE_FONT_SIZES = (5.0, 4.0, 3.0, 2.5)
 ENGRAVE_OVERSHOOT_MM = 0.2
 #: The font of the id (DejaVu Sans Bold, Debian fonts-dejavu-core).
 ENGRAVE_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
+#: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
+SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 #: Tolerance (mm) when assigning mesh triangles to studs, tubes and cavities.
 FEATURE_TOL_MM = 0.02
 #: Relative area a mesh feature may lose to rounding and still count as whole.
@@ -104,8 +109,11 @@ class PrintedPart:
     above / below can clamp there.  ``engraved`` says whether the id is cut
     into a side; ``engraving`` is then a dict saying where (brick, side,
     centre, outward normal, text size, font size, depth), else the reason
-    why not.  ``stl``, ``step`` and ``print_s`` are filled by export and
-    print time.
+    why not.  ``merge_method`` says how the bricks' envelope was merged
+    (:attr:`core.brick_solids.MergedSolid.method`: "single brick", "face
+    removal", or "fuse (...)" when face removal failed).  ``stl``, ``step``,
+    ``pose`` (the print orientation chosen by :func:`core.export.print_pose`)
+    and ``print_s`` are filled by export and print time.
     """
 
     id: str
@@ -119,11 +127,13 @@ class PrintedPart:
     top_ok: dict[tuple[int, int, int], bool] = field(default_factory=dict)
     bottom_ok: dict[tuple[int, int, int], bool] = field(default_factory=dict)
     pieces: int = 1
+    merge_method: str = "single brick"
     engraved: bool = False
     engraving: dict | str = "not engraved: engraving switched off"
     stl: str | None = None
     step: str | None = None
     print_s: float | None = None
+    pose: dict | None = None
 
     @property
     def complete_studs(self) -> list[str]:
@@ -145,6 +155,7 @@ class PrintedPart:
         return {
             "id": self.id, "bricks": list(self.bricks), "cells": self.cells,
             "volume_mm3": round(self.volume_mm3, 3), "pieces": self.pieces,
+            "merge": self.merge_method,
             "stl": self.stl, "step": self.step,
             "print_s": None if self.print_s is None else round(self.print_s, 1),
             "complete_studs": len(self.complete_studs),
@@ -152,6 +163,7 @@ class PrintedPart:
             "incomplete_tubes": self.incomplete_tubes,
             "engraved": self.engraved,
             "engraving": self.engraving,
+            "print_pose": self.pose,
         }
 
 
@@ -203,8 +215,24 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid,
             raise InputError(f"bricks {sorted(g)[:8]} do not touch face to face; "
                              "a merged printed part must be one piece")
     by_id = {b.id: b for b in layout.bricks}
+    source = _settled(source)
     return [build_part(f"P{n + 1}", [by_id[i] for i in sorted(g)], layout, source, geometry, engrave)
             for n, g in enumerate(groups)]
+
+
+def _settled(source: ModelSolid) -> ModelSolid:
+    """``source`` with a mesh model evaluated into a plain Manifold of its own.
+
+    manifold3d evaluates Booleans lazily; a model that is itself an
+    unevaluated Boolean (the model united with connector boxes) shared by
+    the intersections of several parts crashed manifold3d 3.0.1 (a
+    segmentation fault in ``to_mesh64``, the model relativty_hmd_body with
+    four parts), the crash manifold's issue #1378 describes.  Rebuilding
+    the model once from its evaluated mesh gives every part a leaf operand.
+    """
+    if source.kind != "mesh":
+        return source
+    return ModelSolid(manifold=m3.Manifold(source.manifold.to_mesh64()))
 
 
 def apply(layout: Layout, parts: list[PrintedPart]) -> None:
@@ -258,18 +286,9 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
     if not np.allclose(grid.cell[:2], geometry.pitch) or not math.isclose(grid.cell[2], geometry.plate_height):
         raise InputError("brick geometry pitch and plate height must match the grid cell size")
     members = _members(bricks, layout, geometry)
-    tagged: list[tuple[object, str]] = []
-    shapes = []
-    for m in members:
-        b = m.brick
-        solid = brick_solid(b.size[0], b.size[1], b.size[2], geometry, tuple(m.origin), m.flush)
-        every = face_list(solid.shape)
-        for tag, idx in solid.tags.items():
-            tagged += [(every[i], f"{b.id}:{tag}") for i in idx]
-        shapes.append(solid.shape.wrapped)
-    shapes += _fillers(members, geometry)
-    envelope = shapes[0] if len(shapes) == 1 else _run(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:], tagged)
-    envelope = _unify(envelope) if len(shapes) > 1 and source.kind == "mesh" else envelope
+    merged = merged_solid([b.cell for b in bricks], [b.size for b in bricks], geometry, grid.origin,
+                          names=[b.id for b in bricks])
+    envelope, tagged = merged.shape, merged.tagged
     if source.kind == "brep":
         common = BRepAlgoAPI_Common()
         result = _run(common, envelope, [source.brep])
@@ -285,6 +304,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
         solid = None
         mesh, cut = _mesh_common(envelope, members, source.manifold, geometry)
     part = _assemble(part_id, members, solid, mesh, cut)
+    part.merge_method = merged.method
     if engrave:
         _engrave(part, members, geometry)
     return part
@@ -299,13 +319,8 @@ def _members(bricks: list[Brick], layout: Layout, geometry: BrickGeometry) -> li
     part_of = np.isin(id_of[lab], list(ids))
     nz = grid.shape[2]
     out = []
-    for b in bricks:
-        flush = set()
-        for o in bricks:
-            if o.id != b.id:
-                sides = facing_sides(b.cell, b.size, o.cell, o.size)
-                if sides:
-                    flush.add(sides[0])
+    contacts = part_contacts([b.cell for b in bricks], [b.size for b in bricks], geometry, grid.origin)
+    for b, contact in zip(bricks, contacts):
         i, j, k = b.cell
         sx, sy, sz = b.size
         above = part_of[i:i + sx, j:j + sy, k + sz] if k + sz < nz else np.zeros((sx, sy), bool)
@@ -319,7 +334,7 @@ def _members(bricks: list[Brick], layout: Layout, geometry: BrickGeometry) -> li
             line = below.ravel()
             tubes = [f"pin:{a}" for a in range(max(sx, sy) - 1) if not line[a:a + 2].any()]
         origin = grid.origin + np.array(b.cell) * grid.cell
-        out.append(_Member(b, origin, tuple(sorted(flush & set(SIDE_TAGS))), studs, tubes,
+        out.append(_Member(b, origin, contact.flush, studs, tubes,
                            not below.all(), _open_sides(grid.filled, b)))
     return out
 
@@ -334,32 +349,6 @@ def _open_sides(filled: np.ndarray, b: Brick) -> dict[str, float]:
     across = {"side-x": padded[i - 1, j:j + sy, k:k + sz], "side+x": padded[i + sx, j:j + sy, k:k + sz],
               "side-y": padded[i:i + sx, j - 1, k:k + sz], "side+y": padded[i:i + sx, j + sy, k:k + sz]}
     return {side: float(1.0 - cells.mean()) for side, cells in across.items()}
-
-
-def _fillers(members: list[_Member], geometry: BrickGeometry) -> list[TopoDS_Shape]:
-    """Boxes that close the cavity of each brick over the part's bricks it stands on."""
-    g = geometry
-    out = []
-    for up in members:
-        u = up.brick
-        for low in members:
-            lo = low.brick
-            if lo.cell[2] + lo.size[2] != u.cell[2]:
-                continue
-            a0 = max(u.cell[0], lo.cell[0]); a1 = min(u.cell[0] + u.size[0], lo.cell[0] + lo.size[0])
-            b0 = max(u.cell[1], lo.cell[1]); b1 = min(u.cell[1] + u.size[1], lo.cell[1] + lo.size[1])
-            if a0 >= a1 or b0 >= b1:
-                continue
-            ox, oy, oz = up.origin
-            x0 = max(ox + (a0 - u.cell[0]) * g.pitch, ox + (0 if "side-x" in up.flush else g.play))
-            x1 = min(ox + (a1 - u.cell[0]) * g.pitch,
-                     ox + u.size[0] * g.pitch - (0 if "side+x" in up.flush else g.play))
-            y0 = max(oy + (b0 - u.cell[1]) * g.pitch, oy + (0 if "side-y" in up.flush else g.play))
-            y1 = min(oy + (b1 - u.cell[1]) * g.pitch,
-                     oy + u.size[1] * g.pitch - (0 if "side+y" in up.flush else g.play))
-            top = oz + u.size[2] * g.plate_height - g.top
-            out.append(BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, oz), gp_Pnt(x1, y1, top)).Shape())
-    return out
 
 
 def _run(op, argument, tools, tagged: list | None = None, parallel: bool = True):
@@ -442,7 +431,7 @@ def _feature_tags(centres: np.ndarray, members: list[_Member], geometry: BrickGe
             out[i] = f"{b.id}:stud:{a[i]},{c[i]}"
         low = inside & (z > oz - tol) & (z < ceiling - tol)
         wall = g.play + g.printed_wall
-        cavity = low & (x > ox + wall - tol) & (x < ox + sx * g.pitch - wall + tol) \
+        cavity = low & (z > oz + tol) & (x > ox + wall - tol) & (x < ox + sx * g.pitch - wall + tol) \
             & (y > oy + wall - tol) & (y < oy + sy * g.pitch - wall + tol)
         if sx >= 2 and sy >= 2:
             na, nc = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
@@ -597,9 +586,27 @@ def _font_path() -> str | None:
     return ENGRAVE_FONT if os.path.exists(ENGRAVE_FONT) else None
 
 
+def _use_system_fontconfig() -> None:
+    """Point OpenCascade's fontconfig at the system's ``fonts.conf`` unless the user set one.
+
+    The fontconfig library bundled with the cadquery-ocp wheel was built
+    with its configuration folder inside the build machine's conda
+    environment (``/usr/share/miniconda3/envs/cadquery-ocp/etc/fonts``), so
+    on any other machine the first text shape printed "Fontconfig error:
+    Cannot load default config file" on stderr.  Fontconfig reads
+    ``FONTCONFIG_FILE`` when OpenCascade's font manager first initialises
+    it, so setting it before the first text shape is enough.  Nothing
+    changes when ``FONTCONFIG_FILE`` or ``FONTCONFIG_PATH`` is already set
+    or the system has no :data:`SYSTEM_FONTS_CONF`.
+    """
+    if not {"FONTCONFIG_FILE", "FONTCONFIG_PATH"} & set(os.environ) and os.path.exists(SYSTEM_FONTS_CONF):
+        os.environ["FONTCONFIG_FILE"] = SYSTEM_FONTS_CONF
+
+
 def _text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.Shape:
     """``text`` at ``font`` size centred at the plane's origin, extruded ``distance``
     along the plane's normal (negative: into the part)."""
+    _use_system_fontconfig()
     kwargs = {"fontPath": _font_path()} if _font_path() else {}
     return cq.Workplane(plane).text(text, font, distance, combine=False, halign="center",
                                     valign="center", kind="bold", **kwargs).val()

@@ -251,3 +251,34 @@ def test_estimate_agrees_with_slicer_on_calibration_plates(tmp_path):
         assert sliced.method.startswith("prusa-slicer"), (name, sliced.method)
         errors[name] = pt.estimate_seconds(plate) / sliced.seconds - 1.0
     assert all(abs(e) <= 0.35 for e in errors.values()), errors
+
+
+@needs_slicer
+def test_part_on_a_corner_is_sliced_again_with_supports(tmp_path):
+    # A box balanced on one corner: PrusaSlicer finds no extrusions in the first layer.
+    corner = trimesh.creation.box((20, 10, 10))
+    corner.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 4, [0, 1, 0])
+                           @ trimesh.transformations.rotation_matrix(np.pi / 4, [1, 0, 0]))
+    result = pt.print_time([corner], tmp_path)
+    assert result.method.startswith("prusa-slicer 2.")
+    assert result.method.endswith("(MK3S, 0.20mm QUALITY, PLA; with supports)")
+    assert Path(result.gcode_path).is_file()
+    assert "support material" in Path(result.gcode_path).read_text(errors="replace").lower()
+
+
+@needs_slicer
+def test_cone_on_its_tip_needs_a_raft(tmp_path):
+    cone = trimesh.creation.cone(radius=10, height=20, sections=64)
+    cone.apply_transform(trimesh.transformations.rotation_matrix(np.pi, [1, 0, 0]))
+    result = pt.print_time([cone], tmp_path)
+    assert result.method.startswith("prusa-slicer 2.")
+    assert "with supports and a 2-layer raft" in result.method
+    assert "raft_layers = 2" in Path(result.gcode_path).read_text(errors="replace")
+    assert result.seconds > 0
+
+
+@needs_slicer
+def test_plain_parts_need_no_retry(tmp_path):
+    result = pt.print_time([trimesh.creation.icosphere(subdivisions=3, radius=10)], tmp_path)
+    assert result.method.startswith("prusa-slicer 2.") and result.method.endswith("(MK3S, 0.20mm QUALITY, PLA)")
+    assert len(list(Path(result.gcode_path).parent.glob("*.gcode"))) == 1

@@ -70,6 +70,7 @@ def test_merged_part_has_no_internal_faces_and_the_union_volume(kind):
              + brick_solid(2, 4, 3, origin=(16, 0, 0), flush={"side-x"}).shape.Volume())
     assert part.volume_mm3 == pytest.approx(union, rel=2e-3 if kind == "mesh" else 1e-6)
     assert len(part.complete_studs) == 16 and part.pieces == 1
+    assert part.merge_method == "face removal" and part.to_json()["merge"] == "face removal"
     if kind == "brep":
         for face in face_list(part.solid):
             xs = [v.X for v in cq.Face(face).Vertices()]
@@ -144,3 +145,77 @@ def test_no_engraving_without_a_flat_side_says_why():
     box = trimesh.creation.box(bounds=[[0.3, 0.3, 0], [7.7, 7.7, 3.2]])
     part = printed.build_part("P1", lay.bricks, lay, _mesh_source(box))
     assert not part.engraved and "stays whole" in part.engraving
+
+
+PARTIAL = {
+    "2x4 beside a 2x2 offset by one stud": [Brick(0, "3001", (2, 4, 3), (0, 0, 0)),
+                                            Brick(1, "3003", (2, 2, 3), (2, 1, 0))],
+    "2x4 plate on three studs of a 2x4 brick": [Brick(0, "3001", (2, 4, 3), (0, 0, 0)),
+                                                Brick(1, "3020", (2, 4, 1), (1, 1, 3))],
+}
+
+
+@pytest.mark.parametrize("case", sorted(PARTIAL))
+@pytest.mark.parametrize("kind", sorted(SOURCES))
+def test_partial_contacts_merge_by_face_removal(case, kind):
+    from core.brick_solids import merged_solid
+    bricks = PARTIAL[case]
+    lay = _layout(bricks, shape=(4, 5, 6))
+    part = printed.build_parts(lay, [[0, 1]], SOURCES[kind](), engrave=False)[0]
+    assert part.merge_method == "face removal" and part.pieces == 1 and part.mesh.is_watertight
+    fused = merged_solid([b.cell for b in bricks], [b.size for b in bricks], method="fuse")
+    assert part.volume_mm3 == pytest.approx(cq.Shape.cast(fused.shape).Volume(),
+                                            rel=2e-3 if kind == "mesh" else 1e-9)
+    covered = 3 if "plate" in case else 0  # studs of the brick under the plate
+    assert len(part.complete_studs) == 8 + (8 if "plate" in case else 4) - covered
+    assert not part.incomplete_studs
+
+
+def test_split_rebuilds_each_brick_with_its_faces():
+    bricks = [Brick(0, "3001", (2, 4, 3), (0, 0, 0)), Brick(1, "3001", (2, 4, 3), (2, 0, 0))]
+    lay = _layout(bricks)
+    groups = printed.split([[0, 1]], [1])
+    assert groups == [[0], [1]]
+    parts = printed.build_parts(lay, groups, SOURCES["brep"](), engrave=False)
+    single = brick_solid(2, 4, 3).shape.Volume()
+    for part, plane in zip(parts, (15.9, 16.1)):
+        assert part.merge_method == "single brick"
+        assert part.volume_mm3 == pytest.approx(single, rel=1e-9)
+        sides = [f for f in face_list(part.solid) if np.allclose([v.X for v in cq.Face(f).Vertices()], plane)]
+        assert sides, f"the split side at x = {plane} came back"
+
+
+def test_parts_sharing_a_lazy_model_boolean():
+    # A mesh model that is an unevaluated manifold3d union (as with connector boxes), shared by
+    # several parts: manifold3d 3.0.1 crashed on this until build_parts evaluated it once.
+    import manifold3d as m3
+    base = _mesh_source(trimesh.creation.box(bounds=BOX)).manifold
+    lazy = m3.Manifold.batch_boolean([base, m3.Manifold.cube([4, 4, 4]).translate([50, 0, 0])], m3.OpType.Add)
+    bricks = [Brick(i, "3003", (2, 2, 3), (0, 0, 3 * i)) for i in range(2)] + \
+        [Brick(2 + i, "3003", (2, 2, 3), (2, 2, 3 * i)) for i in range(2)]
+    lay = _layout(bricks)
+    parts = printed.build_parts(lay, [[0], [1], [2], [3]], printed.ModelSolid(manifold=lazy), engrave=False)
+    assert [p.pieces for p in parts] == [1, 1, 1, 1]
+    assert all(p.volume_mm3 == pytest.approx(brick_solid(2, 2, 3).shape.Volume(), rel=2e-3) for p in parts)
+
+
+def test_engraving_prints_no_fontconfig_error():
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if not k.startswith("FONTCONFIG")}
+    code = ("import numpy as np, trimesh\n"
+            "from core import printed\n"
+            "from core.mesh_io import LoadedModel\n"
+            "from core.model import Brick, Grid, Layout\n"
+            "m = trimesh.creation.box(bounds=[[-5, -5, -5], [40, 40, 30]])\n"
+            "src = printed.model_solid(LoadedModel(mesh=m, path='m.stl', format='stl', triangles=12, watertight=True))\n"
+            "g = Grid(origin=np.zeros(3), cell=np.array([8.0, 8.0, 3.2]), filled=np.ones((4, 4, 6), bool))\n"
+            "lay = Layout(g, [Brick(0, '3001', (2, 4, 3), (0, 0, 0))])\n"
+            "print(printed.build_part('P1', lay.bricks, lay, src).engraved)\n")
+    run = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "True"
+    assert "fontconfig" not in run.stderr.lower(), run.stderr
