@@ -21,9 +21,9 @@ in a thin band at that face:
 Technically the model is united with one box per connector cell before
 the intersection (:func:`with_connectors`), so the printed brick is
 ``brick ∩ (model ∪ boxes)``: it never leaves its brick, it equals the exact
-intersection everywhere except in those bands, and the studs and tubes
-there come out complete, which the completeness check then reports and the
-stability check uses.  Cells touching other bricks only side by side get
+intersection everywhere except in those bands, and inside the bands it is
+the brick itself, so the studs and the sockets' grip there are whole
+(:func:`mark_grip`), which the stability check uses.  Cells touching other bricks only side by side get
 no connector (LEGO does not clamp sideways).
 """
 
@@ -123,4 +123,25 @@ def with_connectors(source: ModelSolid, connectors: Connectors) -> ModelSolid:
         return ModelSolid(brep=run_boolean(BRepAlgoAPI_Fuse(), source.brep, tools, parallel=True))
     cubes = [m3.Manifold.cube(list(map(float, hi - lo))).translate(list(map(float, lo)))
              for lo, hi in boxes]
-    return ModelSolid(manifold=m3.Manifold.batch_boolean([source.manifold, *cubes], m3.OpType.Add))
+    union = m3.Manifold.batch_boolean([source.manifold, *cubes], m3.OpType.Add)
+    # Evaluated here, once: a lazy Boolean shared by several parts' intersections
+    # crashes manifold3d 3.0.1 (its issue #1378).
+    return ModelSolid(manifold=union.as_original())
+
+
+def mark_grip(parts, connectors: Connectors) -> None:
+    """Set the clamp flags of the printed ``parts`` in their connector cells to True.
+
+    This holds by construction, not by measurement: a part is
+    ``brick ∩ (model ∪ boxes)``, which contains ``brick ∩ box`` and lies in
+    the brick, so inside a connector box it *is* the brick: the stud (top)
+    and the walls, tube and pin sections over the stud height (bottom) are
+    whole there, even when the feature as a whole, reaching above the band,
+    was cut (``studs``/``tubes`` still report the whole features).
+    """
+    for cells, attr in ((connectors.top, "top_ok"), (connectors.bottom, "bottom_ok")):
+        for cell in map(tuple, cells.tolist()):
+            for p in parts:
+                flags = getattr(p, attr)
+                if cell in flags:
+                    flags[cell] = True

@@ -578,12 +578,9 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
         build_links = connectors_stage.find(layout, [g for _, g, _ in rebuild] if connectors else [],
                                             geometry)
         source = connectors_stage.with_connectors(source, build_links)
-        if source.manifold is not None:
-            # Evaluate manifold3d's lazy union once: an unevaluated Boolean shared by
-            # several parts' intersections crashes manifold3d 3.0.1 (its issue #1378).
-            source = printed_stage.ModelSolid(manifold=source.manifold.as_original())
         for pid, group, why in rebuild:
             part = printed_stage.build_part(pid, [index[i] for i in group], layout, source, geometry)
+            connectors_stage.mark_grip([part], build_links)
             made[pid] = part
             records[pid] = _compare(previous.parts.get(pid), part, why)
     printed_stage.apply(layout, list(made.values()))

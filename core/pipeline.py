@@ -146,6 +146,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
             source = timed("connectors", 0.6, connectors_stage.with_connectors, source, links)
             made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
                          source, geometry)
+            connectors_stage.mark_grip(made, links)
             printed_stage.apply(layout, made)
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
@@ -172,29 +173,35 @@ def _iterate(previous, model, chosen, seed, timed, timings: dict, progress, slic
 
 
 def _print_times(fab: Fabrication) -> None:
-    """Slice the whole model (the baseline) and one plate of all printed parts,
-    the two slicer runs side by side.
+    """Slice the whole model (the baseline) and the plates of the printed parts
+    to print (:func:`core.export.plates`: one plate unless they do not fit the
+    bed), the slicer runs two at a time; the parts' time is the plates' sum.
 
-    A part's own ``print_s`` is the plate time shared out in proportion to
+    A part's own ``print_s`` is its plate's time shared out in proportion to
     the parts' calibrated estimates (:func:`core.print_time.estimate_seconds`),
-    so the parts' times add up to the plate's.
+    so the parts' times add up to the plates'.
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from core.export import plate
+    from core.export import plates
     printing = fab.to_print
-    meshes = plate(printing)
+    beds = plates(printing)
     with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work, \
             ThreadPoolExecutor(max_workers=2) as pool:
         full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work)
-        parts = pool.submit(print_time_stage.print_time, meshes, work) if meshes else None
+        sliced = [pool.submit(print_time_stage.print_time, [m for _, m, _ in items], work)
+                  for items in beds]
         fab.print_full = full.result()
-        fab.print_parts = parts.result() if parts else print_time_stage.PrintEstimate(
-            0.0, "nothing to print: no printed part changed", None)
-    weights = [print_time_stage.estimate_seconds([m]) for m in meshes]
-    total = sum(weights) or 1.0
-    for p, w in zip(printing, weights):
-        p.print_s = fab.print_parts.seconds * w / total
+        results = [f.result() for f in sliced]
+    methods = sorted({r.method for r in results})
+    fab.print_parts = print_time_stage.PrintEstimate(
+        sum(r.seconds for r in results),
+        "; ".join(methods) if methods else "nothing to print: no printed part changed", None)
+    for items, result in zip(beds, results):
+        weights = [print_time_stage.estimate_seconds([m]) for _, m, _ in items]
+        total = sum(weights) or 1.0
+        for (index, _, _), w in zip(items, weights):
+            printing[index].print_s = result.seconds * w / total
 
 
 def assembly_seconds(fab: Fabrication) -> float:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from core import connectors, pipeline, printed
-from core.brick_solids import BrickGeometry
+from core.brick_solids import BrickGeometry, brick_solid, to_trimesh
 from core.model import Brick, Grid, Layout
 
 #: A wall 64 mm long, 3 mm thick, 12 plates high: thinner than a stud is wide.
@@ -72,11 +72,20 @@ def test_thin_printed_region_clamps_with_connectors(wall_files, kind):
     model = m3.Manifold.cube(list(WALL)).translate([-WALL[0] / 2, -WALL[1] / 2, 0.0])
     boxes = [m3.Manifold.cube(list(hi - lo)).translate(list(lo)) for lo, hi in fab.connectors.boxes]
     allowed = m3.Manifold.batch_boolean([model, *boxes], m3.OpType.Add)
-    mesh = part.mesh
-    solid = m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
-                                tri_verts=np.asarray(mesh.faces, np.uint32)))
+    solid = _manifold(part.mesh)
     assert (solid - allowed).volume() < 1e-3 * solid.volume()
     assert (solid - model).volume() > 0.0
+    # Inside its connector boxes the part is the brick itself (what mark_grip relies on).
+    (brick,) = [b for b in fab.layout.bricks if b.kind == "printed"]
+    origin = fab.grid.origin + np.array(brick.cell) * fab.grid.cell
+    whole = _manifold(to_trimesh(brick_solid(*brick.size, BrickGeometry(), tuple(origin)).shape))
+    for box in boxes:
+        assert (solid ^ box).volume() == pytest.approx((whole ^ box).volume(), rel=2e-3)
+
+
+def _manifold(mesh) -> m3.Manifold:
+    return m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
+                               tri_verts=np.asarray(mesh.faces, np.uint32)))
 
 
 def test_without_connectors_the_thin_part_hangs_loose(wall_files):
