@@ -45,6 +45,9 @@ from core.printed import ModelSolid
 TOP_BAND_MM = 2.9
 #: Height (mm) of a bottom connector above the brick's bottom: the socket.
 BOTTOM_BAND_MM = 2.9
+#: Connectors per pair of touching bricks: two studs hold a LEGO joint
+#: against turning; more only add material that the exact shape did not have.
+PER_CONTACT = 2
 #: How far (mm) a connector box reaches past the faces it must cover, so that
 #: its faces never coincide with the brick's (studs, bottom face, sides).
 OVERSHOOT_MM = 0.35
@@ -72,7 +75,9 @@ def find(layout: Layout, groups: list[list[int]],
     """The connector cells of the bricks in ``groups`` (each group one printed part).
 
     A top connector is a top-layer cell of a group's brick whose cell above
-    belongs to a brick outside that group; a bottom connector likewise below.
+    belongs to a brick outside that group; a bottom connector likewise below;
+    of the cells two bricks share, at most :data:`PER_CONTACT` (the contact's
+    two far ends) become connectors.
     """
     lab = layout.labels()
     part = np.full(len(layout.bricks) + 1, -1, dtype=np.int64)
@@ -88,7 +93,8 @@ def find(layout: Layout, groups: list[list[int]],
     differ = other[:, :, :-1] & other[:, :, 1:] & (brick_below != brick_above) & (below != above)
     top_mask[:, :, :-1] = differ & (below >= 0)
     bottom_mask[:, :, 1:] = differ & (above >= 0)
-    top, bottom = np.argwhere(top_mask), np.argwhere(bottom_mask)
+    top = _fewest(np.argwhere(top_mask), lab, 1)
+    bottom = _fewest(np.argwhere(bottom_mask), lab, -1)
     grid = layout.grid
     origin, cell = np.asarray(grid.origin, float), np.asarray(grid.cell, float)
     boxes = []
@@ -106,6 +112,22 @@ def find(layout: Layout, groups: list[list[int]],
             box[:, 1, 2] = lo[:, 2] + BOTTOM_BAND_MM
         boxes.append(box)
     return Connectors(top, bottom, np.concatenate(boxes) if boxes else np.zeros((0, 2, 3)))
+
+
+def _fewest(cells: np.ndarray, lab: np.ndarray, step: int) -> np.ndarray:
+    """Of the contact ``cells`` (printed cell, neighbour at ``k + step``), at most
+    :data:`PER_CONTACT` per pair of bricks: the first and last in (i, j) order,
+    the contact's two far ends, which hold the pair against turning."""
+    if len(cells) == 0:
+        return cells
+    mine = lab[cells[:, 0], cells[:, 1], cells[:, 2]]
+    theirs = lab[cells[:, 0], cells[:, 1], cells[:, 2] + step]
+    order = np.lexsort((cells[:, 1], cells[:, 0], theirs, mine))
+    cells, mine, theirs = cells[order], mine[order], theirs[order]
+    first = np.r_[True, (mine[1:] != mine[:-1]) | (theirs[1:] != theirs[:-1])]
+    last = np.r_[first[1:], True]
+    keep = first | last if PER_CONTACT >= 2 else first
+    return cells[keep]
 
 
 def with_connectors(source: ModelSolid, connectors: Connectors) -> ModelSolid:
