@@ -5,9 +5,13 @@
 SYSPY   := /usr/bin/python3
 VENV    := .venv
 PY      := $(VENV)/bin/python
-APT_PKGS := freecad python3-venv python3-pip xvfb prusa-slicer
+APT_PKGS := freecad python3-venv python3-pip xvfb prusa-slicer chromium chromium-driver leocad
+# Blender only to test the Blender add-on headless (tools/blender/), without its recommends
+APT_LEAN := blender
 SUDO    := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEMO_OUT := demo-out
+# the demo's high-res regions: the two lens mounts of examples/hmd.py (model mm)
+DEMO_HIGH_RES := --high-res=-54,25,25.5,-9,36,70.5 --high-res=9,25,25.5,54,36,70.5
 
 .PHONY: all setup demo test bench clean
 
@@ -15,10 +19,11 @@ all: demo
 
 # apt packages, installed once when any is missing
 .apt.stamp:
-	@if ! dpkg -s $(APT_PKGS) >/dev/null 2>&1; then \
-	  echo "== installing apt packages: $(APT_PKGS)"; \
+	@if ! dpkg -s $(APT_PKGS) $(APT_LEAN) >/dev/null 2>&1; then \
+	  echo "== installing apt packages: $(APT_PKGS) $(APT_LEAN)"; \
 	  $(SUDO) apt-get update -q && \
-	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q $(APT_PKGS); \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q $(APT_PKGS) && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q --no-install-recommends $(APT_LEAN); \
 	fi
 	@touch $@
 
@@ -34,15 +39,57 @@ examples/build/hmd.step: examples/hmd.py $(VENV)/.installed
 	$(PY) examples/hmd.py examples/build
 
 demo: examples/build/hmd.step
-	$(PY) -m core fabricate examples/build/hmd.step --out $(DEMO_OUT)
-	@echo "== demo written to $(DEMO_OUT)/ (report.json, layout.json, layout.png)"
+	$(PY) -m core fabricate examples/build/hmd.step $(DEMO_HIGH_RES) --out $(DEMO_OUT)
+	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate.3mf)"
 
+# the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb)
 test: $(VENV)/.installed
 	$(PY) -m pytest tests/core -q
+	$(MAKE) --no-print-directory test-app
+	$(MAKE) --no-print-directory test-gui
 
 bench: examples/build/hmd.step
 	$(PY) bench/bench.py
 	$(PY) bench/bench_printed.py
+	$(PY) bench/bench_merge.py
+	$(PY) bench/bench_instructions.py
+	$(PY) bench/bench_iterate.py
+	$(MAKE) --no-print-directory bench-freecad
 
 clean:
 	rm -rf $(DEMO_OUT) examples/build bench/out .pytest_cache
+
+# --- the FreeCAD workbench ---------------------------------------------------
+FREECADCMD := freecadcmd
+FREECAD    := freecad
+# FreeCAD's user Mod folder, asked from FreeCAD itself (it differs between versions)
+FC_MOD = $(shell $(FREECADCMD) -c "import FreeCAD,sys; sys.stdout.write('MODDIR=' + FreeCAD.getUserAppDataDir() + 'Mod\n')" 2>/dev/null | sed -n 's/^MODDIR=//p')
+# the GUI as root needs the web engine's sandbox off; tests run on a virtual screen
+FC_GUI_ENV := QTWEBENGINE_DISABLE_SANDBOX=1
+XVFB       := xvfb-run -a -s "-screen 0 1280x1024x24"
+
+.PHONY: install gui test-app test-gui bench-freecad
+
+install: $(VENV)/.installed
+	@mod="$(FC_MOD)"; \
+	if [ -z "$$mod" ]; then echo "== cannot ask FreeCAD for its Mod folder: is freecadcmd installed?"; exit 2; fi; \
+	if [ -e "$$mod/Fabrickator" ] && [ ! -L "$$mod/Fabrickator" ]; then \
+	  echo "== $$mod/Fabrickator exists and is not our link (an Addon Manager copy?): remove it first"; exit 2; fi; \
+	mkdir -p "$$mod" && ln -sfn "$(CURDIR)" "$$mod/Fabrickator" && \
+	echo "== Fabrickator linked into $$mod/Fabrickator: start FreeCAD and pick the Fabrickator workbench"
+
+gui: install examples/build/hmd.step
+	$(FC_GUI_ENV) $(FREECAD) FabrickatorWorkbench/example.py
+
+# the workbench tests run with a throw-away FreeCAD user configuration (-u), so they
+# neither read nor change the user's preferences
+test-app: $(VENV)/.installed
+	@cfg=$$(mktemp -d); $(FREECADCMD) -u $$cfg/user.cfg -t TestFabrickatorApp --module-path=$(CURDIR); \
+	status=$$?; rm -rf $$cfg; exit $$status
+
+test-gui: $(VENV)/.installed
+	@cfg=$$(mktemp -d); $(FC_GUI_ENV) $(XVFB) $(FREECAD) -u $$cfg/user.cfg tests/gui/run_gui_tests.py \
+	  --module-path=$(CURDIR); status=$$?; rm -rf $$cfg; exit $$status
+
+bench-freecad: examples/build/hmd.step
+	$(FREECADCMD) bench/bench_freecad.py

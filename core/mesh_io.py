@@ -1,6 +1,7 @@
 """Load any supported model file as one repaired triangle mesh in millimetres.
 
-:func:`load_model` reads STL, OBJ, PLY and 3MF with trimesh, STEP with
+:func:`load_model` reads STL, OBJ, PLY and 3MF with trimesh, STEP and OCC
+BREP (``.brep``, as FreeCAD's ``Shape.exportBrep`` writes it) with
 OpenCascade (OCP) and FreeCAD documents (``.FCStd``) without FreeCAD, from the
 BREP files inside the zip.  It applies ``units`` and ``scale``, refuses bad
 input with an :class:`~core.errors.InputError`, repairs what can be repaired
@@ -36,7 +37,7 @@ UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
 #: File suffix (lower case) -> format name.
 FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".3mf": "3mf",
-           ".step": "step", ".stp": "step", ".fcstd": "fcstd"}
+           ".step": "step", ".stp": "step", ".brep": "brep", ".fcstd": "fcstd"}
 
 #: Angular deflection (rad) of the B-rep tessellation.
 ANGULAR_DEFLECTION = 0.3
@@ -54,7 +55,7 @@ _CONSUMING = frozenset({"Group", "Tip", "BaseFeature", "Base", "Tool", "Shapes",
                         "Links", "Objects", "Source", "Originals"})
 
 _FORMAT_NAMES = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "3mf": "3MF",
-                 "step": "STEP", "fcstd": "FreeCAD document"}
+                 "step": "STEP", "brep": "BREP", "fcstd": "FreeCAD document"}
 
 
 @dataclass
@@ -66,7 +67,7 @@ class LoadedModel:
     the tessellation); ``watertight`` says that after repair every edge is
     shared by exactly two consistently wound faces; ``repaired`` has one
     line per repair done; ``warnings`` one line per doubt about the input;
-    ``brep`` is the OCP ``TopoDS_Shape`` of the solid(s) in mm for STEP and
+    ``brep`` is the OCP ``TopoDS_Shape`` of the solid(s) in mm for STEP, BREP and
     FCStd input, ``None`` for meshes.
     """
 
@@ -85,7 +86,7 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     """Load the model at ``path`` and repair it.
 
     Coordinates are multiplied by ``UNITS[units] * scale``.  B-rep input
-    (STEP, FCStd) is tessellated at linear deflection ``tolerance_mm`` (in
+    (STEP, BREP, FCStd) is tessellated at linear deflection ``tolerance_mm`` (in
     mm, after scaling).  Raises :class:`InputError` with a one-line message
     for a missing, empty, unreadable or unsupported file, bad units or
     scale, non-finite coordinates, a file without triangles or solids, or a
@@ -100,8 +101,9 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     fmt = FORMATS[file.suffix.lower()]
     warnings: list[str] = []
     brep = None
-    if fmt in ("step", "fcstd"):
-        shape = _read_step(file) if fmt == "step" else _read_fcstd(file, warnings)
+    if fmt in ("step", "brep", "fcstd"):
+        readers = {"step": _read_step, "brep": _read_brep}
+        shape = readers[fmt](file) if fmt in readers else _read_fcstd(file, warnings)
         brep = _scaled_shape(shape, factor, file.name)
         vertices, faces = _tessellate(brep, tolerance_mm, file.name)
     else:
@@ -241,6 +243,22 @@ def _read_step(file: Path):
     if shape is None or shape.IsNull():
         raise InputError(f"{file.name}: the STEP file contains no shape")
     return _solids(shape, file.name, "the STEP file")
+
+
+def _read_brep(file: Path):
+    """The solid(s) of an OCC BREP text file as an OCP shape in mm."""
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepTools import BRepTools
+    from OCP.TopoDS import TopoDS_Shape
+
+    shape = TopoDS_Shape()
+    try:
+        read = BRepTools.Read_s(shape, str(file), BRep_Builder())
+    except Exception as exc:
+        raise InputError(f"{file.name}: cannot be read as BREP: {_first_line(exc)}") from None
+    if not read or shape.IsNull():
+        raise InputError(f"{file.name}: not a valid BREP file (the BREP reader gave up)")
+    return _solids(shape, file.name, "the BREP file")
 
 
 def _scaled_shape(shape, factor: float, name: str):

@@ -564,3 +564,26 @@ def test_broken_real_world_models_are_repaired():
     bunny = load_model(models / "stanford_bunny_open.obj")
     assert any("--units m" in w for w in bunny.warnings)
     assert not bunny.watertight
+
+
+# --- OCC BREP text (what FreeCAD's Shape.exportBrep writes) ---------------------
+
+def test_brep_file_loads_as_a_solid_with_units(tmp_path):
+    path = tmp_path / "box.brep"
+    path.write_bytes(brep_text((20.0, 10.0, 5.0), (1.0, 2.0, 3.0)))
+    model = load_model(path)
+    assert model.format == "brep" and model.brep is not None
+    assert np.allclose(model.mesh.bounds, [[1, 2, 3], [21, 12, 8]], atol=1e-6)
+    assert model.mesh.volume == pytest.approx(1000.0, rel=1e-6)
+    assert load_model(path, units="cm").mesh.volume == pytest.approx(1.0e6, rel=1e-6)
+
+
+def test_bad_brep_files_are_refused_in_one_line(tmp_path):
+    garbage = tmp_path / "garbage.brep"
+    garbage.write_text("this is not a BREP file\n")
+    with pytest.raises(InputError, match="garbage.brep: not a valid BREP file"):
+        load_model(garbage)
+    face = tmp_path / "face.brep"
+    face.write_bytes(sketch_brep())
+    with pytest.raises(InputError, match="face.brep: the BREP file contains no solid"):
+        load_model(face)

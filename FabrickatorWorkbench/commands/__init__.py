@@ -1,0 +1,25 @@
+"""Toolbar and menu commands, one module each.
+
+:func:`register` adds them to FreeCAD (GUI only) and returns their names in
+toolbar order.  Every command checks that Fabrickator's packages can be
+imported, wraps its change to the document in one undo transaction
+(aborted, with the reason in the Report view, when it fails) and is
+enabled only when it applies.
+"""
+
+from __future__ import annotations
+
+
+def register() -> list[str]:
+    """Add every command to FreeCADGui; the names in toolbar order."""
+    import FreeCADGui as Gui
+
+    from FabrickatorWorkbench.commands import (assembly, brushes, export, layout, legofy, report,
+                                               watch)
+
+    commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), brushes.MergeBrush(),
+                brushes.SplitBrush(), export.Export(), assembly.Assembly(), report.Report(),
+                watch.WatchFolder()]
+    for command in commands:
+        Gui.addCommand(command.NAME, command)
+    return [c.NAME for c in commands]

@@ -1,0 +1,133 @@
+"""Watch folder: legofy model files as they appear in a folder (e.g. exported by Blender).
+
+A new file (STL, OBJ, PLY, 3MF, STEP) is imported and legofied; a file that
+is written again replaces its Source's geometry, so its Fabrication
+recomputes as the next iteration (keeping the layout where nothing
+changed).  Files are taken once completely written (:mod:`core.watch`).
+The watcher polls on a Qt timer and lives as a child of FreeCAD's main
+window; running the command again stops it.
+"""
+
+from __future__ import annotations
+
+import os
+
+import FreeCAD as App
+import FreeCADGui as Gui
+
+from FabrickatorWorkbench import log
+from FabrickatorWorkbench.commands.base import Command, recompute_or_fail, transaction
+from FabrickatorWorkbench.commands.export import ask_folder
+
+#: Object name of the watcher under the main window.
+WATCHER_NAME = "FabrickatorWatcher"
+#: Milliseconds between two scans of the folder.
+POLL_MS = 500
+
+
+class WatchFolder(Command):
+    NAME = "Fabrickator_WatchFolder"
+    ICON = "WatchFolder"
+    MENU = "&Watch folder"
+    TIP = ("Legofy model files as they appear in a folder (e.g. exported from Blender); a file "
+           "written again updates its Fabrication.  Run again to stop watching")
+
+    def run(self):
+        from PySide import QtGui
+
+        running = running_watcher()
+        if running is not None:
+            answer = QtGui.QMessageBox.question(
+                Gui.getMainWindow(), "Watch folder", f"Stop watching {running.folder}?",
+                QtGui.QMessageBox.Yes | QtGui.QMessageBox.No)
+            if answer == QtGui.QMessageBox.Yes:
+                running.stop()
+            return
+        folder = ask_folder("Watch a folder for model files")
+        if folder:
+            start_watching(folder)
+
+
+def running_watcher():
+    """The running watcher, or None."""
+    from PySide import QtCore
+
+    found = Gui.getMainWindow().findChild(QtCore.QObject, WATCHER_NAME)
+    return getattr(found, "fabrickator", None) if found is not None else None
+
+
+def start_watching(folder: str, doc=None):
+    """Start watching ``folder`` for the document ``doc`` (the active one, or a new one)."""
+    from core.errors import InputError
+
+    doc = doc or App.ActiveDocument or App.newDocument("Watched")
+    try:
+        watcher = FolderWatch(folder, doc)
+    except InputError as exc:
+        log.failure("Watch folder", exc)
+        return None
+    log.message(f"watching {folder}: model files that appear or change there are legofied "
+                f"into {doc.Label} (run Watch folder again to stop)")
+    return watcher
+
+
+class FolderWatch:
+    """Polls a folder (:class:`core.watch.FolderWatcher`) and legofies what appears."""
+
+    def __init__(self, folder: str, doc):
+        from pathlib import Path
+
+        from PySide import QtCore
+
+        from core.watch import FolderWatcher
+
+        self.folder = folder
+        self.doc_name = doc.Name
+        self.watcher = FolderWatcher(Path(folder))
+        self.sources: dict[str, str] = {}
+        self.timer = QtCore.QTimer(Gui.getMainWindow())
+        self.timer.setObjectName(WATCHER_NAME)
+        self.timer.fabrickator = self
+        self.timer.setInterval(POLL_MS)
+        self.timer.timeout.connect(self.poll)
+        self.timer.start()
+
+    def poll(self) -> None:
+        """One scan: take every file that became complete."""
+        if self.doc_name not in App.listDocuments():
+            log.message(f"stopped watching {self.folder}: its document was closed")
+            self.stop()
+            return
+        for path in self.watcher.poll():
+            self.take(str(path))
+
+    def take(self, path: str) -> None:
+        """Legofy a new file, or update the Source a known file was imported as."""
+        from FabrickatorWorkbench import make
+        from FabrickatorWorkbench.objects.fabrication import is_fabrication
+
+        doc = App.getDocument(self.doc_name)
+        name = os.path.basename(path)
+        known = doc.getObject(self.sources.get(name, "")) if name in self.sources else None
+        with transaction(doc, f"Watch folder: {name}"):
+            if known is not None:
+                make.reload_model(known, path)
+                fabs = [o for o in known.InList if is_fabrication(o)]
+                if fabs:
+                    recompute_or_fail(*fabs)
+                else:
+                    doc.recompute()
+                log.message(f"{name} changed: {', '.join(f.Label + ' ' + f.Status for f in fabs)}")
+            else:
+                source, fab = make.legofy_file(path, doc)
+                self.sources[name] = source.Name
+                recompute_or_fail(fab)
+                log.message(f"{name} appeared: {fab.Label} {fab.Status}")
+        if App.GuiUp and Gui.ActiveDocument is not None:
+            Gui.SendMsgToActiveView("ViewFit")
+
+    def stop(self) -> None:
+        self.timer.stop()
+        self.timer.setObjectName("")
+        self.timer.deleteLater()
+        log.message(f"stopped watching {self.folder}")

@@ -1,0 +1,400 @@
+"""Fabrickator from Python: everything the toolbar does, as documented calls.
+
+A macro or a test drives the workbench with these functions, in
+``freecadcmd`` as in the GUI (view providers are attached only when the GUI
+is up)::
+
+    import FabrickatorWorkbench as fab
+    f = fab.make_fabrication(doc.Body)              # a solid, or a mesh feature
+    fab.mark_high_res(f, box=(-54, 25, 25.5, -9, 36, 70.5))
+    doc.recompute()                                 # runs the core
+    fab.export(f, "/tmp/parts")                     # STL, STEP, 3MF, instructions
+    fab.report(f)["speedup"]
+
+Like FreeCAD's own ``make_*`` functions they change the document but do not
+recompute it (call ``doc.recompute()``), and do not open transactions (the
+commands do that around them).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import FreeCAD as App
+
+from FabrickatorWorkbench import bridge, deps, log, preferences
+from FabrickatorWorkbench.objects import tree
+from FabrickatorWorkbench.objects.fabrication import Fabrication, is_fabrication
+from FabrickatorWorkbench.objects.high_res_region import HighResRegion
+
+#: Model formats Legofy reads from a file: B-rep ones become Part features,
+#: meshes (loaded and repaired by the core) Mesh features.
+BREP_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".iges", ".igs")
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".fcstd")
+
+#: A brick's box is shrunk by this much (mm) on every side when it becomes a
+#: high-res box, so that it never touches a neighbouring cell.
+BOX_INSET_MM = 1e-3
+
+
+def _require(what: str) -> None:
+    """Raise ImportError (after one Report-view line) when the core cannot be used."""
+    if not deps.check(what):
+        raise ImportError(f"Fabrickator cannot run {what}: see the Report view")
+
+
+def make_fabrication(source, doc=None, brick_set: str | None = None,
+                     clearance: float | None = None, seed: int = 0, scale: float = 1.0,
+                     seconds_per_brick: float | None = None, slice_print_times: bool | None = None,
+                     label: str | None = None):
+    """A new Fabrication of ``source`` (an object with a solid, or a Mesh feature).
+
+    Unset parameters come from the preferences.  The result appears after
+    the next ``doc.recompute()``.  Raises ValueError when ``source`` has no
+    solid and no mesh.
+    """
+    _require("make_fabrication")
+    doc = doc or source.Document
+    if bridge.source_kind(source) is None:
+        raise ValueError(f"{source.Label} has no solid and no mesh to build from")
+    obj = doc.addObject("App::FeaturePython", "Fabrication")
+    Fabrication(obj)
+    obj.Source = source
+    obj.BrickSet = brick_set if brick_set is not None else preferences.get("BrickSet")
+    obj.Clearance = clearance if clearance is not None else preferences.get("Clearance")
+    obj.Seed = int(seed)
+    obj.Scale = float(scale)
+    obj.SecondsPerBrick = (seconds_per_brick if seconds_per_brick is not None
+                           else preferences.get("SecondsPerBrick"))
+    obj.SlicePrintTimes = (slice_print_times if slice_print_times is not None
+                           else preferences.get("SliceOnRecompute"))
+    obj.Label = label or f"{source.Label} LEGO"
+    if App.GuiUp:
+        from FabrickatorWorkbench.viewproviders import attach_missing
+        attach_missing(obj)
+    return obj
+
+
+def fabrications(doc=None) -> list:
+    """The Fabrications of ``doc`` (the active document by default)."""
+    doc = doc or App.ActiveDocument
+    return [o for o in doc.Objects if is_fabrication(o)] if doc else []
+
+
+def fabrication_of(obj):
+    """The Fabrication that ``obj`` (itself, a brick, group, printed part or region) belongs to."""
+    seen = set()
+    while obj is not None and obj.Name not in seen:
+        if is_fabrication(obj):
+            return obj
+        seen.add(obj.Name)
+        parents = [p for p in obj.InList if is_fabrication(p) or tree.role(p)]
+        obj = parents[0] if parents else None
+    return None
+
+
+def mark_high_res(fab, box=None, boxes=(), solid=None, faces=None, bricks=(), label=None):
+    """A new HighResRegion of ``fab``: what it touches is printed exactly.
+
+    Give one of: ``box`` (X0, Y0, Z0, X1, Y1, Z1) or ``boxes`` (several) in
+    the Source's mm; ``solid``, an object whose solid or mesh is the region;
+    ``faces``, faces of the Source as ``[(obj, ["Face3", ...])]`` or
+    ``(obj, "Face3")``; ``bricks``, brick objects or brick ids of the
+    current layout (their boxes are stored, so the marks stay put when the
+    layout changes).  Returns the region; recompute to apply it.
+    """
+    given = [box is not None or bool(boxes), solid is not None, faces is not None, bool(bricks)]
+    if sum(given) != 1:
+        raise ValueError("mark_high_res takes exactly one of box/boxes, solid, faces, bricks")
+    doc = fab.Document
+    region = doc.addObject("Part::FeaturePython", "HighResRegion")
+    HighResRegion(region)
+    if box is not None or boxes:
+        region.Mode = "Bricks"
+        region.Boxes = _flat_boxes(([box] if box is not None else []) + list(boxes))
+    elif solid is not None:
+        region.Mode = "Solid"
+        region.RegionSolid = solid
+    elif faces is not None:
+        region.Mode = "Faces"
+        region.Faces = _face_links(faces)
+    else:
+        region.Mode = "Bricks"
+        region.Boxes = _flat_boxes(brick_boxes(fab, bricks))
+    region.Label = label or f"High-res {region.Mode.lower()}"
+    fab.Regions = list(fab.Regions) + [region]
+    if App.GuiUp:
+        from FabrickatorWorkbench.viewproviders import attach_missing
+        attach_missing(region)
+    region.Proxy.execute(region)
+    fab.touch()
+    return region
+
+
+def unmark(fab, bricks) -> int:
+    """Remove the brush marks (boxes of Bricks regions) that touch ``bricks``; returns how many.
+
+    Regions left without boxes are deleted.  Recompute to apply.
+    """
+    from FabrickatorWorkbench.objects.high_res_region import boxes as region_boxes
+
+    targets = brick_boxes(fab, bricks)
+    removed = 0
+    for region in list(fab.Regions):
+        if region.Mode != "Bricks":
+            continue
+        keep = [b for b in region_boxes(region) if not any(_overlap(b, t) for t in targets)]
+        removed += len(region_boxes(region)) - len(keep)
+        if not keep:
+            fab.Regions = [r for r in fab.Regions if r.Name != region.Name]
+            fab.Document.removeObject(region.Name)
+        elif len(keep) != len(region_boxes(region)):
+            region.Boxes = _flat_boxes(keep)
+            region.Proxy.execute(region)
+    if removed:
+        fab.touch()
+    return removed
+
+
+def merge_bricks(fab, bricks) -> None:
+    """Merge brush: the printed parts holding ``bricks`` (and those bricks) become one part."""
+    _edit(fab, "merge", bricks)
+
+
+def split_bricks(fab, bricks) -> None:
+    """Split brush: each of ``bricks`` becomes a printed part of its own."""
+    _edit(fab, "split", bricks)
+
+
+def _edit(fab, op: str, bricks) -> None:
+    from FabrickatorWorkbench.objects.fabricate import edits
+
+    changes = edits(fab) + [{"op": op, "boxes": brick_boxes(fab, bricks)}]
+    fab.PartEdits = json.dumps(changes)
+    fab.touch()
+
+
+def brick_boxes(fab, bricks) -> list[list[float]]:
+    """The boxes (Source mm, inset by BOX_INSET_MM) of brick objects or brick ids of ``fab``."""
+    by_id = {b.BrickId: b for b in tree.bricks(fab)}
+    objs = [by_id[int(b)] if isinstance(b, int) else b for b in bricks]
+    origin, cell, scale = fab.GridOrigin, fab.CellSize, float(fab.Scale) or 1.0
+    out = []
+    for b in objs:
+        lo = [origin[n] + b.Cell[n] * cell[n] + BOX_INSET_MM for n in range(3)]
+        hi = [origin[n] + (b.Cell[n] + b.Size[n]) * cell[n] - BOX_INSET_MM for n in range(3)]
+        out.append([v / scale for v in lo + hi])
+    return out
+
+
+def _overlap(a, b) -> bool:
+    return all(a[n] < b[n + 3] and b[n] < a[n + 3] for n in range(3))
+
+
+def _flat_boxes(boxes) -> list[float]:
+    out = []
+    for b in boxes:
+        values = [float(v) for v in b]
+        if len(values) != 6:
+            raise ValueError(f"a box is six numbers X0,Y0,Z0,X1,Y1,Z1, not {b!r}")
+        lo = [min(values[n], values[n + 3]) for n in range(3)]
+        hi = [max(values[n], values[n + 3]) for n in range(3)]
+        out += lo + hi
+    return out
+
+
+def _face_links(faces) -> list:
+    if isinstance(faces, tuple) and len(faces) == 2 and isinstance(faces[1], str):
+        faces = [(faces[0], [faces[1]])]
+    return [(obj, list(names) if not isinstance(names, str) else [names]) for obj, names in faces]
+
+
+def bricks(fab) -> list:
+    """The brick objects of ``fab``, layer by layer."""
+    return tree.bricks(fab)
+
+
+def printed_parts(fab) -> list:
+    """The PrintedPart objects of ``fab``."""
+    return tree.printed_parts(fab)
+
+
+def regions(fab) -> list:
+    """The HighResRegion objects of ``fab``."""
+    return list(fab.Regions)
+
+
+def report(fab) -> dict:
+    """The core's report (report.json) of the last successful recompute, with the steps."""
+    doc = json.loads(fab.ReportJson) if fab.ReportJson else {}
+    if fab.StepsJson:
+        doc["assembly"] = json.loads(fab.StepsJson)
+    return doc
+
+
+def steps(fab) -> list[dict]:
+    """The assembly steps: [{"number", "layer", "bricks" (ids), "printed_part", ...}]."""
+    return json.loads(fab.StepsJson)["steps"] if fab.StepsJson else []
+
+
+def layout(fab):
+    """The stored layout as a :class:`core.model.Layout` (steps included)."""
+    _require("layout")
+    import numpy as np
+
+    from core.model import Brick, Grid, Layout
+
+    if not fab.LayoutJson:
+        raise ValueError(f"{fab.Label} has no layout yet: recompute it")
+    data = json.loads(fab.LayoutJson)
+    filled = np.zeros(data["shape"], dtype=bool)
+    out = []
+    for b in data["bricks"]:
+        brick = Brick(b["id"], b["part"], tuple(b["size"]), tuple(b["cell"]), b["kind"],
+                      b["printed_part"], b["step"])
+        filled[brick.slices()] = True
+        out.append(brick)
+    grid = Grid(np.array(data["origin_mm"], dtype=float), np.array(data["cell_mm"], dtype=float),
+                filled)
+    return Layout(grid, out)
+
+
+def core_printed_parts(fab) -> list:
+    """The PrintedPart objects as :class:`core.printed.PrintedPart` (solid and mesh from the shape)."""
+    _require("export")
+    from core.brick_solids import to_trimesh
+    from core.printed import PrintedPart
+
+    out = []
+    for p in printed_parts(fab):
+        occ = bridge.part_to_occ(p.Shape)
+        out.append(PrintedPart(id=p.PartId, bricks=list(p.BrickIds), cells=p.Cells, solid=occ,
+                               mesh=to_trimesh(occ), volume_mm3=p.VolumeMm3,
+                               print_s=p.PrintTime or None))
+    return out
+
+
+def export(fab, folder) -> list[str]:
+    """Write the printed parts (``<id>.stl``, ``<id>.step``, ``plate.3mf``), ``layout.json``,
+    ``report.json`` and the assembly instructions into ``folder``; returns the file names.
+
+    Raises ValueError when ``fab`` has not been computed.
+    """
+    _require("export")
+    from core import export as core_export
+    from core import instructions
+
+    if not fab.LayoutJson:
+        raise ValueError(f"{fab.Label} has no result yet: recompute it first")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    parts = core_printed_parts(fab)
+    written = core_export.export_parts(parts, folder) if parts else []
+    (folder / "layout.json").write_text(fab.LayoutJson)
+    (folder / "report.json").write_text(json.dumps(report(fab), indent=2))
+    written += ["layout.json", "report.json"]
+    assembly = instructions.write_assembly(layout(fab), parts, folder, title=fab.Label,
+                                           seconds_per_brick=float(fab.SecondsPerBrick))
+    written += sorted(assembly.get("files", {}).values())
+    log.message(f"{fab.Label}: exported {len(parts)} printed part(s) and the instructions to {folder}")
+    return written
+
+
+def remove_owned(fab) -> None:
+    """Delete everything ``fab`` made (bricks, layer groups, printed parts, region group).
+
+    The regions themselves and the Source stay; unused prototypes are deleted.
+    """
+    doc = fab.Document
+    for obj in tree.owned(fab):
+        if tree.role(obj) == tree.REGIONS_GROUP_ROLE:
+            obj.Group = []
+        if doc.getObject(obj.Name) is not None:
+            doc.removeObject(obj.Name)
+    _remove_unused_prototypes(doc)
+
+
+def _remove_unused_prototypes(doc) -> None:
+    group = next((o for o in doc.Objects if tree.role(o) == tree.PROTOTYPES_ROLE), None)
+    if group is None:
+        return
+    for proto in list(group.Group):
+        if not [o for o in proto.InList if o.Name != group.Name]:
+            doc.removeObject(proto.Name)
+    if not group.Group:
+        doc.removeObject(group.Name)
+
+
+def import_model(path, doc=None):
+    """Add the model file at ``path`` to ``doc``: a Part feature (STEP, IGES, BREP) or a Mesh
+    feature (STL, OBJ, PLY, 3MF, FCStd; loaded and repaired by the core).  Returns the object.
+
+    Raises :class:`core.errors.InputError` for a file the core refuses.
+    """
+    _require("import")
+    path = Path(path)
+    doc = doc or App.ActiveDocument or App.newDocument(path.stem)
+    suffix = path.suffix.lower()
+    name = "".join(c if c.isalnum() else "_" for c in path.stem) or "Model"
+    if suffix in BREP_SUFFIXES:
+        import Part
+
+        if not path.is_file():
+            from core.errors import InputError
+            raise InputError(f"{path}: no such file")
+        obj = doc.addObject("Part::Feature", name)
+        obj.Shape = Part.read(str(path))
+    else:
+        mesh = _mesh_of(path)
+        obj = doc.addObject("Mesh::Feature", name)
+        obj.Mesh = mesh
+    obj.Label = path.stem
+    return obj
+
+
+def reload_model(obj, path) -> None:
+    """Replace the geometry of ``obj`` (made by :func:`import_model`) by the model file at
+    ``path``: a new version of the part.  Its Fabrications recompute as an iteration."""
+    _require("import")
+    path = Path(path)
+    if obj.TypeId == "Mesh::Feature":
+        obj.Mesh = _mesh_of(path)
+    else:
+        import Part
+
+        obj.Shape = Part.read(str(path))
+    obj.touch()
+
+
+def _mesh_of(path: Path):
+    """The model file at ``path`` loaded and repaired by the core, as a FreeCAD mesh."""
+    import Mesh
+
+    from core import mesh_io
+
+    model = mesh_io.load_model(path)
+    mesh = Mesh.Mesh()
+    mesh.addFacets(model.mesh.triangles.tolist())
+    for line in model.repaired:
+        log.message(f"{path.name}: {line}")
+    return mesh
+
+
+def legofy_file(path, doc=None, **parameters):
+    """Import the model file at ``path`` and make its Fabrication; returns (source, fabrication)."""
+    source = import_model(path, doc)
+    return source, make_fabrication(source, **parameters)
+
+
+def recompute(fab) -> bool:
+    """Recompute the document of ``fab``; True when ``fab`` computed without error."""
+    fab.touch()
+    fab.Document.recompute()
+    return fab.Status.startswith("ok")
+
+
+__all__ = ["make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "unmark",
+           "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
+           "report", "steps", "layout", "core_printed_parts", "export", "remove_owned",
+           "import_model", "reload_model", "legofy_file", "recompute"]

@@ -1,0 +1,329 @@
+"""Recompute of a Fabrication: its inputs to the core, the core's result to the document.
+
+:func:`recompute` is the Fabrication's ``execute``.  It writes the Source to
+a temporary file (:mod:`FabrickatorWorkbench.bridge`), gathers the high-res
+regions, runs :func:`core.pipeline.run` and :func:`core.build_order.plan`,
+and only when all of that succeeded changes the document
+(:func:`FabrickatorWorkbench.objects.tree.sync`).  A failure (bad input,
+a Source without a solid, a cancelled run) leaves every object as it was,
+puts the parameters back to the last values that worked, and says why in
+one line in the Report view and in the ``Status`` property.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import FreeCAD as App
+
+from FabrickatorWorkbench import bridge, deps, log, preferences
+from FabrickatorWorkbench.objects import high_res_region
+from FabrickatorWorkbench.objects.fabrication import PARAMETERS
+
+
+class Cancelled(Exception):
+    """The user cancelled the recompute in the progress bar."""
+
+
+@dataclass
+class Result:
+    """What one core run gave: the Fabrication (core), its steps and report, the inputs
+    it was made from and a zip of the core's iteration snapshot (a temporary file)."""
+
+    fab: object
+    order: object
+    report: dict
+    inputs: dict
+    snapshot: str | None = None
+
+
+def cell_size() -> App.Vector:
+    """The core's cell size (one 1x1 plate), mm."""
+    from core.model import CELL_MM
+
+    return App.Vector(*CELL_MM)
+
+
+def parameters(obj) -> dict:
+    """The user-editable parameters of a Fabrication as plain values."""
+    out = {}
+    for name in PARAMETERS:
+        value = getattr(obj, name)
+        out[name] = float(value.Value) if hasattr(value, "Value") else value
+    return out
+
+
+def edits(obj) -> list[dict]:
+    """The merge/split brush edits: [{"op": "merge"|"split", "boxes": [[x0..z1], ...]}]."""
+    try:
+        value = json.loads(obj.PartEdits or "[]")
+    except ValueError:
+        return []
+    return value if isinstance(value, list) else []
+
+
+def recompute(obj) -> bool:
+    """Run the core for Fabrication ``obj`` and update the document; True on success.
+
+    Never raises for bad input: the Report view and ``obj.Status`` say what
+    failed, and the document keeps the previous result.
+    """
+    if not deps.check(f"recomputing {obj.Label}"):
+        obj.Status = "failed: Fabrickator's Python packages are missing (see the Report view)"
+        return False
+    from core.errors import InputError
+    from FabrickatorWorkbench.objects import tree
+
+    try:
+        result = run_core(obj)
+    except (InputError, ValueError, Cancelled) as exc:
+        reason = log.failure(f"{obj.Label}: recompute", exc)
+        _restore_parameters(obj)
+        obj.Status = f"failed, previous result kept: {reason.split('failed: ', 1)[-1]}"
+        return False
+    obj.Status = "failed while updating the tree (see the Report view)"
+    kept, changed = tree.sync(obj, result)
+    _store(obj, result, kept, changed)
+    return True
+
+
+def run_core(obj) -> Result:
+    """The core's result for Fabrication ``obj`` (changes nothing in the document).
+
+    When only the Source changed since the last result (same parameters,
+    regions and edits) and ``KeepLayout`` is on, the new version is an
+    iteration on the previous result (:func:`core.iterate.iterate`: the old
+    layout is kept wherever the part did not change); otherwise the whole
+    pipeline runs (:func:`core.pipeline.run`).  Raises InputError (or
+    ValueError) for unusable inputs and :class:`Cancelled` when the user
+    stops it.
+    """
+    from core import build_order, pipeline
+    from core.errors import InputError
+
+    source = obj.Source
+    if source is None:
+        raise InputError("no Source: link the part to build in the Source property")
+    if bridge.source_kind(source) is None:
+        raise InputError(f"the Source {source.Label} has no solid and no mesh")
+    scale = float(obj.Scale)
+    inputs = {"parameters": parameters(obj), "regions": region_signature(obj)}
+    with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
+            _slicer(bool(obj.SlicePrintTimes)), _progress(f"Fabrickator: {obj.Label}") as progress:
+        path = bridge.write_source(source, work)
+        boxes, solids = region_inputs(obj, work, scale)
+        fab, changes = None, None
+        if obj.KeepLayout and obj.IterationState and _last_inputs(obj) == inputs:
+            fab, changes = _iterate(obj, path, boxes, solids, work, progress)
+        if fab is None:
+            kwargs = dict(scale=scale, seed=int(obj.Seed), parts=obj.BrickSet.strip() or None,
+                          high_res=boxes, high_res_solids=solids,
+                          clearance=float(obj.Clearance.Value),
+                          seconds_per_brick=float(obj.SecondsPerBrick), slice_parts=True,
+                          progress=progress)
+            kwargs["part_edits"] = [{"op": e["op"],
+                                     "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
+                                    for e in edits(obj)]
+            kwargs["profile"] = preferences.get("SlicerProfile") or None
+            fab = pipeline.run(path, **kwargs)
+        if not fab.layout.bricks:
+            raise InputError("the layout has no bricks")
+        order = build_order.plan(fab.layout)
+        build_order.assign(fab.layout, order)
+        report = pipeline.report(fab)
+        if changes is not None:
+            report["changes"] = changes
+        report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
+        snapshot = _snapshot(fab, float(obj.Clearance.Value))
+    return Result(fab, order, report, inputs, snapshot)
+
+
+def region_signature(obj) -> str:
+    """A text that changes whenever the regions or the merge/split edits change."""
+    regions = []
+    for r in obj.Regions:
+        solid = r.RegionSolid
+        regions.append({"mode": r.Mode, "boxes": list(r.Boxes),
+                        "solid": None if solid is None else [solid.Name,
+                                                             solid.Shape.exportBrepToString()
+                                                             if bridge.source_kind(solid) == "shape"
+                                                             else solid.Mesh.CountFacets],
+                        "faces": [[o.Name, list(names)] for o, names in r.Faces]})
+    return json.dumps({"regions": regions, "edits": edits(obj)}, sort_keys=True)
+
+
+def _last_inputs(obj) -> dict | None:
+    try:
+        return json.loads(obj.LastGood) if obj.LastGood else None
+    except ValueError:
+        return None
+
+
+def _iterate(obj, path: str, boxes, solids, work: str, progress):
+    """The new Source as an iteration on the stored snapshot: (core Fabrication, changes),
+    or (None, None) when the iteration does not apply (then the caller lays out anew)."""
+    import numpy as np
+
+    from core import catalog, iterate, mesh_io, pipeline
+
+    folder = os.path.join(work, "previous")
+    try:
+        shutil.unpack_archive(obj.IterationState, folder, "zip")
+        previous = iterate.load_previous(folder)
+        model = mesh_io.load_model(path, scale=float(obj.Scale))
+        result = iterate.iterate(previous, model, parts=catalog.select(obj.BrickSet.strip() or None),
+                                 seed=int(obj.Seed), high_res=boxes, high_res_solids=solids,
+                                 scale=float(obj.Scale), clearance=float(obj.Clearance.Value),
+                                 progress=progress)
+    except Cancelled:
+        raise
+    except Exception as exc:
+        log.warning(f"{obj.Label}: could not keep the previous layout ({type(exc).__name__}: "
+                    f"{str(exc).splitlines()[0] if str(exc) else ''}); laying out anew")
+        return None, None
+    if not np.allclose(result.alignment.transform, np.eye(4), atol=1e-6):
+        log.message(f"{obj.Label}: the new Source is moved or turned against the previous one; "
+                    f"laying out anew where it stands")
+        return None, None
+    fab = iterate.to_fabrication(result, float(obj.SecondsPerBrick))
+    if fab.printed:
+        pipeline.print_times(fab)
+    return fab, result.changes
+
+
+def _snapshot(fab, clearance: float) -> str | None:
+    """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
+    own, which the caller removes), or None when the core has no iteration support."""
+    try:
+        from core import iterate
+    except ImportError:
+        return None
+    with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
+        iterate.snapshot(fab, folder, clearance=clearance)
+        holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
+        return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)
+
+
+def region_inputs(obj, work: str, scale: float) -> tuple[list[str], list[str]]:
+    """High-res boxes ("X0,Y0,Z0,X1,Y1,Z1" in scaled model mm) and region solid files.
+
+    Boxes of Bricks-mode regions are passed as boxes; Solid and Faces
+    regions are written into ``work`` as BREP (or STL for a mesh solid).
+    """
+    boxes, solids = [], []
+    for n, region in enumerate(obj.Regions):
+        if region.Mode == "Bricks":
+            boxes += [",".join(f"{v:.6f}" for v in _scaled_box(b, scale))
+                      for b in high_res_region.boxes(region)]
+            continue
+        if region.Mode == "Solid" and bridge.source_kind(region.RegionSolid) == "mesh":
+            folder = os.path.join(work, f"region{n}")
+            os.makedirs(folder)
+            solids.append(bridge.write_source(region.RegionSolid, folder))
+            continue
+        shape = high_res_region.region_shape(region)
+        if shape.isNull() or not shape.Solids:
+            log.warning(f"{region.Label}: the region is empty and marks nothing")
+            continue
+        path = os.path.join(work, f"region{n}.brep")
+        shape.exportBrep(path)
+        solids.append(path)
+    return boxes, solids
+
+
+def _scaled_box(box, scale: float) -> list[float]:
+    """A Source-coordinate box in the core's (scaled) model mm."""
+    return [float(v) * scale for v in box]
+
+
+@contextmanager
+def _slicer(slice_parts: bool):
+    """Choose how print times are made for the duration of one run.
+
+    Without slicing, the core's estimate stands in (``FABRICKATOR_SLICER=none``);
+    with slicing, the preferences' slicer path when set.
+    """
+    from core.print_time import SLICER_ENV
+
+    before = os.environ.get(SLICER_ENV)
+    chosen = preferences.get("SlicerPath") if slice_parts else "none"
+    if chosen:
+        os.environ[SLICER_ENV] = chosen
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(SLICER_ENV, None)
+        else:
+            os.environ[SLICER_ENV] = before
+
+
+@contextmanager
+def _progress(title: str):
+    """A core progress callback driving FreeCAD's progress bar (GUI only); Esc cancels."""
+    if not App.GuiUp:
+        yield None
+        return
+    bar = App.Base.ProgressIndicator()
+    bar.start(title, 100)
+    done = [0]
+
+    def progress(fraction: float, message: str) -> None:
+        target = min(int(fraction * 100), 99)
+        try:
+            while done[0] < target:
+                bar.next(True)
+                done[0] += 1
+        except RuntimeError:
+            raise Cancelled("cancelled in the progress bar") from None
+
+    try:
+        yield progress
+    finally:
+        bar.stop()
+
+
+def _restore_parameters(obj) -> None:
+    """Put the parameters back to the last values that recomputed fine."""
+    good = (_last_inputs(obj) or {}).get("parameters", {})
+    now = parameters(obj)
+    for name, value in good.items():
+        if name in now and now[name] != value:
+            setattr(obj, name, value)
+            log.warning(f"{obj.Label}: {name} put back to {value!r}, the last value that worked")
+
+
+def _store(obj, result: Result, kept: int, changed: int) -> None:
+    """Write the result's numbers and JSON into the Fabrication's properties."""
+    fab, report = result.fab, result.report
+    layout = fab.layout
+    obj.LayoutJson = json.dumps(layout.to_json())
+    obj.ReportJson = json.dumps(report)
+    obj.StepsJson = json.dumps({"steps": [s.to_json() for s in result.order.steps],
+                                "unattached": list(result.order.unattached),
+                                "early_parts": list(result.order.early_parts)})
+    obj.Plates = int(report["plates"])
+    obj.Bricks = int(report["bricks"]["total"])
+    obj.LegoBricks = int(report["bricks"]["lego"])
+    obj.PrintedParts = len(fab.printed)
+    obj.Steps = len(result.order.steps)
+    obj.Components = int(report["stability"]["components"])
+    obj.WeakPoints = int(report["stability"]["weak_points"])
+    obj.SpeedUp = float(report["speedup"] or 0.0)
+    obj.BricksKept, obj.BricksChanged = kept, changed
+    obj.GridOrigin = bridge.vector(fab.grid.origin)
+    obj.CellSize = bridge.vector(fab.grid.cell)
+    obj.LastGood = json.dumps(result.inputs)
+    if result.snapshot is not None:
+        obj.IterationState = result.snapshot
+        shutil.rmtree(os.path.dirname(result.snapshot), ignore_errors=True)
+    warnings = len(report["model"]["warnings"])
+    obj.Status = (f"ok: {obj.Bricks} bricks ({obj.LegoBricks} LEGO), {obj.PrintedParts} printed "
+                  f"part(s), {obj.Steps} steps" + (f"; {warnings} warning(s)" if warnings else ""))
+    for line in report["model"]["warnings"]:
+        log.warning(f"{obj.Label}: {line}")

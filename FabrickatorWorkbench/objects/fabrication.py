@@ -1,0 +1,146 @@
+"""The Fabrication object: one fabricated part, parametric in its Source.
+
+An ``App::FeaturePython`` whose proxy is :class:`Fabrication`.
+Its inputs are the Source (any solid or a mesh feature), the brick set,
+clearance, seed, scale, the high-res regions and the merge/split edits;
+its recompute runs the core pipeline (:mod:`.fabricate`) and keeps the
+result in the document: the layout, report and steps as JSON properties,
+one tree object per brick grouped by layer, and PrintedPart objects.  So a
+saved document reopens with everything in place and no recompute.
+
+It is not a group itself: FreeCAD 0.20 takes any group that links an
+object as that object's group, which would clash with the user's groups
+holding the Source.  Its ``Contents`` (the layer, printed-part and region
+groups) show under it in the tree through its view provider.
+"""
+
+from __future__ import annotations
+
+import FreeCAD as App
+
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
+
+QT = App.Qt.QT_TRANSLATE_NOOP
+
+#: Value of the hidden ``FabrickatorRole`` property that marks a Fabrication.
+ROLE = "Fabrication"
+
+#: Inputs the user edits; the last values that recomputed fine are kept in
+#: ``LastGood`` and put back when a recompute fails.
+PARAMETERS = ("BrickSet", "Clearance", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes")
+
+PROPERTIES = (
+    Prop("App::PropertyString", "FabrickatorRole", "Base",
+         QT("App::Property", "Fabrickator object role"), ROLE, HIDDEN),
+    Prop("App::PropertyLink", "Source", "Fabrication",
+         QT("App::Property", "The part to build: a solid (Body, Part feature, STEP) or a mesh")),
+    Prop("App::PropertyString", "BrickSet", "Fabrication",
+         QT("App::Property", "Bricks to use: all, plates, bricks, design numbers (3001,3024) "
+                             "or names like plate2x4; must contain the 1x1 plate 3024"), "all"),
+    Prop("App::PropertyLength", "Clearance", "Fabrication",
+         QT("App::Property", "FDM clearance of printed studs and tubes (a diameter)"), 0.1),
+    Prop("App::PropertyInteger", "Seed", "Fabrication",
+         QT("App::Property", "Seed of the layout: the same seed gives the same layout"), 0),
+    Prop("App::PropertyFloat", "Scale", "Fabrication",
+         QT("App::Property", "Scale applied to the Source before it is built from LEGO"), 1.0),
+    Prop("App::PropertyVector", "CellSize", "Fabrication",
+         QT("App::Property", "Size of one 1x1 plate cell (stud pitch, pitch, plate height), mm"),
+         None, READ_ONLY),
+    Prop("App::PropertyFloat", "SecondsPerBrick", "Fabrication",
+         QT("App::Property", "Assembly estimate: seconds to place one brick or printed part"), 10.0),
+    Prop("App::PropertyBool", "SlicePrintTimes", "Fabrication",
+         QT("App::Property", "Slice the whole part and the printed parts with PrusaSlicer on "
+                             "recompute (slower); otherwise print times are estimated"), False),
+    Prop("App::PropertyBool", "KeepLayout", "Fabrication",
+         QT("App::Property", "When only the Source changed, keep the previous layout wherever "
+                             "the part did not change and reprint only changed printed parts"),
+         True),
+    Prop("App::PropertyLinkList", "Regions", "Fabrication",
+         QT("App::Property", "High-res regions: what must be printed exactly"), None, READ_ONLY),
+    Prop("App::PropertyLinkList", "Contents", "Fabrication",
+         QT("App::Property", "Groups the Fabrication made: regions, printed parts, layers"),
+         None, HIDDEN),
+    Prop("App::PropertyString", "PartEdits", "Fabrication",
+         QT("App::Property", "Merge and split brush edits (JSON)"), "[]", HIDDEN),
+    Prop("App::PropertyString", "Status", "Result",
+         QT("App::Property", "Outcome of the last recompute"), "not computed", READ_ONLY),
+    Prop("App::PropertyInteger", "Plates", "Result",
+         QT("App::Property", "Filled 1x1 plate cells"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "Bricks", "Result",
+         QT("App::Property", "Bricks in the layout (LEGO and printed)"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "LegoBricks", "Result",
+         QT("App::Property", "LEGO bricks in the layout"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "PrintedParts", "Result",
+         QT("App::Property", "Printed parts"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "Steps", "Result",
+         QT("App::Property", "Assembly steps"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "Components", "Result",
+         QT("App::Property", "Separate pieces the bricks form"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "WeakPoints", "Result",
+         QT("App::Property", "Bricks whose removal splits the structure"), 0, READ_ONLY),
+    Prop("App::PropertyFloat", "SpeedUp", "Result",
+         QT("App::Property", "Full print time / (printed parts' print time + assembly); "
+                             "0 when not sliced"), 0.0, READ_ONLY),
+    Prop("App::PropertyInteger", "BricksKept", "Result",
+         QT("App::Property", "Bricks kept from the previous recompute"), 0, READ_ONLY),
+    Prop("App::PropertyInteger", "BricksChanged", "Result",
+         QT("App::Property", "Bricks new or changed in the last recompute"), 0, READ_ONLY),
+    Prop("App::PropertyVector", "GridOrigin", "Result",
+         QT("App::Property", "Min corner of cell (0, 0, 0), mm"), None, READ_ONLY),
+    Prop("App::PropertyString", "LayoutJson", "Result",
+         QT("App::Property", "The layout (layout.json of the core)"), "", HIDDEN),
+    Prop("App::PropertyString", "ReportJson", "Result",
+         QT("App::Property", "The report (report.json of the core)"), "", HIDDEN),
+    Prop("App::PropertyString", "StepsJson", "Result",
+         QT("App::Property", "The assembly steps"), "", HIDDEN),
+    Prop("App::PropertyFileIncluded", "IterationState", "Result",
+         QT("App::Property", "What the next iteration needs of this result (core snapshot, zip)"),
+         None, HIDDEN),
+    Prop("App::PropertyString", "LastGood", "Result",
+         QT("App::Property", "Parameters of the last successful recompute"), "", HIDDEN),
+)
+
+
+class Fabrication:
+    """Proxy of a Fabrication object; its recompute runs the core pipeline."""
+
+    def __init__(self, obj):
+        obj.Proxy = self
+        self.ensure_properties(obj)
+
+    def ensure_properties(self, obj) -> None:
+        """Add what is missing (idempotent)."""
+        ensure(obj, PROPERTIES)
+        if obj.CellSize.Length == 0:
+            from FabrickatorWorkbench.objects.fabricate import cell_size
+            obj.CellSize = cell_size()
+
+    def onDocumentRestored(self, obj):
+        self.ensure_properties(obj)
+        if App.GuiUp:
+            from FabrickatorWorkbench.objects import prototype, tree
+            from FabrickatorWorkbench.viewproviders import attach_missing
+            attach_missing(obj)
+            for proto in tree.prototypes(obj.Document):
+                prototype.apply_colour(proto)
+
+    def execute(self, obj):
+        from FabrickatorWorkbench.objects import fabricate
+        fabricate.recompute(obj)
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None
+
+
+def is_fabrication(obj) -> bool:
+    """True for a Fabrication object."""
+    return obj is not None and getattr(obj, "FabrickatorRole", None) == ROLE

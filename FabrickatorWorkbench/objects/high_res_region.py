@@ -1,0 +1,126 @@
+"""The HighResRegion object: part of a Fabrication that must be printed exactly.
+
+A ``Part::FeaturePython`` in one of three modes:
+
+* ``Bricks``: boxes in model mm (``Boxes``, six numbers each), made by the
+  brush (one box per brushed brick) or by a script (``box=``);
+* ``Solid``: a region solid (``RegionSolid``, any object with a solid or a
+  mesh), e.g. a cylinder placed around a screw seat;
+* ``Faces``: faces of the Source (``Faces``); every cell the faces' inner
+  skin (:data:`SKIN_MM` thick) passes through is marked.
+
+Its Shape shows the region; the Fabrication hands boxes to the core as
+boxes and the other modes as a region solid file.
+"""
+
+from __future__ import annotations
+
+import FreeCAD as App
+
+from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, ensure
+
+QT = App.Qt.QT_TRANSLATE_NOOP
+
+ROLE = "HighResRegion"
+
+#: Modes of a region.
+MODES = ["Bricks", "Solid", "Faces"]
+
+#: Thickness (mm) of the skin under picked faces that marks cells.
+SKIN_MM = 0.4
+
+PROPERTIES = (
+    Prop("App::PropertyString", "FabrickatorRole", "Base",
+         QT("App::Property", "Fabrickator object role"), ROLE, HIDDEN),
+    Prop("App::PropertyEnumeration", "Mode", "Region",
+         QT("App::Property", "Bricks (boxes), Solid (a region solid) or Faces (of the Source)"), MODES),
+    Prop("App::PropertyFloatList", "Boxes", "Region",
+         QT("App::Property", "Bricks mode: boxes X0,Y0,Z0,X1,Y1,Z1 in model mm, one after another")),
+    Prop("App::PropertyLink", "RegionSolid", "Region",
+         QT("App::Property", "Solid mode: the object whose solid (or mesh) is the region")),
+    Prop("App::PropertyLinkSubList", "Faces", "Region",
+         QT("App::Property", "Faces mode: faces of the Source that must be exact")),
+)
+
+
+class HighResRegion:
+    """Proxy of a high-res region; its Shape shows what it marks."""
+
+    def __init__(self, obj):
+        obj.Proxy = self
+        ensure(obj, PROPERTIES)
+
+    def onDocumentRestored(self, obj):
+        ensure(obj, PROPERTIES)
+        if App.GuiUp:
+            from FabrickatorWorkbench.viewproviders import attach_missing
+            attach_missing(obj)
+
+    def execute(self, obj):
+        obj.Shape = region_shape(obj)
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None
+
+
+def boxes(obj) -> list[tuple[float, ...]]:
+    """The region's boxes as (x0, y0, z0, x1, y1, z1) tuples (Bricks mode)."""
+    values = list(obj.Boxes)
+    return [tuple(values[n:n + 6]) for n in range(0, len(values) - len(values) % 6, 6)]
+
+
+def region_shape(obj):
+    """The shape that shows the region: its boxes, its solid, or the faces' skin."""
+    import Part
+
+    if obj.Mode == "Bricks":
+        solids = [Part.makeBox(x1 - x0, y1 - y0, z1 - z0, App.Vector(x0, y0, z0))
+                  for x0, y0, z0, x1, y1, z1 in boxes(obj) if x1 > x0 and y1 > y0 and z1 > z0]
+        return Part.makeCompound(solids) if solids else Part.Shape()
+    if obj.Mode == "Solid":
+        source = obj.RegionSolid
+        shape = getattr(source, "Shape", None)
+        if shape is not None and not shape.isNull() and shape.Solids:
+            return shape.copy()
+        return Part.Shape()
+    return Part.makeCompound(face_skins(obj)) if obj.Faces else Part.Shape()
+
+
+def face_skins(obj) -> list:
+    """One thin solid per picked face: the face offset :data:`SKIN_MM` into the material.
+
+    A face whose offset fails (a degenerate surface) falls back to its
+    bounding box grown by the skin, and a warning says so.
+    """
+    import Part
+
+    from FabrickatorWorkbench import log
+
+    out = []
+    for owner, names in obj.Faces:
+        for name in names:
+            face = owner.getSubObject(name)
+            if face is None or face.isNull():
+                continue
+            try:
+                skin = face.makeOffsetShape(-SKIN_MM, 0.01, fill=True)
+                if skin.isNull() or skin.Volume <= 0:
+                    raise ValueError("empty offset")
+                out.append(skin)
+            except Exception:
+                box = face.BoundBox
+                box.enlarge(SKIN_MM)
+                log.warning(f"{obj.Label}: face {owner.Label}.{name} has no clean offset; "
+                            f"marking its bounding box instead")
+                out.append(Part.makeBox(box.XLength, box.YLength, box.ZLength,
+                                        App.Vector(box.XMin, box.YMin, box.ZMin)))
+    return out

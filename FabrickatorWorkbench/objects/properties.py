@@ -1,0 +1,42 @@
+"""Idempotent property set-up for proxies and plain objects.
+
+A proxy adds its properties in one method called from ``__init__`` and from
+``onDocumentRestored`` (on restore ``__init__`` is not called), so a file
+saved by an older version gains the new properties when opened.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+#: Editor modes of FreeCAD's property editor.
+NORMAL, READ_ONLY, HIDDEN = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Prop:
+    """One property: FreeCAD type, name, group, tool tip, default, editor mode."""
+
+    type: str
+    name: str
+    group: str
+    doc: str
+    default: Any = None
+    mode: int = NORMAL
+
+
+def ensure(obj, props) -> list[str]:
+    """Add the missing ``props`` to ``obj`` (with their defaults) and set every
+    editor mode; returns the names added."""
+    added = []
+    existing = set(obj.PropertiesList)
+    for p in props:
+        if p.name not in existing:
+            obj.addProperty(p.type, p.name, p.group, p.doc)
+            if p.default is not None:
+                setattr(obj, p.name, p.default)
+            added.append(p.name)
+        if p.mode != NORMAL:
+            obj.setEditorMode(p.name, p.mode)
+    return added

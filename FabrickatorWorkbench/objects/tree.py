@@ -1,0 +1,347 @@
+"""The tree under a Fabrication: one object per brick, grouped by layer, and its printed parts.
+
+Every brick is an ``App::Link`` to the prototype of its part and colour
+(:mod:`.prototype`), placed at its cell, with the properties PartNumber,
+Cell, Size, Layer, Kind, Step, PrintedPart, BrickId and Changed (group
+"Brick").  Bricks sit in one ``App::DocumentObjectGroup`` per plate layer;
+printed parts in a "Printed parts" group, regions in a "High-res regions"
+group, all inside the Fabrication.
+
+:func:`sync` brings the tree in line with a new core result and keeps every
+brick object whose brick (part, cell, size, kind) is still in the layout, so
+a recompute that changes little changes few objects.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import FreeCAD as App
+
+from FabrickatorWorkbench import bridge
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
+
+QT = App.Qt.QT_TRANSLATE_NOOP
+
+BRICK_ROLE = "Brick"
+LAYER_ROLE = "Layer"
+PRINTED_GROUP_ROLE = "PrintedParts"
+REGIONS_GROUP_ROLE = "Regions"
+PROTOTYPES_ROLE = "Prototypes"
+
+#: Colour of printed parts (a light, PLA-like orange).
+PRINTED_COLOUR = (0.96, 0.62, 0.26)
+
+BRICK_PROPERTIES = (
+    Prop("App::PropertyString", "FabrickatorRole", "Base", QT("App::Property", "Fabrickator object role"),
+         BRICK_ROLE, HIDDEN),
+    Prop("App::PropertyString", "PartNumber", "Brick", QT("App::Property", "LEGO design number")),
+    Prop("App::PropertyIntegerList", "Cell", "Brick",
+         QT("App::Property", "Min cell (i, j, k) in the grid")),
+    Prop("App::PropertyIntegerList", "Size", "Brick",
+         QT("App::Property", "Extent in cells along x, y, z")),
+    Prop("App::PropertyInteger", "Layer", "Brick",
+         QT("App::Property", "Lowest plate layer (k)")),
+    Prop("App::PropertyString", "Kind", "Brick",
+         QT("App::Property", "lego, or printed (part of a printed part)")),
+    Prop("App::PropertyInteger", "Step", "Brick",
+         QT("App::Property", "Assembly step that places the brick")),
+    Prop("App::PropertyString", "PrintedPart", "Brick",
+         QT("App::Property", "ID of the printed part the brick belongs to, if printed")),
+    Prop("App::PropertyInteger", "BrickId", "Brick",
+         QT("App::Property", "Brick id in the layout")),
+    Prop("App::PropertyBool", "Changed", "Brick",
+         QT("App::Property", "New or changed in the last recompute")),
+)
+
+
+def role(obj) -> str | None:
+    """The Fabrickator role of an object (None for other objects)."""
+    return getattr(obj, "FabrickatorRole", None)
+
+
+def child_groups(fab, wanted: str) -> list:
+    """The Fabrication's direct child groups of role ``wanted``."""
+    return [g for g in fab.Contents if role(g) == wanted]
+
+
+def layer_groups(fab) -> list:
+    """The layer groups, lowest layer first."""
+    return sorted(child_groups(fab, LAYER_ROLE), key=lambda g: g.Layer)
+
+
+def bricks(fab) -> list:
+    """Every brick object of a Fabrication, layer by layer."""
+    return [b for g in layer_groups(fab) for b in g.Group if role(b) == BRICK_ROLE]
+
+
+def printed_parts(fab) -> list:
+    """The PrintedPart objects of a Fabrication, by ID."""
+    return [p for g in child_groups(fab, PRINTED_GROUP_ROLE) for p in g.Group
+            if role(p) == "PrintedPart"]
+
+
+def prototypes(doc) -> list:
+    """The brick prototypes of ``doc``."""
+    return [o for g in doc.Objects if role(g) == PROTOTYPES_ROLE for o in g.Group]
+
+
+def owned(fab) -> list:
+    """Every object the Fabrication made (groups, bricks, printed parts), children first."""
+    out = []
+    for g in fab.Contents:
+        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE):
+            out += [c for c in g.Group if role(c) in (BRICK_ROLE, "PrintedPart")]
+        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, REGIONS_GROUP_ROLE):
+            out.append(g)
+    return out
+
+
+def placement(brick, origin, cell) -> App.Placement:
+    """Where the prototype of ``brick``'s part goes so that it fills the brick's cells.
+
+    Prototypes have their short side along x; a brick whose x extent is
+    the long side is the prototype turned 90 degrees about z.
+    """
+    from core.catalog import BY_NUMBER
+
+    base = [origin[n] + brick.cell[n] * cell[n] for n in range(3)]
+    turned = brick.size[0] != BY_NUMBER[brick.part].footprint[0]
+    if turned:
+        base[0] += brick.size[0] * cell[0]
+        return App.Placement(bridge.vector(base), App.Rotation(App.Vector(0, 0, 1), 90))
+    return App.Placement(bridge.vector(base), App.Rotation())
+
+
+def sync(fab, result) -> tuple[int, int]:
+    """Make the tree under ``fab`` show ``result``; returns (bricks kept, bricks new or changed)."""
+    from core.render import brick_colours
+
+    from FabrickatorWorkbench.objects import prototype as prototypes_module
+
+    doc = fab.Document
+    layout = result.fab.layout
+    origin = [float(v) for v in layout.grid.origin]
+    cell = [float(v) for v in layout.grid.cell]
+    colours = brick_colours(layout, layout.labels())
+    had_layout = bool(fab.LayoutJson)
+    existing = {}
+    for obj in bricks(fab):
+        existing.setdefault(_key(obj.PartNumber, obj.Cell, obj.Size, obj.Kind), obj)
+    made = []
+    protos = Prototypes(doc)
+    by_layer: dict[int, list] = defaultdict(list)
+    kept = changed = 0
+    for brick, rgb in zip(layout.bricks, colours):
+        key = _key(brick.part, brick.cell, brick.size, brick.kind)
+        obj = existing.pop(key, None)
+        new = obj is None
+        if new:
+            obj = doc.addObject("App::Link", "Brick")
+            ensure(obj, BRICK_PROPERTIES)
+            made.append(obj)
+            changed += 1
+        else:
+            kept += 1
+        _update_brick(obj, brick, protos.get(brick.part, tuple(float(c) for c in rgb)),
+                      placement(brick, origin, cell), changed=had_layout and new)
+        by_layer[brick.cell[2]].append(obj)
+    for obj in existing.values():
+        doc.removeObject(obj.Name)
+    layers = _sync_layers(fab, by_layer, made, origin[2], cell[2])
+    printed_group = _group(fab, PRINTED_GROUP_ROLE, "Printed parts", made)
+    printed_group.Group = _sync_printed(fab, printed_group, result, made)
+    regions_group = _group(fab, REGIONS_GROUP_ROLE, "High-res regions", made)
+    regions_group.Group = list(fab.Regions)
+    fab.Contents = [regions_group, printed_group] + layers
+    made += protos.made
+    for obj in made + owned(fab) + protos.touched():
+        if "Touched" in obj.State:
+            obj.purgeTouched()
+    if App.GuiUp:
+        from FabrickatorWorkbench.viewproviders import attach_missing
+        for obj in made:
+            attach_missing(obj)
+        for proto in protos.made:
+            if role(proto) == prototypes_module.ROLE:
+                prototypes_module.apply_colour(proto)
+    return kept, changed
+
+
+def _key(part, cell, size, kind) -> tuple:
+    return (str(part), tuple(int(c) for c in cell), tuple(int(s) for s in size), str(kind))
+
+
+def _update_brick(obj, brick, proto, where: App.Placement, changed: bool) -> None:
+    """Set the brick object's link, placement and properties (only those that differ)."""
+    values = {"PartNumber": brick.part, "Cell": list(brick.cell), "Size": list(brick.size),
+              "Layer": int(brick.cell[2]), "Kind": brick.kind,
+              "Step": int(brick.step) if brick.step is not None else 0,
+              "PrintedPart": brick.printed_part or "", "BrickId": int(brick.id),
+              "Changed": bool(changed)}
+    for name, value in values.items():
+        if getattr(obj, name) != value:
+            setattr(obj, name, value)
+    if obj.LinkedObject != proto:
+        obj.LinkedObject = proto
+    if not _same_placement(obj.Placement, where):
+        obj.Placement = where
+    label = f"{brick.part} ({brick.cell[0]},{brick.cell[1]},{brick.cell[2]})"
+    if brick.kind == "printed":
+        label += f" {brick.printed_part}"
+    if obj.Label != label:
+        obj.Label = label
+    visible = brick.kind != "printed"
+    if obj.Visibility != visible:
+        obj.Visibility = visible
+
+
+def _same_placement(a: App.Placement, b: App.Placement, tol: float = 1e-9) -> bool:
+    """Whether two placements are equal to ``tol`` (position and quaternion)."""
+    values = zip(tuple(a.Base) + tuple(a.Rotation.Q), tuple(b.Base) + tuple(b.Rotation.Q))
+    return all(abs(x - y) <= tol for x, y in values)
+
+
+def _group(fab, wanted: str, label: str, made: list):
+    """The Fabrication's child group of role ``wanted``, made if missing."""
+    found = child_groups(fab, wanted)
+    if found:
+        return found[0]
+    group = new_group(fab.Document, "Group", wanted, label)
+    made.append(group)
+    return group
+
+
+def new_group(doc, name: str, wanted: str, label: str):
+    """A new ``App::DocumentObjectGroup`` with the Fabrickator role ``wanted``."""
+    group = doc.addObject("App::DocumentObjectGroup", name)
+    group.addProperty("App::PropertyString", "FabrickatorRole", "Base", "Fabrickator object role")
+    group.FabrickatorRole = wanted
+    group.setEditorMode("FabrickatorRole", HIDDEN)
+    group.Label = label
+    return group
+
+
+def _sync_layers(fab, by_layer: dict, made: list, bottom: float, height: float) -> list:
+    """One group per occupied layer holding its bricks (labelled with the layer's
+    bottom z, ``bottom + k * height``); empty layer groups removed."""
+    groups = {g.Layer: g for g in layer_groups(fab)}
+    out = []
+    for k in sorted(by_layer):
+        group = groups.pop(k, None)
+        if group is None:
+            group = new_group(fab.Document, "Layer", LAYER_ROLE, f"Layer {k:02d}")
+            group.addProperty("App::PropertyInteger", "Layer", "Layer", "Plate layer (k)")
+            group.Layer = k
+            group.setEditorMode("Layer", READ_ONLY)
+            made.append(group)
+        label = f"Layer {k:02d} (z {bottom + k * height:.1f} mm)"
+        if group.Label != label:
+            group.Label = label
+        members = by_layer[k]
+        if list(group.Group) != members:
+            group.Group = members
+        out.append(group)
+    for group in groups.values():
+        group.Group = []
+        fab.Document.removeObject(group.Name)
+    return out
+
+
+def _sync_printed(fab, group, result, made: list) -> list:
+    """PrintedPart objects for the result's printed parts (kept by ID); the list, by ID."""
+    from FabrickatorWorkbench.objects.printed_part import PrintedPart
+
+    doc = fab.Document
+    existing = {p.PartId: p for p in group.Group if role(p) == "PrintedPart"}
+    step_of = {}
+    for b in result.fab.layout.bricks:
+        if b.printed_part is not None and b.step is not None:
+            step_of[b.printed_part] = b.step
+    method = ""
+    if result.fab.print_parts is not None:
+        method = result.fab.print_parts.method
+    changes = result.report.get("changes")
+    reprint = (set(changes.get("parts_reprinted", [])) if changes
+               else {p.id for p in result.fab.printed})
+    out = []
+    for part in result.fab.printed:
+        obj = existing.pop(part.id, None)
+        if obj is None:
+            obj = doc.addObject("Part::FeaturePython", "PrintedPart")
+            PrintedPart(obj)
+            made.append(obj)
+        obj.Shape = (bridge.occ_to_part(part.solid) if part.solid is not None
+                     else bridge.trimesh_to_part(part.mesh))
+        obj.PartId = part.id
+        obj.Label = part.id
+        obj.BrickIds = [int(b) for b in part.bricks]
+        obj.Cells = int(part.cells)
+        obj.VolumeMm3 = float(part.volume_mm3)
+        obj.CompleteStuds = len(part.complete_studs)
+        obj.IncompleteStuds = list(part.incomplete_studs)
+        obj.IncompleteTubes = list(part.incomplete_tubes)
+        obj.Engraved = bool(part.engraved)
+        obj.PrintTime = float(part.print_s or 0.0)
+        obj.PrintTimeMethod = method
+        obj.Step = int(step_of.get(part.id, 0))
+        obj.Reprint = part.id in reprint
+        out.append(obj)
+    for obj in existing.values():
+        doc.removeObject(obj.Name)
+    return out
+
+
+class Prototypes:
+    """The document's brick prototypes, found or made on demand (one per part and colour)."""
+
+    def __init__(self, doc):
+        self.doc = doc
+        self.made: list = []
+        self.group = next((o for o in doc.Objects if role(o) == PROTOTYPES_ROLE), None)
+        self.by_key = {}
+        if self.group is not None:
+            for p in self.group.Group:
+                self.by_key[(p.PartNumber, _rgb(p.Color))] = p
+        self.shapes = {}
+
+    def get(self, part: str, rgb: tuple):
+        """The prototype of ``part`` in colour ``rgb`` (made if missing)."""
+        key = (part, _rgb(rgb))
+        found = self.by_key.get(key)
+        if found is not None:
+            return found
+        from FabrickatorWorkbench.objects.prototype import make_prototype
+
+        if self.group is None:
+            self.group = new_group(self.doc, "BrickPrototypes", PROTOTYPES_ROLE, "Brick prototypes")
+            self.made.append(self.group)
+        obj = make_prototype(self.doc, part, key[1], self._shape(part))
+        self.group.addObject(obj)
+        self.by_key[key] = obj
+        self.made.append(obj)
+        return obj
+
+    def touched(self) -> list:
+        """The prototypes group and its prototypes (those this run may have changed)."""
+        return [] if self.group is None else [self.group] + list(self.group.Group)
+
+    def _shape(self, part: str):
+        """The LEGO solid of ``part`` (shared with other colours of the same part)."""
+        if part not in self.shapes:
+            same = next((p for (n, _), p in self.by_key.items() if n == part), None)
+            if same is not None:
+                self.shapes[part] = same.Shape
+            else:
+                from core.brick_solids import brick_solid
+                from core.catalog import BY_NUMBER
+
+                spec = BY_NUMBER[part]
+                solid = brick_solid(spec.footprint[0], spec.footprint[1], spec.layers)
+                self.shapes[part] = bridge.occ_to_part(solid.shape.wrapped)
+        return self.shapes[part]
+
+
+def _rgb(colour) -> tuple:
+    """A colour as an RGB tuple rounded to 1/255 (a stable dictionary key)."""
+    return tuple(round(float(c) * 255) / 255 for c in tuple(colour)[:3])

@@ -1,0 +1,1 @@
+"""Task panels: the brush panel (:mod:`.brush`) and the assembly panel (:mod:`.assembly`)."""

@@ -1,0 +1,188 @@
+"""The assembly task panel: step through the build bottom-up, layer by layer.
+
+Step n shows every brick of steps 1..n; the bricks of step n (the ones to
+place now) are highlighted in blue, later ones are hidden.  A printed part
+appears at the step that inserts it, highlighted, with its ID written next
+to it in the 3D view.  Next / Previous / the slider / Play move through the
+steps (step 0 is the empty base).  Closing the panel shows the whole model
+again exactly as it was shown before.
+"""
+
+from __future__ import annotations
+
+import os
+
+import FreeCADGui as Gui
+
+#: Colour of the bricks to place in the current step.
+NEXT_COLOUR = (0.1, 0.35, 1.0)
+#: Size (points) of the printed parts' ID labels in the 3D view.
+LABEL_FONT_SIZE = 20
+#: Milliseconds between steps while playing.
+PLAY_INTERVAL_MS = 700
+
+UI = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                  "resources", "ui", "assembly.ui")
+
+
+class AssemblyPanel:
+    """Task panel that steps through the assembly of Fabrication ``fab``."""
+
+    def __init__(self, fab):
+        from PySide import QtCore
+
+        from FabrickatorWorkbench import make
+
+        self.fab = fab
+        self.doc = fab.Document
+        self.steps = make.steps(fab)
+        self.bricks = [b for b in make.bricks(fab) if b.Kind == "lego"]
+        self.parts = make.printed_parts(fab)
+        self.by_step: dict[int, list] = {}
+        for obj in self.bricks + self.parts:
+            self.by_step.setdefault(int(obj.Step), []).append(obj)
+        self.shown = {o.Name: bool(o.Visibility) for o in self.bricks + self.parts}
+        self.colours = {p.Name: tuple(p.ViewObject.ShapeColor) for p in self.parts}
+        self.highlighted: list = []
+        self.labels = None
+        self.current = len(self.steps)
+        self.form = Gui.PySideUic.loadUi(UI)
+        self.form.setWindowTitle(f"Assembly of {fab.Label}")
+        self.form.slider.setMaximum(len(self.steps))
+        self.form.slider.setValue(len(self.steps))
+        self.form.slider.valueChanged.connect(self.go)
+        self.form.next.clicked.connect(lambda: self.go(self.current + 1))
+        self.form.previous.clicked.connect(lambda: self.go(self.current - 1))
+        self.form.first.clicked.connect(lambda: self.go(0))
+        self.form.last.clicked.connect(lambda: self.go(len(self.steps)))
+        self.form.play.toggled.connect(self.on_play)
+        self.timer = QtCore.QTimer()
+        self.timer.setInterval(PLAY_INTERVAL_MS)
+        self.timer.timeout.connect(self.on_tick)
+        self.go(1 if self.steps else 0)
+
+    def go(self, step: int) -> None:
+        """Show the model as built up to ``step`` (clamped to 0..number of steps)."""
+        step = max(0, min(int(step), len(self.steps)))
+        before, self.current = self.current, step
+        low, high = sorted((before, step))
+        for n in range(low, high + 1):
+            for obj in self.by_step.get(n, []):
+                visible = n <= step
+                if bool(obj.Visibility) != visible:
+                    obj.Visibility = visible
+        self._highlight(step)
+        if self.form.slider.value() != step:
+            self.form.slider.blockSignals(True)
+            self.form.slider.setValue(step)
+            self.form.slider.blockSignals(False)
+        self.form.stepLabel.setText(f"Step {step} / {len(self.steps)}")
+        self.form.info.setText(self.describe(step))
+
+    def describe(self, step: int) -> str:
+        """What to do in ``step``, in words."""
+        if step == 0:
+            return "Start with an empty base plate."
+        s = self.steps[step - 1]
+        if s.get("printed_part"):
+            return f"Layer {s['layer']}: insert printed part {s['printed_part']}."
+        counts: dict[str, int] = {}
+        for obj in self.by_step.get(step, []):
+            counts[obj.PartNumber] = counts.get(obj.PartNumber, 0) + 1
+        items = ", ".join(f"{n} x {part}" for part, n in sorted(counts.items()))
+        return f"Layer {s['layer']}: place {items} (blue)."
+
+    def _highlight(self, step: int) -> None:
+        """Blue for the current step's bricks, the printed part's ID next to it."""
+        for obj in self.highlighted:
+            self._plain(obj)
+        self.highlighted = list(self.by_step.get(step, [])) if step > 0 else []
+        for obj in self.highlighted:
+            view = obj.ViewObject
+            if obj in self.parts:
+                view.ShapeColor = NEXT_COLOUR
+            else:
+                material = view.ShapeMaterial
+                material.DiffuseColor = NEXT_COLOUR
+                view.ShapeMaterial = material
+                view.OverrideMaterial = True
+        self._label([o for o in self.highlighted if o in self.parts])
+
+    def _plain(self, obj) -> None:
+        if obj in self.parts:
+            obj.ViewObject.ShapeColor = self.colours[obj.Name]
+        else:
+            obj.ViewObject.OverrideMaterial = False
+
+    def _label(self, parts: list) -> None:
+        """Write the IDs of ``parts`` at their centres in the 3D view (replacing earlier ones)."""
+        from pivy import coin
+
+        graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
+        if self.labels is not None:
+            graph.removeChild(self.labels)
+            self.labels = None
+        if not parts:
+            return
+        self.labels = coin.SoSeparator()
+        self.labels.setName("FabrickatorAssemblyLabels")
+        colour = coin.SoBaseColor()
+        colour.rgb = (0.0, 0.0, 0.0)
+        font = coin.SoFont()
+        font.size = LABEL_FONT_SIZE
+        self.labels.addChild(colour)
+        self.labels.addChild(font)
+        for part in parts:
+            node = coin.SoSeparator()
+            move = coin.SoTranslation()
+            centre = part.Shape.BoundBox.Center
+            move.translation = (centre.x, centre.y, part.Shape.BoundBox.ZMax + 4.0)
+            text = coin.SoText2()
+            text.string = part.PartId
+            text.justification = coin.SoText2.CENTER
+            node.addChild(move)
+            node.addChild(text)
+            self.labels.addChild(node)
+        graph.addChild(self.labels)
+
+    def on_play(self, playing: bool) -> None:
+        if playing:
+            if self.current >= len(self.steps):
+                self.go(0)
+            self.timer.start()
+        else:
+            self.timer.stop()
+
+    def on_tick(self) -> None:
+        if self.current >= len(self.steps):
+            self.form.play.setChecked(False)
+            return
+        self.go(self.current + 1)
+
+    def getStandardButtons(self):
+        from PySide import QtGui
+
+        return int(QtGui.QDialogButtonBox.Close)
+
+    def reject(self) -> bool:
+        self.finish()
+        return True
+
+    def accept(self) -> bool:
+        self.finish()
+        return True
+
+    def finish(self) -> None:
+        """Stop playing and show everything as before."""
+        self.timer.stop()
+        for obj in self.highlighted:
+            self._plain(obj)
+        self.highlighted = []
+        self._label([])
+        for obj in self.bricks + self.parts:
+            if self.doc.getObject(obj.Name) is not None and bool(obj.Visibility) != self.shown[obj.Name]:
+                obj.Visibility = self.shown[obj.Name]
+        proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
+        if getattr(proxy, "panel", None) is self:
+            proxy.panel = None
+        Gui.Control.closeDialog()

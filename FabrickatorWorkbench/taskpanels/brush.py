@@ -1,0 +1,318 @@
+"""The brush task panel: paint bricks in the 3D view to mark them high-res, merge, split
+or unmark them; pick faces of the Source or a region solid.
+
+Pressing the left mouse button over a brick and dragging paints every brick
+within the brush radius (in studs) of the point under the cursor.  The
+preview updates as you paint: in high-res mode a painted LEGO brick is
+replaced by its exact shape (the brick intersected with the Source, as it
+will be printed), in the other modes painted bricks show as coloured boxes.
+OK applies the change and recomputes, as one undo step; Cancel drops it.
+The panel holds the painted bricks itself; the document only changes on OK
+(the preview object it shows meanwhile is removed again either way).
+"""
+
+from __future__ import annotations
+
+import os
+
+import FreeCAD as App
+import FreeCADGui as Gui
+
+from FabrickatorWorkbench import log
+
+#: Modes and their preview colours.
+MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
+         "split": (0.48, 0.17, 0.75), "unmark": (0.55, 0.55, 0.55)}
+
+#: Transaction names per mode.
+TITLES = {"high-res": "High-res brush", "merge": "Merge brush", "split": "Split brush",
+          "unmark": "Unmark brush"}
+
+#: A picked point this close (mm) to a brick's box is on that brick.
+PICK_TOLERANCE_MM = 0.05
+
+#: Milliseconds the exact preview waits for the mouse to pause.
+PREVIEW_DELAY_MS = 120
+
+UI = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                  "resources", "ui", "brush.ui")
+
+
+class BrushPanel:
+    """Task panel of the brushes for Fabrication ``fab``, starting in ``mode``."""
+
+    def __init__(self, fab, mode: str = "high-res"):
+        import numpy as np
+        from PySide import QtCore
+
+        from FabrickatorWorkbench import make
+
+        self.fab = fab
+        self.doc = fab.Document
+        self.form = Gui.PySideUic.loadUi(UI)
+        self.form.setWindowTitle(TITLES[mode])
+        self.buttons = {"high-res": self.form.modeHighRes, "merge": self.form.modeMerge,
+                        "split": self.form.modeSplit, "unmark": self.form.modeUnmark}
+        self.buttons[mode].setChecked(True)
+        for button in self.buttons.values():
+            button.toggled.connect(self.on_mode)
+        self.form.clear.clicked.connect(self.clear)
+        self.bricks = make.bricks(fab)
+        self.index = {b.Name: n for n, b in enumerate(self.bricks)}
+        origin, cell = fab.GridOrigin, fab.CellSize
+        cells = np.array([b.Cell for b in self.bricks], dtype=float).reshape(-1, 3)
+        sizes = np.array([b.Size for b in self.bricks], dtype=float).reshape(-1, 3)
+        self.lo = np.array(tuple(origin)) + cells * np.array(tuple(cell))
+        self.hi = self.lo + sizes * np.array(tuple(cell))
+        self.part_bricks = {p.Name: [self.index[b.Name] for b in self.bricks
+                                     if b.PrintedPart == p.PartId]
+                            for p in make.printed_parts(fab)}
+        self.painted: set[int] = set()
+        self.faces: list[tuple[str, str]] = []
+        self.solids: list[str] = []
+        self.exact: dict[int, object] = {}
+        self.hidden: dict[str, bool] = {}
+        self.pressed = False
+        self.doc.openTransaction(TITLES[mode])
+        self.regions = {r.Name: bool(r.Visibility) for r in fab.Regions}
+        for region in fab.Regions:
+            region.Visibility = False
+        self.preview = self.doc.addObject("Part::Feature", "BrushPreview")
+        self.preview.Label = "Brush preview"
+        self.timer = QtCore.QTimer()
+        self.timer.setSingleShot(True)
+        self.timer.timeout.connect(self.update_preview)
+        self.view = Gui.ActiveDocument.ActiveView
+        from pivy import coin
+        self.callbacks = [
+            (coin.SoMouseButtonEvent.getClassTypeId(),
+             self.view.addEventCallbackPivy(coin.SoMouseButtonEvent.getClassTypeId(), self.on_button)),
+            (coin.SoLocation2Event.getClassTypeId(),
+             self.view.addEventCallbackPivy(coin.SoLocation2Event.getClassTypeId(), self.on_move)),
+        ]
+        self.show_status()
+
+    # --- modes and state ------------------------------------------------------------
+
+    @property
+    def mode(self) -> str:
+        return next(m for m, b in self.buttons.items() if b.isChecked())
+
+    def on_mode(self, checked: bool) -> None:
+        if checked:
+            self.form.setWindowTitle(TITLES[self.mode])
+            self.refresh()
+
+    def clear(self) -> None:
+        """Forget everything painted and picked."""
+        self.painted.clear()
+        self.faces.clear()
+        self.solids.clear()
+        Gui.Selection.clearSelection()
+        self.refresh()
+
+    def show_status(self) -> None:
+        parts = [f"{len(self.painted)} brick(s) painted"]
+        if self.faces:
+            parts.append(f"{len(self.faces)} face(s)")
+        if self.solids:
+            parts.append(f"{len(self.solids)} region solid(s)")
+        self.form.status.setText(", ".join(parts) + f" ({self.mode}). "
+                                 "Press and drag over bricks in the 3D view; OK applies.")
+
+    # --- mouse ----------------------------------------------------------------------
+
+    def on_button(self, callback) -> None:
+        from pivy import coin
+
+        event = callback.getEvent()
+        if event.getButton() != coin.SoMouseButtonEvent.BUTTON1:
+            return
+        if event.getState() == coin.SoButtonEvent.DOWN:
+            position = event.getPosition().getValue()
+            if self.form.pickFaces.isChecked():
+                if self.pick(position):
+                    callback.setHandled()
+                return
+            if self.paint_at(position):
+                self.pressed = True
+                callback.setHandled()
+        elif event.getState() == coin.SoButtonEvent.UP and self.pressed:
+            self.pressed = False
+            callback.setHandled()
+
+    def on_move(self, callback) -> None:
+        if self.pressed:
+            self.paint_at(callback.getEvent().getPosition().getValue())
+            callback.setHandled()
+
+    def paint_at(self, position) -> bool:
+        """Paint the bricks within the radius of the point under ``position``; True if on a brick."""
+        import numpy as np
+
+        info = self.view.getObjectInfo((int(position[0]), int(position[1])))
+        if not info:
+            return False
+        obj = self.doc.getObject(info.get("Object", ""))
+        if obj is None or not (obj.Name in self.index or obj.Name in self.part_bricks
+                               or obj.Name == self.preview.Name):
+            return False
+        point = np.array([info["x"], info["y"], info["z"]], dtype=float)
+        gap = np.linalg.norm(np.maximum(np.maximum(self.lo - point, point - self.hi), 0.0), axis=1)
+        if obj.Name in self.index:
+            hit = {self.index[obj.Name]}
+        else:
+            hit = set(np.flatnonzero(gap <= PICK_TOLERANCE_MM).tolist())
+            if obj.Name in self.part_bricks:
+                hit &= set(self.part_bricks[obj.Name])
+        radius = self.form.radius.value() * float(self.fab.CellSize.x)
+        if radius > 0:
+            hit |= set(np.flatnonzero(gap <= radius).tolist())
+        new = hit - self.painted
+        if new:
+            self.painted |= new
+            self.refresh()
+        return True
+
+    def pick(self, position) -> bool:
+        """Faces mode: add the Source face or the region solid under ``position``."""
+        info = self.view.getObjectInfo((int(position[0]), int(position[1])))
+        if not info:
+            return False
+        obj = info.get("ParentObject") or self.doc.getObject(info.get("Object", ""))
+        component = info.get("Component", "")
+        if obj is None or hasattr(obj, "FabrickatorRole"):
+            return False
+        if obj == self.fab.Source and component.startswith("Face"):
+            if (obj.Name, component) not in self.faces:
+                self.faces.append((obj.Name, component))
+                Gui.Selection.addSelection(obj, component)
+        elif obj != self.fab.Source and getattr(obj, "Shape", None) is not None and obj.Shape.Solids:
+            if obj.Name not in self.solids:
+                self.solids.append(obj.Name)
+                Gui.Selection.addSelection(obj)
+        else:
+            return False
+        self.show_status()
+        return True
+
+    # --- preview ----------------------------------------------------------------------
+
+    def refresh(self) -> None:
+        """Show the painted bricks: hide them (high-res) or colour them, then (re)build the
+        preview shape after a short pause of the mouse."""
+        high_res = self.mode == "high-res"
+        for n in self.painted:
+            brick = self.bricks[n]
+            if brick.Kind == "lego" and high_res:
+                if brick.Name not in self.hidden:
+                    self.hidden[brick.Name] = brick.Visibility
+                    brick.Visibility = False
+            elif brick.Name in self.hidden:
+                brick.Visibility = self.hidden.pop(brick.Name)
+        for name in [n for n in self.hidden if self.index[n] not in self.painted]:
+            self.doc.getObject(name).Visibility = self.hidden.pop(name)
+        self.preview.ViewObject.ShapeColor = MODES[self.mode]
+        self.preview.ViewObject.Transparency = 0 if high_res else 40
+        self.timer.start(PREVIEW_DELAY_MS)
+        self.show_status()
+
+    def update_preview(self) -> None:
+        """The preview shape: exact pieces of painted LEGO bricks (high-res) or their boxes."""
+        import Part
+
+        pieces = []
+        source = getattr(self.fab.Source, "Shape", None)
+        exact = (self.mode == "high-res" and source is not None and not source.isNull()
+                 and float(self.fab.Scale) == 1.0)
+        for n in sorted(self.painted):
+            brick = self.bricks[n]
+            if exact and brick.Kind == "lego":
+                if n not in self.exact:
+                    self.exact[n] = Part.getShape(brick).common(source)
+                pieces.append(self.exact[n])
+            else:
+                lo, hi = self.lo[n], self.hi[n]
+                pieces.append(Part.makeBox(*(hi - lo), App.Vector(*lo)))
+        self.preview.Shape = Part.makeCompound(pieces) if pieces else Part.Shape()
+
+    def painted_bricks(self) -> list:
+        """The painted brick objects."""
+        return [self.bricks[n] for n in sorted(self.painted)]
+
+    # --- accept / reject ------------------------------------------------------------------
+
+    def getStandardButtons(self):
+        from PySide import QtGui
+
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+    def accept(self) -> bool:
+        """Apply the painted change and recompute; one undo step (dropped if it fails)."""
+        from FabrickatorWorkbench import make
+
+        mode, bricks = self.mode, self.painted_bricks()
+        self.cleanup()
+        ok = True
+        try:
+            if mode == "high-res":
+                if bricks:
+                    make.mark_high_res(self.fab, bricks=bricks)
+                if self.faces:
+                    source = self.doc.getObject(self.faces[0][0])
+                    make.mark_high_res(self.fab, faces=[(source, [c for _, c in self.faces])])
+                for name in self.solids:
+                    make.mark_high_res(self.fab, solid=self.doc.getObject(name))
+            elif bricks and mode == "merge":
+                make.merge_bricks(self.fab, bricks)
+            elif bricks and mode == "split":
+                make.split_bricks(self.fab, bricks)
+            elif bricks and mode == "unmark":
+                make.unmark(self.fab, bricks)
+            self.fab.touch()
+            self.doc.recompute()
+            ok = self.fab.Status.startswith("ok")
+        except Exception as exc:
+            log.failure(TITLES[mode], exc)
+            ok = False
+        if ok:
+            self.doc.commitTransaction()
+            log.message(f"{self.fab.Label}: {TITLES[mode]} applied: {self.fab.Status}")
+        else:
+            self.doc.abortTransaction()
+        self.close()
+        return True
+
+    def reject(self) -> bool:
+        """Drop everything painted: the document is as before the panel opened."""
+        self.cleanup()
+        self.doc.abortTransaction()
+        self.close()
+        return True
+
+    def cleanup(self) -> None:
+        """Stop listening to the mouse, undo the preview's changes, remove the preview."""
+        self.timer.stop()
+        for kind, callback in self.callbacks:
+            self.view.removeEventCallbackPivy(kind, callback)
+        self.callbacks = []
+        for name, visible in self.hidden.items():
+            obj = self.doc.getObject(name)
+            if obj is not None:
+                obj.Visibility = visible
+        self.hidden.clear()
+        for name, visible in self.regions.items():
+            obj = self.doc.getObject(name)
+            if obj is not None:
+                obj.Visibility = visible
+        if self.doc.getObject(self.preview.Name) is not None:
+            self.doc.removeObject(self.preview.Name)
+        Gui.Selection.clearSelection()
+
+    def close(self) -> None:
+        proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
+        if getattr(proxy, "panel", None) is self:
+            proxy.panel = None
+        Gui.Control.closeDialog()
+        if Gui.ActiveDocument is not None and Gui.ActiveDocument.getInEdit() is not None:
+            Gui.ActiveDocument.resetEdit()

@@ -1,0 +1,33 @@
+"""Common view provider behaviour: an icon, nothing serialised."""
+
+from __future__ import annotations
+
+from FabrickatorWorkbench.viewproviders import icon
+
+
+class ViewProvider:
+    """Base of Fabrickator's Python view providers."""
+
+    ICON = "Fabrickator"
+
+    def __init__(self, vobj):
+        vobj.Proxy = self
+        self.Object = vobj.Object
+
+    def attach(self, vobj):
+        self.Object = vobj.Object
+
+    def getIcon(self):
+        return icon(self.ICON)
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None

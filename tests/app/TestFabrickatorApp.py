@@ -1,0 +1,523 @@
+"""App-level tests of the Fabrickator workbench, run by FreeCAD without GUI.
+
+    freecadcmd -u TMPDIR/user.cfg -t TestFabrickatorApp --module-path=REPO
+
+(``make test-app``; ``-u`` keeps the tests off the user's preferences.)
+
+(``Init.py`` puts this folder on ``sys.path`` and registers the module.)
+They build real geometry in FreeCAD (a PartDesign Body from a sketch, Part
+primitives, a mesh, the bundled HMD example) and check the objects,
+recompute, parametric changes of the Source, save/reopen, undo, failed
+recomputes, export, and that FreeCAD's Plot and FEM still work with the
+packages the workbench puts first.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+import FreeCAD as App
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT.parent / "shared" / "models"
+CELL = (8.0, 8.0, 3.2)
+#: The demo's high-res boxes: the two lens mounts of examples/hmd.py (model mm).
+HMD_LENS_MOUNTS = ((-54, 25, 25.5, -9, 36, 70.5), (9, 25, 25.5, 54, 36, 70.5))
+
+
+def fab():
+    import FabrickatorWorkbench
+
+    return FabrickatorWorkbench
+
+
+def padded_body(doc, length=40.0, width=24.0, height=19.2):
+    """A PartDesign Body: a rectangle sketch (length x width, named constraints) padded by height."""
+    import Part
+    import Sketcher
+
+    body = doc.addObject("PartDesign::Body", "Body")
+    sketch = body.newObject("Sketcher::SketchObject", "Sketch")
+    xy = [f for f in body.Origin.OriginFeatures if f.Role == "XY_Plane"][0]
+    sketch.Support = (xy, [""])
+    sketch.MapMode = "FlatFace"
+    corners = [(0, 0), (length, 0), (length, width), (0, width)]
+    for n in range(4):
+        a, b = corners[n], corners[(n + 1) % 4]
+        sketch.addGeometry(Part.LineSegment(App.Vector(*a, 0), App.Vector(*b, 0)), False)
+    for n in range(4):
+        sketch.addConstraint(Sketcher.Constraint("Coincident", n, 2, (n + 1) % 4, 1))
+    sketch.addConstraint(Sketcher.Constraint("Horizontal", 0))
+    sketch.addConstraint(Sketcher.Constraint("Horizontal", 2))
+    sketch.addConstraint(Sketcher.Constraint("Vertical", 1))
+    sketch.addConstraint(Sketcher.Constraint("Vertical", 3))
+    sketch.addConstraint(Sketcher.Constraint("Coincident", 0, 1, -1, 1))
+    sketch.renameConstraint(sketch.addConstraint(
+        Sketcher.Constraint("DistanceX", 0, 1, 0, 2, length)), "Length")
+    sketch.renameConstraint(sketch.addConstraint(
+        Sketcher.Constraint("DistanceY", 1, 1, 1, 2, width)), "Width")
+    pad = body.newObject("PartDesign::Pad", "Pad")
+    pad.Profile = sketch
+    pad.Length = height
+    doc.recompute()
+    return body, sketch, pad
+
+
+def cell_box(f, brick):
+    """The brick's cell box (min, max corner) in mm."""
+    o, c = f.GridOrigin, f.CellSize
+    lo = [o[n] + brick.Cell[n] * c[n] for n in range(3)]
+    hi = [o[n] + (brick.Cell[n] + brick.Size[n]) * c[n] for n in range(3)]
+    return lo, hi
+
+
+def covered_cells(f) -> set:
+    cells = set()
+    for b in fab().bricks(f):
+        i0, j0, k0 = b.Cell
+        sx, sy, sz = b.Size
+        cells |= {(i0 + i, j0 + j, k0 + k) for i in range(sx) for j in range(sy) for k in range(sz)}
+    return cells
+
+
+class FabrickatorTestCase(unittest.TestCase):
+    """A fresh document per test, closed afterwards."""
+
+    def setUp(self):
+        self.doc = App.newDocument("FabrickatorTest")
+        self.doc.UndoMode = 1
+        self.tmp = tempfile.TemporaryDirectory(prefix="fabrickator-app-test-")
+
+    def tearDown(self):
+        App.closeDocument(self.doc.Name)
+        self.tmp.cleanup()
+
+    def path(self, name: str) -> str:
+        return os.path.join(self.tmp.name, name)
+
+
+class TestDependencies(unittest.TestCase):
+    """The venv's packages come first and FreeCAD's own modules still work with them."""
+
+    def test_venv_numpy_and_this_repositorys_core_are_used(self):
+        from FabrickatorWorkbench import deps
+
+        self.assertTrue(deps.check("the dependency test"))
+        import cadquery  # noqa: F401
+        import numpy
+
+        import core
+        self.assertGreaterEqual(int(numpy.__version__.split(".")[0]), 2)
+        self.assertTrue(numpy.__file__.startswith(deps.site_packages()))
+        self.assertEqual(Path(core.__file__).resolve(), ROOT / "core" / "__init__.py")
+
+    def test_fem_works_with_the_venv_numpy(self):
+        import numpy
+        import ObjectsFem
+        from femresult import resulttools
+        from femtools import femutils  # noqa: F401
+
+        doc = App.newDocument("FemCheck")
+        try:
+            analysis = ObjectsFem.makeAnalysis(doc, "Analysis")
+            material = ObjectsFem.makeMaterialSolid(doc, "Steel")
+            mat = material.Material
+            mat["YoungsModulus"] = "210000 MPa"
+            material.Material = mat
+            analysis.addObject(material)
+            import Fem
+            mesh = Fem.FemMesh()
+            for n, p in enumerate([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)], start=1):
+                mesh.addNode(*p, n)
+            mesh.addVolume([1, 2, 3, 4])
+            mesh_obj = doc.addObject("Fem::FemMeshObject", "Mesh")
+            mesh_obj.FemMesh = mesh
+            analysis.addObject(mesh_obj)
+            doc.recompute()
+            self.assertEqual(len(analysis.Group), 2)
+            self.assertEqual(mesh_obj.FemMesh.VolumeCount, 1)
+            self.assertAlmostEqual(resulttools.calculate_von_mises((100, 0, 0, 0, 0, 0)), 100.0)
+            principal = resulttools.calculate_principal_stress_std((3, 2, 1, 0, 0, 0))
+            self.assertAlmostEqual(float(principal[0]), 3.0)
+            self.assertIs(resulttools.np, numpy)
+        finally:
+            App.closeDocument(doc.Name)
+
+    def test_plot_module_imports_with_the_venv_matplotlib(self):
+        import matplotlib
+
+        import Plot
+        from FabrickatorWorkbench import deps
+        self.assertTrue(matplotlib.__file__.startswith(deps.site_packages()))
+        self.assertTrue(hasattr(Plot, "plot"))
+        from mpl_toolkits.mplot3d import Axes3D  # noqa: F401 - the namespace points at the venv
+        import mpl_toolkits.mplot3d
+        self.assertTrue(mpl_toolkits.mplot3d.__file__.startswith(deps.site_packages()))
+
+    def test_missing_venv_is_one_line_naming_the_fix(self):
+        script = Path(tempfile.mkdtemp(prefix="fabrickator-deps-")) / "missing.py"
+        script.write_text(
+            "import os, sys\n"
+            f"sys.path.insert(0, {str(ROOT)!r})\n"
+            f"exec(open({str(ROOT / 'Init.py')!r}).read())\n"
+            "from FabrickatorWorkbench import deps\n"
+            "print('CHECK', deps.check('Legofy'))\n"
+            "os._exit(0)\n")
+        env = dict(os.environ, FABRICKATOR_VENV="/nonexistent/fabrickator-venv")
+        run = subprocess.run(["freecadcmd", str(script)], capture_output=True, text=True,
+                             env=env, timeout=120)
+        out = run.stdout + run.stderr
+        self.assertIn("CHECK False", out)
+        self.assertIn("Legofy needs the Python package(s)", out)
+        self.assertIn("make setup", out)
+        self.assertNotIn("Traceback", out)
+
+
+class TestPackage(unittest.TestCase):
+    """What the Addon Manager reads."""
+
+    def test_package_xml_names_the_workbench_icon_and_python_dependencies(self):
+        meta = App.Metadata(str(ROOT / "package.xml"))
+        self.assertEqual(meta.Name, "Fabrickator")
+        self.assertTrue((ROOT / meta.Icon).is_file())
+        workbench = meta.Content["workbench"][0]
+        self.assertEqual(workbench.Classname, "FabrickatorWorkbench")
+        self.assertIn("class FabrickatorWorkbench(", (ROOT / "InitGui.py").read_text())
+        self.assertTrue((ROOT / workbench.Subdirectory / "InitGui.py").is_file())
+        depends = {d["package"] for d in workbench.Depend}
+        self.assertLessEqual({"numpy", "cadquery", "trimesh", "scipy", "manifold3d"}, depends)
+        icons = ROOT / "FabrickatorWorkbench" / "resources" / "icons"
+        for name in ("Legofy", "Layout", "HighResBrush", "MergeBrush", "SplitBrush", "Export",
+                     "Assembly", "Report", "WatchFolder"):
+            self.assertTrue((icons / f"{name}.svg").is_file(), name)
+
+
+class TestFabrication(FabrickatorTestCase):
+    """Objects, recompute and parametric changes."""
+
+    def test_body_becomes_bricks_that_cover_every_cell_once(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        bricks = fab().bricks(f)
+        self.assertEqual(len(bricks), f.Bricks)
+        self.assertEqual(f.Plates, 5 * 3 * 6)
+        cells = covered_cells(f)
+        self.assertEqual(len(cells), f.Plates)
+        self.assertEqual(sum(b.Size[0] * b.Size[1] * b.Size[2] for b in bricks), f.Plates)
+        layers = {g.Layer: g for g in f.Contents if getattr(g, "FabrickatorRole", "") == "Layer"}
+        for b in bricks:
+            self.assertEqual(b.TypeId, "App::Link")
+            self.assertEqual(b.LinkedObject.PartNumber, b.PartNumber)
+            self.assertIn(b, layers[b.Layer].Group)
+            self.assertEqual(b.Layer, b.Cell[2])
+            self.assertGreaterEqual(b.Step, 1)
+            self.assertEqual(b.Kind, "lego")
+            import Part
+            box = Part.getShape(b).BoundBox
+            lo, hi = cell_box(f, b)
+            self.assertAlmostEqual(box.XMin, lo[0] + 0.1, places=6)
+            self.assertAlmostEqual(box.XMax, hi[0] - 0.1, places=6)
+            self.assertAlmostEqual(box.YMin, lo[1] + 0.1, places=6)
+            self.assertAlmostEqual(box.YMax, hi[1] - 0.1, places=6)
+            self.assertAlmostEqual(box.ZMin, lo[2], places=6)
+            self.assertAlmostEqual(box.ZMax, hi[2] + 1.7, places=6)
+        protos = {b.LinkedObject.Name for b in bricks}
+        self.assertLess(len(protos), len(bricks) + 1)
+        report = fab().report(f)
+        self.assertEqual(report["bricks"]["total"], len(bricks))
+        self.assertEqual(len(fab().steps(f)), f.Steps)
+        self.assertEqual(sorted(b for s in fab().steps(f) for b in s["bricks"]),
+                         sorted(b.BrickId for b in bricks))
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
+
+    def test_pad_length_and_sketch_dimension_changes_recompute_and_keep_bricks(self):
+        body, sketch, pad = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.doc.recompute()
+        before = {b.Name: tuple(b.Cell) for b in fab().bricks(f)}
+        sketch.setDatum("Length", App.Units.Quantity("56 mm"))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(f.Plates, 7 * 3 * 6)
+        self.assertEqual(len(covered_cells(f)), f.Plates)
+        changes = fab().report(f)["changes"]
+        self.assertEqual(changes["transform"]["method"], "identity")
+        self.assertEqual(changes["bricks_kept"], f.BricksKept)
+        after = {b.Name: tuple(b.Cell) for b in fab().bricks(f)}
+        kept = [n for n in after if n in before and before[n] == after[n]]
+        self.assertEqual(len(kept), f.BricksKept)
+        self.assertGreater(f.BricksKept, 0)
+        self.assertEqual(f.BricksKept + f.BricksChanged, f.Bricks)
+        self.assertTrue(all(b.Changed == (b.Name not in before) for b in fab().bricks(f)))
+        pad.Length = 9.6
+        self.doc.recompute()
+        self.assertEqual(f.Plates, 7 * 3 * 3)
+        self.assertEqual(max(b.Cell[2] + b.Size[2] for b in fab().bricks(f)), 3)
+
+    def test_high_res_box_makes_an_exact_printed_part(self):
+        import Part
+
+        source = self.doc.addObject("Part::Cylinder", "Cylinder")
+        source.Radius, source.Height = 20.0, 19.2
+        self.doc.recompute()
+        f = fab().make_fabrication(source)
+        region = fab().mark_high_res(f, box=(10, -8, 0, 24, 8, 19.2))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        parts = fab().printed_parts(f)
+        self.assertEqual([p.PartId for p in parts], ["P1"])
+        part = parts[0]
+        self.assertTrue(part.Shape.isValid())
+        self.assertGreater(part.Shape.Volume, 100.0)
+        self.assertAlmostEqual(part.Shape.Volume, part.VolumeMm3, delta=1e-3 * part.VolumeMm3)
+        outside = part.Shape.cut(source.Shape)  # full height: no connectors to other bricks
+        self.assertLess(outside.Volume, 1e-3 * part.Shape.Volume)
+        printed = [b for b in fab().bricks(f) if b.Kind == "printed"]
+        self.assertEqual(sorted(b.BrickId for b in printed), sorted(part.BrickIds))
+        self.assertTrue(all(not b.Visibility and b.PrintedPart == "P1" for b in printed))
+        self.assertGreater(part.PrintTime, 0)
+        self.assertTrue(part.PrintTimeMethod)
+        self.assertGreater(len(part.IncompleteStuds) + part.CompleteStuds, 0)
+        self.assertIn(region, f.Regions)
+        self.assertIsInstance(region.Shape, Part.Shape)
+        self.assertGreaterEqual(part.Step, 1)
+        self.assertGreater(f.SpeedUp, 0)
+
+    def test_split_and_merge_brushes_change_the_printed_parts(self):
+        source = self.doc.addObject("Part::Box", "Box")
+        source.Length, source.Width, source.Height = 32.0, 16.0, 19.2
+        self.doc.recompute()
+        f = fab().make_fabrication(source, slice_print_times=False)
+        fab().mark_high_res(f, box=(0, 0, 0, 32, 16, 19.2))
+        self.doc.recompute()
+        (part,) = fab().printed_parts(f)
+        ids = list(part.BrickIds)
+        self.assertGreater(len(ids), 1)
+        fab().split_bricks(f, ids)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(len(fab().printed_parts(f)), len(ids))
+        fab().merge_bricks(f, ids)
+        self.doc.recompute()
+        (merged,) = fab().printed_parts(f)
+        self.assertEqual(sorted(merged.BrickIds), sorted(ids))
+
+    def test_regions_from_a_solid_and_from_faces_of_the_source(self):
+        plate = self.doc.addObject("Part::Box", "Plate")
+        plate.Length, plate.Width, plate.Height = 48.0, 32.0, 9.6
+        hole = self.doc.addObject("Part::Cylinder", "Hole")
+        hole.Radius, hole.Height = 5.0, 9.6
+        hole.Placement.Base = App.Vector(36, 16, 0)
+        source = self.doc.addObject("Part::Cut", "Plate_with_hole")
+        source.Base, source.Tool = plate, hole
+        self.doc.recompute()
+        f = fab().make_fabrication(source)
+        bore = [n for n, face in enumerate(source.Shape.Faces, 1)
+                if face.Surface.__class__.__name__ == "Cylinder"]
+        self.assertEqual(len(bore), 1)
+        fab().mark_high_res(f, faces=(source, f"Face{bore[0]}"))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        by_faces = fab().printed_parts(f)
+        self.assertEqual(len(by_faces), 1)
+        box = by_faces[0].Shape.BoundBox
+        self.assertLessEqual(box.XMin, 31.0)
+        self.assertGreaterEqual(box.XMax, 41.0)
+        self.assertGreater(box.XMin, 8.0)
+
+        marker = self.doc.addObject("Part::Box", "Marker")
+        marker.Length, marker.Width, marker.Height = 4.0, 4.0, 4.0
+        marker.Placement.Base = App.Vector(2, 2, 2)
+        self.doc.recompute()
+        fab().mark_high_res(f, solid=marker)
+        self.doc.recompute()
+        ids = sorted(p.PartId for p in fab().printed_parts(f))
+        self.assertEqual(ids, ["P1", "P2"])
+        corner = [p for p in fab().printed_parts(f) if p.Shape.BoundBox.XMin < 1.0]
+        self.assertEqual(len(corner), 1)
+
+    def test_mesh_source_with_a_printed_part(self):
+        import Mesh
+
+        mesh = self.doc.addObject("Mesh::Feature", "MeshBox")
+        mesh.Mesh = Mesh.createBox(40.0, 24.0, 12.8)
+        mesh.Placement.Base = App.Vector(20, 12, 6.4)
+        self.doc.recompute()
+        f = fab().make_fabrication(mesh)
+        fab().mark_high_res(f, box=(0, 0, 0, 8, 8, 3.2))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(f.Plates, 5 * 3 * 4)
+        self.assertAlmostEqual(f.GridOrigin.x, 0.0, places=6)
+        parts = fab().printed_parts(f)
+        self.assertEqual(len(parts), 1)
+        self.assertTrue(parts[0].Shape.isClosed())
+        self.assertGreater(parts[0].Shape.Volume, 0.0)
+
+    def test_failed_recompute_keeps_the_result_and_the_parameters(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body, brick_set="all")
+        self.doc.recompute()
+        names = sorted(b.Name for b in fab().bricks(f))
+        layout = f.LayoutJson
+        f.BrickSet = "3001,3003"
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("failed"), f.Status)
+        self.assertIn("3024", f.Status)
+        self.assertEqual(f.BrickSet, "all")
+        self.assertEqual(sorted(b.Name for b in fab().bricks(f)), names)
+        self.assertEqual(f.LayoutJson, layout)
+        sketchy = self.doc.addObject("Part::Feature", "JustAFace")
+        import Part
+        sketchy.Shape = Part.makePlane(10, 10)
+        f.Source = sketchy
+        self.doc.recompute()
+        self.assertIn("has no solid and no mesh", f.Status)
+        self.assertEqual(f.LayoutJson, layout)
+
+    def test_brick_set_and_seed_are_used(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body, brick_set="plates")
+        self.doc.recompute()
+        self.assertTrue(all(b.Size[2] == 1 for b in fab().bricks(f)))
+        self.assertTrue(all(b.PartNumber in {"3024", "3023", "3623", "3710", "3666", "3460", "3022",
+                                             "3021", "3020", "3795", "3034"}
+                            for b in fab().bricks(f)))
+
+
+class TestDocument(FabrickatorTestCase):
+    """Save and reopen, undo and redo, export."""
+
+    def test_save_and_reopen_restore_everything_without_recompute(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        fab().mark_high_res(f, box=(0, 0, 12.8, 8, 8, 19.2))
+        self.doc.recompute()
+        saved = {
+            "layout": f.LayoutJson, "report": f.ReportJson, "steps": f.StepsJson,
+            "bricks": sorted((b.Name, b.PartNumber, tuple(b.Cell), b.Kind, b.Step, b.LinkedObject.Name)
+                             for b in fab().bricks(f)),
+            "parts": [(p.PartId, round(p.Shape.Volume, 6), p.CompleteStuds) for p in fab().printed_parts(f)],
+            "regions": [tuple(r.Boxes) for r in f.Regions],
+        }
+        path = self.path("saved.FCStd")
+        self.doc.saveAs(path)
+        name = self.doc.Name
+        App.closeDocument(name)
+        self.doc = App.openDocument(path)
+        f = fab().fabrications(self.doc)[0]
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
+        self.assertEqual(f.LayoutJson, saved["layout"])
+        self.assertEqual(f.ReportJson, saved["report"])
+        self.assertEqual(f.StepsJson, saved["steps"])
+        self.assertEqual(sorted((b.Name, b.PartNumber, tuple(b.Cell), b.Kind, b.Step, b.LinkedObject.Name)
+                                for b in fab().bricks(f)), saved["bricks"])
+        self.assertEqual([(p.PartId, round(p.Shape.Volume, 6), p.CompleteStuds)
+                          for p in fab().printed_parts(f)], saved["parts"])
+        self.assertEqual([tuple(r.Boxes) for r in f.Regions], saved["regions"])
+        self.assertEqual(type(f.Proxy).__name__, "Fabrication")
+        self.assertEqual(fab().layout(f).to_json()["bricks"], json.loads(saved["layout"])["bricks"])
+
+    def test_each_action_is_one_undo_step(self):
+        body, _, _ = padded_body(self.doc)
+        self.doc.openTransaction("Legofy")
+        f = fab().make_fabrication(body)
+        self.doc.recompute()
+        self.doc.commitTransaction()
+        plain = sorted(b.Name for b in fab().bricks(f))
+        self.doc.openTransaction("High-res brush")
+        fab().mark_high_res(f, bricks=[fab().bricks(f)[0]])
+        self.doc.recompute()
+        self.doc.commitTransaction()
+        self.assertEqual(len(fab().printed_parts(f)), 1)
+        marked = sorted(b.Name for b in fab().bricks(f))
+        self.doc.undo()
+        self.assertEqual(fab().printed_parts(f), [])
+        self.assertEqual(list(f.Regions), [])
+        self.assertEqual(sorted(b.Name for b in fab().bricks(f)), plain)
+        self.doc.redo()
+        self.assertEqual(len(fab().printed_parts(f)), 1)
+        self.assertEqual(sorted(b.Name for b in fab().bricks(f)), marked)
+        self.doc.undo()
+        self.doc.undo()
+        self.assertEqual(fab().fabrications(self.doc), [])
+        self.assertEqual([o.Name for o in self.doc.Objects
+                          if getattr(o, "FabrickatorRole", "") == "Brick"], [])
+
+    def test_export_writes_parts_and_instructions(self):
+        import trimesh
+
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        fab().mark_high_res(f, box=(0, 0, 12.8, 8, 8, 19.2))
+        self.doc.recompute()
+        out = Path(self.path("export"))
+        written = fab().export(f, out)
+        for name in ("P1.stl", "P1.step", "plate.3mf", "layout.json", "report.json",
+                     "instructions.html"):
+            self.assertIn(name, written)
+            self.assertGreater((out / name).stat().st_size, 0)
+        mesh = trimesh.load(out / "P1.stl")
+        self.assertTrue(mesh.is_watertight)
+        self.assertAlmostEqual(mesh.volume, fab().printed_parts(f)[0].Shape.Volume, delta=1.0)
+        import Part
+        step = Part.read(str(out / "P1.step"))
+        self.assertAlmostEqual(step.Volume, fab().printed_parts(f)[0].Shape.Volume, delta=0.01)
+
+    def test_removing_a_fabrication_removes_what_it_made(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.doc.recompute()
+        fab().remove_owned(f)
+        self.doc.removeObject(f.Name)
+        left = [o.Name for o in self.doc.Objects if hasattr(o, "FabrickatorRole")]
+        self.assertEqual(left, [])
+
+
+class TestExamples(FabrickatorTestCase):
+    """The bundled HMD example and a model from the shared set, end to end."""
+
+    def test_hmd_example_with_two_printed_lens_mounts(self):
+        import Part
+
+        sys.path.insert(0, str(ROOT / "examples"))
+        try:
+            import hmd
+        finally:
+            sys.path.remove(str(ROOT / "examples"))
+        step = self.path("hmd.step")
+        hmd.build_hmd().val().exportStep(step)
+        source = self.doc.addObject("Part::Feature", "HMD")
+        source.Shape = Part.read(step)
+        f = fab().make_fabrication(source)
+        for box in HMD_LENS_MOUNTS:
+            fab().mark_high_res(f, box=box)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertGreater(f.Bricks, 100)
+        parts = fab().printed_parts(f)
+        self.assertEqual([p.PartId for p in parts], ["P1", "P2"])
+        for p in parts:
+            self.assertTrue(p.Shape.isValid())
+            self.assertTrue(p.Engraved)
+        self.assertEqual(len(covered_cells(f)), f.Plates)
+
+    def test_model_file_from_the_shared_set(self):
+        if not MODELS.is_dir():
+            self.skipTest(f"{MODELS} is absent: the shared benchmark models are not here")
+        source, f = fab().legofy_file(MODELS / "xyz_calibration_cube.stl", self.doc)
+        self.assertEqual(source.TypeId, "Mesh::Feature")
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(len(covered_cells(f)), f.Plates)
+        from core.errors import InputError
+        with self.assertRaises(InputError):
+            fab().import_model(MODELS / "broken_triangle_soup.stl", self.doc)

@@ -1,0 +1,75 @@
+"""Run the GUI tests inside FreeCAD and end FreeCAD with their status.
+
+    QTWEBENGINE_DISABLE_SANDBOX=1 xvfb-run -a -s "-screen 0 1280x1024x24" \\
+        freecad -u TMPDIR/user.cfg tests/gui/run_gui_tests.py --module-path=REPO
+
+FreeCAD runs this file as a macro once its window is up; the tests start
+from the event loop, and the process exits with 0 when all pass, 1
+otherwise (also when they take longer than $FABRICKATOR_GUI_TIMEOUT
+seconds, default 600: a dialog nobody answers must not hang CI).  A test
+name (or part of one) in $FABRICKATOR_GUI_TESTS runs only the matching
+tests.
+"""
+
+import os
+import sys
+import traceback
+import unittest
+
+from PySide import QtCore
+
+
+def _run():
+    status = 1
+    try:
+        import FabrickatorWorkbench
+
+        root = os.path.dirname(os.path.dirname(os.path.abspath(FabrickatorWorkbench.__file__)))
+        sys.path.insert(0, os.path.join(root, "tests", "gui"))
+        import TestFabrickatorGui
+
+        suite = unittest.defaultTestLoader.loadTestsFromModule(TestFabrickatorGui)
+        wanted = os.environ.get("FABRICKATOR_GUI_TESTS")
+        if wanted:
+            suite = unittest.TestSuite(t for s in suite for t in s if wanted in t.id())
+        result = unittest.TextTestRunner(stream=sys.stderr, verbosity=2).run(suite)
+        status = 0 if result.wasSuccessful() else 1
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        sys.stderr.flush()
+        sys.stdout.flush()
+        os._exit(status)
+
+
+def _watchdog():
+    sys.stderr.write("GUI tests took too long: stopped\n")
+    sys.stderr.flush()
+    os._exit(1)
+
+
+def _close_stuck_dialogs(seen={}):
+    """A modal dialog open for more than 10 s is reported (title and text) and rejected."""
+    import time
+
+    from PySide import QtGui
+
+    widget = QtGui.QApplication.activeModalWidget()
+    if widget is None:
+        seen.clear()
+        return
+    first = seen.setdefault(id(widget), time.monotonic())
+    if time.monotonic() - first > 10:
+        text = widget.text() if hasattr(widget, "text") else ""
+        sys.stderr.write(f"stuck modal dialog {widget.windowTitle()!r}: {text!r}: rejected\n")
+        widget.reject()
+
+
+_stuck = QtCore.QTimer()
+_stuck.timeout.connect(_close_stuck_dialogs)
+_stuck.start(500)
+_timer = QtCore.QTimer()
+_timer.setSingleShot(True)
+_timer.timeout.connect(_watchdog)
+_timer.start(int(float(os.environ.get("FABRICKATOR_GUI_TIMEOUT", "600")) * 1000))
+QtCore.QTimer.singleShot(1000, _run)
