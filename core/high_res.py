@@ -51,6 +51,18 @@ def parse_box(text: str) -> np.ndarray:
     return box
 
 
+def as_box(value) -> np.ndarray:
+    """A box given as ``"X0,Y0,Z0,X1,Y1,Z1"``, six numbers or a (2, 3) array, as
+    :func:`parse_box` returns it; InputError for anything else."""
+    if isinstance(value, str):
+        return parse_box(value)
+    try:
+        flat = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        flat = np.zeros(0)
+    return parse_box(",".join(repr(float(v)) for v in flat) if flat.size == 6 else repr(value))
+
+
 def box_cells(grid: Grid, box) -> np.ndarray:
     """Grid-shaped bool array: the cells that share positive volume with ``box`` ((2, 3) mm)."""
     box = np.asarray(box, dtype=np.float64)
@@ -84,7 +96,7 @@ def marked_cells(grid: Grid, boxes=(), solids=(), units: str = "mm",
     region ``solids`` (file paths); a grid-shaped bool array."""
     out = np.zeros(grid.shape, dtype=bool)
     for box in boxes:
-        out |= box_cells(grid, parse_box(box) if isinstance(box, str) else box)
+        out |= box_cells(grid, as_box(box))
     for path in solids:
         out |= solid_cells(grid, path, units=units, scale=scale)
     return out & np.asarray(grid.filled, dtype=bool)

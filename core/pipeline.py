@@ -56,6 +56,7 @@ class Fabrication:
     seconds_per_part: float = SECONDS_PER_PART
     clearance: float = BrickGeometry.clearance
     iteration: object | None = None
+    profile: str | None = None
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -76,7 +77,8 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
         seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
         connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART,
-        previous: str | os.PathLike | None = None) -> Fabrication:
+        previous: str | os.PathLike | None = None, part_edits=(),
+        profile: str | os.PathLike | None = None) -> Fabrication:
     """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
@@ -98,6 +100,12 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     aligned, diffed on the previous grid, the old layout kept where nothing
     changed, only changed printed parts reprinted and print-timed; high-res
     boxes in the new file's coordinates add to the earlier marks).
+    ``part_edits`` change how the printed bricks group into parts, in order:
+    each a dict ``{"op": "merge" | "split", "boxes": [...], "bricks": [...]}``
+    whose boxes (model mm) and brick ids name bricks; ``merge`` makes the
+    parts holding them one, ``split`` gives each its own part
+    (:func:`core.printed.merge`, :func:`core.printed.split`).  ``profile`` is
+    a PrusaSlicer ini to slice with instead of the bundled one.
     Raises :class:`~core.errors.InputError` for bad input; otherwise returns
     a :class:`Fabrication` whose layout covers every filled cell once.
     """
@@ -121,14 +129,15 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                         high_res_solids=high_res_solids, units=units, scale=scale,
                         clearance=float(clearance), connectors=connectors,
                         seconds_per_brick=float(seconds_per_brick),
-                        seconds_per_part=float(seconds_per_part), slice_parts=slice_parts)
+                        seconds_per_part=float(seconds_per_part), slice_parts=slice_parts,
+                        profile=profile)
     grid = timed("legofy", 0.2, voxelize.legofy, model.mesh, closed=model.watertight)
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
-    boxes = [high_res_stage.parse_box(b) if isinstance(b, str) else b for b in high_res]
+    boxes = [high_res_stage.as_box(b) for b in high_res]
     cells = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
                   units=units, scale=scale)
     if cells.any():
@@ -139,7 +148,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     clamp, links = None, None
     if cells.any() or high_res_bricks:
         ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
-        groups = high_res_stage.groups(layout, ids)
+        groups = _edited(layout, high_res_stage.groups(layout, ids), part_edits)
         if groups:
             source = printed_stage.model_solid(model)
             links = connectors_stage.find(layout, groups if connectors else [], geometry)
@@ -152,27 +161,47 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
                       seconds_per_brick=float(seconds_per_brick), connectors=links,
-                      seconds_per_part=float(seconds_per_part), clearance=float(clearance))
+                      seconds_per_part=float(seconds_per_part), clearance=float(clearance),
+                      profile=None if profile is None else str(profile))
     if made and slice_parts:
-        timed("print_time", 0.85, _print_times, fab)
+        timed("print_time", 0.85, print_times, fab)
     return fab
 
 
 def _iterate(previous, model, chosen, seed, timed, timings: dict, progress, slice_parts: bool,
-             seconds_per_brick: float, seconds_per_part: float, **marks) -> Fabrication:
+             seconds_per_brick: float, seconds_per_part: float, profile, **marks) -> Fabrication:
     """:func:`run` with ``previous``: the iteration stage, as a Fabrication."""
     from core import iterate as iterate_stage
     before = timed("previous", 0.05, iterate_stage.load_previous, previous)
     it = iterate_stage.iterate(before, model, chosen, seed, progress=progress, **marks)
     fab = iterate_stage.to_fabrication(it, seconds_per_brick)
     fab.seconds_per_part, fab.clearance, fab.iteration = seconds_per_part, marks["clearance"], it
+    fab.profile = None if profile is None else str(profile)
     if fab.printed and slice_parts:
-        timed("print_time", 0.85, _print_times, fab)
+        timed("print_time", 0.85, print_times, fab)
     fab.timings_s = {**timings, **it.timings_s}
     return fab
 
 
-def _print_times(fab: Fabrication) -> None:
+def _edited(layout: Layout, groups: list[list[int]], part_edits) -> list[list[int]]:
+    """``groups`` after the merge/split ``part_edits`` of :func:`run`; InputError for a bad edit."""
+    for edit in part_edits or ():
+        op = edit.get("op") if isinstance(edit, dict) else None
+        if op not in ("merge", "split"):
+            raise InputError(f"part edit {edit!r}: op must be 'merge' or 'split'")
+        boxes = [high_res_stage.as_box(b) for b in edit.get("boxes", ())]
+        cells = high_res_stage.marked_cells(layout.grid, boxes)
+        ids = set(high_res_stage.touched_bricks(layout, cells))
+        ids |= set(high_res_stage.check_ids(layout, edit.get("bricks", ())))
+        if op == "merge":
+            groups = printed_stage.merge(groups, ids)
+        else:
+            printed_ids = {b for g in groups for b in g}
+            groups = printed_stage.split(groups, ids & printed_ids)
+    return groups
+
+
+def print_times(fab: Fabrication) -> None:
     """Slice the whole model (the baseline) and the plates of the printed parts
     to print (:func:`core.export.plates`: one plate unless they do not fit the
     bed), the slicer runs two at a time; the parts' time is the plates' sum.
@@ -188,8 +217,9 @@ def _print_times(fab: Fabrication) -> None:
     beds = plates(printing)
     with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work, \
             ThreadPoolExecutor(max_workers=2) as pool:
-        full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work)
-        sliced = [pool.submit(print_time_stage.print_time, [m for _, m, _ in items], work)
+        profile = {} if fab.profile is None else {"profile": fab.profile}
+        full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work, **profile)
+        sliced = [pool.submit(print_time_stage.print_time, [m for _, m, _ in items], work, **profile)
                   for items in beds]
         fab.print_full = full.result()
         results = [f.result() for f in sliced]
@@ -372,7 +402,8 @@ def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm"
 
     ``printing`` are the high-res and iteration keywords of :func:`run` (``previous``, ``high_res``,
     ``high_res_solids``, ``high_res_bricks``, ``clearance``,
-    ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``).
+    ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``,
+    ``part_edits``, ``profile``).
     """
     _prepare_out(Path(out))
     fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress, **printing)

@@ -9,6 +9,7 @@ import pytest
 
 from core import connectors, pipeline, printed
 from core.brick_solids import BrickGeometry, brick_solid, to_trimesh
+from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
 #: A wall 64 mm long, 3 mm thick, 12 plates high: thinner than a stud is wide.
@@ -95,3 +96,18 @@ def test_without_connectors_the_thin_part_hangs_loose(wall_files):
     assert fab.stability.components > 1
     (split,) = fab.stability.unconnectable
     assert "P1" in split["reason"] and "cuts their studs" in split["reason"]
+
+
+def test_part_edits_split_and_merge_printed_bricks(wall_files):
+    wide = "-31,-10,3.5,31,10,31"
+    whole = pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False)
+    assert len(whole.printed) == 1 and len(whole.printed[0].bricks) >= 2
+    ids = whole.printed[0].bricks
+    split = pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False,
+                         part_edits=[{"op": "split", "bricks": ids}])
+    assert len(split.printed) == len(ids)
+    merged = pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False,
+                          part_edits=[{"op": "split", "bricks": ids}, {"op": "merge", "boxes": [wide]}])
+    assert len(merged.printed) == 1 and sorted(merged.printed[0].bricks) == sorted(ids)
+    with pytest.raises(InputError, match="op must be"):
+        pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False, part_edits=[{"op": "glue"}])

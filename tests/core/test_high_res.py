@@ -61,3 +61,13 @@ def test_lay_out_around_keeps_bricks_inside_or_outside_the_marked_cells():
         assert inside.all() or not inside.any()
     touched = high_res.touched_bricks(lay, cells)
     assert sum(int(np.prod(lay.bricks[i].size)) for i in touched) == int(cells.sum())
+
+
+def test_as_box_takes_text_six_numbers_or_corners():
+    from core.high_res import as_box
+    want = np.array([[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]])
+    for value in ("3,4,5,0,1,2", [0, 1, 2, 3, 4, 5], want):
+        assert np.array_equal(as_box(value), want)
+    for bad in ([1, 2, 3], "a,b", [[0, 0, 0], [1, 1, 0]]):
+        with pytest.raises(InputError):
+            as_box(bad)
