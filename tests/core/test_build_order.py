@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -14,29 +13,17 @@ from core import build_order, layout as layout_stage, pipeline
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
+from conftest import HMD_HIGH_RES
+
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"
-HMD_HIGH_RES = ["-54,25,25.5,-9,36,70.5", "9,25,25.5,54,36,70.5"]
 CELL = np.array([8.0, 8.0, 3.2])
 
 
-def hmd_step(folder: Path) -> Path:
-    """The bundled example's STEP: examples/build/hmd.step, or built into ``folder``."""
-    built = ROOT / "examples" / "build" / "hmd.step"
-    if built.is_file():
-        return built
-    spec = importlib.util.spec_from_file_location("fabrickator_example_hmd", ROOT / "examples" / "hmd.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    step, _ = module.export_hmd(folder)
-    return Path(step)
-
-
 @pytest.fixture(scope="module")
-def hmd(tmp_path_factory):
+def hmd(hmd_step):
     """The example with its two lens mounts printed (real printed parts)."""
-    step = hmd_step(tmp_path_factory.mktemp("hmd"))
-    return pipeline.run(step, high_res=HMD_HIGH_RES, slice_parts=False)
+    return pipeline.run(hmd_step, high_res=HMD_HIGH_RES, slice_parts=False)
 
 
 def cells_of(b) -> list[tuple[int, int, int]]:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import re
 from pathlib import Path
@@ -15,27 +14,15 @@ from core import build_order, instructions, layout as layout_stage, ldraw, pipel
 from core.errors import InputError
 from core.model import Grid
 
+from conftest import HMD_HIGH_RES
+
 ROOT = Path(__file__).resolve().parents[2]
-HMD_HIGH_RES = ["-54,25,25.5,-9,36,70.5", "9,25,25.5,54,36,70.5"]
 VIEW = np.array([1.0, 1.0, -1.0])
 
 
-def hmd_step(folder: Path) -> Path:
-    """The bundled example's STEP: examples/build/hmd.step, or built into ``folder``."""
-    built = ROOT / "examples" / "build" / "hmd.step"
-    if built.is_file():
-        return built
-    spec = importlib.util.spec_from_file_location("fabrickator_example_hmd", ROOT / "examples" / "hmd.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    step, _ = module.export_hmd(folder)
-    return Path(step)
-
-
 @pytest.fixture(scope="module")
-def hmd(tmp_path_factory):
-    step = hmd_step(tmp_path_factory.mktemp("hmd"))
-    fab = pipeline.run(step, high_res=HMD_HIGH_RES, slice_parts=False)
+def hmd(tmp_path_factory, hmd_step):
+    fab = pipeline.run(hmd_step, high_res=HMD_HIGH_RES, slice_parts=False)
     out = tmp_path_factory.mktemp("assembly")
     result = instructions.write_assembly(fab.layout, fab.printed, out, title="hmd.step <test>")
     return fab, out, result

@@ -3,7 +3,6 @@ driven by selenium; keys, slider, play mode and a touch swipe change the visible
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 import time
 from pathlib import Path
@@ -14,8 +13,9 @@ from core import instructions, pipeline
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
+from conftest import HMD_HIGH_RES
+
 ROOT = Path(__file__).resolve().parents[2]
-HMD_HIGH_RES = ["-54,25,25.5,-9,36,70.5", "9,25,25.5,54,36,70.5"]
 
 webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed (pip install selenium)")
 if not (Path(CHROMIUM).is_file() and Path(CHROMEDRIVER).is_file()):
@@ -28,22 +28,9 @@ from selenium.webdriver.common.keys import Keys  # noqa: E402
 from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
 
 
-def hmd_step(folder: Path) -> Path:
-    """The bundled example's STEP: examples/build/hmd.step, or built into ``folder``."""
-    built = ROOT / "examples" / "build" / "hmd.step"
-    if built.is_file():
-        return built
-    spec = importlib.util.spec_from_file_location("fabrickator_example_hmd", ROOT / "examples" / "hmd.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    step, _ = module.export_hmd(folder)
-    return Path(step)
-
-
 @pytest.fixture(scope="module")
-def assembly(tmp_path_factory):
-    step = hmd_step(tmp_path_factory.mktemp("hmd"))
-    fab = pipeline.run(step, high_res=HMD_HIGH_RES, slice_parts=False)
+def assembly(tmp_path_factory, hmd_step):
+    fab = pipeline.run(hmd_step, high_res=HMD_HIGH_RES, slice_parts=False)
     out = tmp_path_factory.mktemp("assembly")
     result = instructions.write_assembly(fab.layout, fab.printed, out, title="hmd")
     steps: dict[int, set[int]] = {}
