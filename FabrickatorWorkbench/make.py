@@ -19,6 +19,7 @@ commands do that around them).
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import FreeCAD as App
@@ -32,6 +33,11 @@ from FabrickatorWorkbench.objects.high_res_region import HighResRegion
 #: meshes (loaded and repaired by the core) Mesh features.
 BREP_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".iges", ".igs")
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".fcstd")
+
+#: Property of an imported object naming the file it came from (:func:`import_model`).
+MODEL_FILE = "ModelFile"
+#: A version suffix of a file name: "_v2", "-3", ".001", " (1)".
+VERSION_SUFFIX = re.compile(r"(?:[ _.-](?:v|rev)?\d+| ?\(\d+\))$", re.IGNORECASE)
 
 #: A brick's box is shrunk by this much (mm) on every side when it becomes a
 #: high-res box, so that it never touches a neighbouring cell.
@@ -215,6 +221,12 @@ def bricks(fab) -> list:
     return tree.bricks(fab)
 
 
+def ghosts(fab) -> list:
+    """The removed bricks (ghosts) of ``fab``'s last recompute: links in the "Removed
+    bricks" group, not bricks of the layout."""
+    return tree.ghosts(fab)
+
+
 def printed_parts(fab) -> list:
     """The PrintedPart objects of ``fab``."""
     return tree.printed_parts(fab)
@@ -301,6 +313,18 @@ def export(fab, folder) -> list[str]:
     return written
 
 
+def clear_changes(fab) -> int:
+    """Take away the marks of the last recompute: the highlighted (new) bricks get their
+    LEGO colour, the ghosts of removed bricks go, ``Changes`` empties (the printed
+    parts' ``Reprint`` stays: it says what to print).  Returns how many bricks were
+    highlighted.  No recompute needed."""
+    count = tree.clear_changes(fab)
+    if fab.Changes:
+        fab.Changes = []
+        fab.purgeTouched()
+    return count
+
+
 def remove_owned(fab) -> None:
     """Delete everything ``fab`` made (bricks, layer groups, printed parts, region group).
 
@@ -350,6 +374,10 @@ def import_model(path, doc=None):
         obj = doc.addObject("Mesh::Feature", name)
         obj.Mesh = mesh
     obj.Label = path.stem
+    obj.addProperty("App::PropertyString", MODEL_FILE, "Fabrickator",
+                    "Model file this object was imported from (a new version of it updates it)")
+    setattr(obj, MODEL_FILE, str(path.resolve()))
+    obj.setEditorMode(MODEL_FILE, 1)
     return obj
 
 
@@ -364,7 +392,47 @@ def reload_model(obj, path) -> None:
         import Part
 
         obj.Shape = Part.read(str(path))
+    if hasattr(obj, MODEL_FILE):
+        setattr(obj, MODEL_FILE, str(path.resolve()))
     obj.touch()
+
+
+def model_name(path) -> str:
+    """The name of the model a file is a version of: its stem without a version suffix
+    ("bracket_v2.stl", "bracket-3.stl", "bracket (1).stl" and "bracket.stl" are all
+    "bracket")."""
+    stem = Path(path).stem
+    return VERSION_SUFFIX.sub("", stem) or stem
+
+
+def imported_from(doc, path) -> list:
+    """The objects of ``doc`` imported (:func:`import_model`) from a version of the model
+    file ``path`` (same folder, same :func:`model_name`), latest first."""
+    path = Path(path).resolve()
+    found = []
+    for obj in doc.Objects:
+        source = getattr(obj, MODEL_FILE, "")
+        if source and Path(source).parent == path.parent and model_name(source) == model_name(path):
+            found.append(obj)
+    return found[::-1]
+
+
+def feed_file(path, doc=None) -> tuple:
+    """A model file as the next version of what it is a version of: when ``doc`` has a
+    Fabrication of an object imported from the same model (same name, or a versioned
+    name, :func:`model_name`), that object takes the file's geometry and its
+    Fabrications will recompute as an iteration; otherwise the file is legofied into a
+    new Fabrication.  Returns (source, [fabrications], new); recompute to apply."""
+    doc = doc or App.ActiveDocument or App.newDocument("Watched")
+    for obj in imported_from(doc, path):
+        fabs = [o for o in obj.InList if is_fabrication(o)]
+        if fabs:
+            reload_model(obj, path)
+            for fab in fabs:
+                fab.touch()
+            return obj, fabs, False
+    source, fab = legofy_file(path, doc)
+    return source, [fab], True
 
 
 def _mesh_of(path: Path):
@@ -397,4 +465,5 @@ def recompute(fab) -> bool:
 __all__ = ["make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "unmark",
            "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
            "report", "steps", "layout", "core_printed_parts", "export", "remove_owned",
-           "import_model", "reload_model", "legofy_file", "recompute"]
+           "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",
+           "feed_file", "model_name"]

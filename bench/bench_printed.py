@@ -96,15 +96,20 @@ def main() -> int:
         if pt is None:
             print(f"{path.name}: the boxes touch no brick, nothing printed")
             continue
+        st = doc["stability"]
+        studs = sum(p["complete_studs"] for p in doc["printed_parts"])
         rows.append((path.name, pt["full_model"] / 60, pt["printed_parts"] / 60,
                      doc["bricks"]["lego"], len(doc["printed_parts"]), doc["assembly_s"] / 60,
-                     doc["speedup"], time.perf_counter() - start, pt["method"]))
+                     doc["speedup"], f"{st['components']}/{st['regions']}",
+                     f"{studs}/{studs + st['incomplete_studs']}",
+                     time.perf_counter() - start, pt["method"]))
         gains.append(doc["speedup"])
-    print(f"{'model':30s} {'full min':>9s} {'parts min':>9s} {'bricks':>6s} {'parts':>5s} "
-          f"{'assembly min':>12s} {'speed-up':>8s} {'run s':>6s}  method")
+    print("| model | full min | parts min | LEGO bricks | parts | assembly min | speed-up "
+          "| components/regions | complete studs | run s | print time by |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"{r[0]:30s} {r[1]:9.1f} {r[2]:9.1f} {r[3]:6d} {r[4]:5d} {r[5]:12.1f} "
-              f"{r[6]:8.2f} {r[7]:6.1f}  {r[8]}")
+        print(f"| {r[0]} | {r[1]:.1f} | {r[2]:.1f} | {r[3]} | {r[4]} | {r[5]:.1f} | {r[6]:.2f} "
+              f"| {r[7]} | {r[8]} | {r[9]:.1f} | {r[10]} |")
     if gains:
         print(f"mean speed-up {np.mean(gains):.2f}x over {len(gains)} models (paper: 2.44x)")
     return 0

@@ -19,7 +19,7 @@ import dataclasses
 import os
 
 import numpy as np
-from scipy import sparse
+from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
 from core import layout as layout_stage
@@ -100,6 +100,68 @@ def marked_cells(grid: Grid, boxes=(), solids=(), units: str = "mm",
     for path in solids:
         out |= solid_cells(grid, path, units=units, scale=scale)
     return out & np.asarray(grid.filled, dtype=bool)
+
+
+def anchor(grid: Grid, cells: np.ndarray) -> np.ndarray:
+    """The marked ``cells`` plus *anchor tabs*: cells that let every marked region clamp.
+
+    LEGO holds only vertically: a marked region that touches unmarked bricks
+    only side by side (a screw seat standing on the floor through every
+    layer, say) would be a loose piece.  For each such region (6-connected
+    marked cells with no unmarked filled cell directly above or below any
+    of them) this adds up to four tab cells (:func:`_tabs`: one on each side)
+    next to it in one layer, each an unmarked filled cell with an unmarked
+    filled cell directly above (the region's lowest such layer) or, failing
+    that, directly below (its highest); the printed part then reaches under
+    (or over) its LEGO neighbours and clamps there through its connectors
+    (:mod:`core.connectors`).  Regions with a vertical contact, and regions
+    no tab can anchor, are left as they are.  Returns a new bool array.
+    """
+    filled = np.asarray(grid.filled, dtype=bool)
+    marked = np.asarray(cells, dtype=bool) & filled
+    free = filled & ~marked
+    above = np.zeros_like(free)
+    above[:, :, :-1] = free[:, :, 1:]
+    below = np.zeros_like(free)
+    below[:, :, 1:] = free[:, :, :-1]
+    labels, count = ndimage.label(marked, structure=ndimage.generate_binary_structure(3, 1))
+    out = marked.copy()
+    for r, box in enumerate(ndimage.find_objects(labels), start=1):
+        region = labels == r
+        if (region & (above | below)).any():
+            continue
+        for support in (above, below):
+            layers = range(box[2].start, box[2].stop)
+            for k in (layers if support is above else reversed(layers)):
+                flat = region[:, :, k]
+                if not flat.any():
+                    continue
+                tab = _tabs(flat, free[:, :, k] & support[:, :, k])
+                if tab.any():
+                    out[:, :, k] |= tab
+                    break
+            else:
+                continue
+            break
+    return out
+
+
+def _tabs(flat: np.ndarray, allowed: np.ndarray) -> np.ndarray:
+    """Per side (-x, +x, -y, +y) of the 2-D region ``flat``, the first ``allowed``
+    cell just outside it on that side (in index order): at most four cells."""
+    out = np.zeros_like(flat)
+    for axis in (0, 1):
+        for step in (-1, 1):
+            side = np.zeros_like(flat)
+            src = [slice(None)] * 2
+            dst = [slice(None)] * 2
+            src[axis] = slice(None, -1) if step == 1 else slice(1, None)
+            dst[axis] = slice(1, None) if step == 1 else slice(None, -1)
+            side[tuple(dst)] = flat[tuple(src)]
+            hits = np.argwhere(side & ~flat & allowed)
+            if len(hits):
+                out[tuple(hits[len(hits) // 2])] = True
+    return out
 
 
 def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,

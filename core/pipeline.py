@@ -57,6 +57,7 @@ class Fabrication:
     clearance: float = BrickGeometry.clearance
     iteration: object | None = None
     profile: str | None = None
+    marks: dict = field(default_factory=dict)
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -91,7 +92,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     layout) (:mod:`core.high_res`,
     :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter) and, unless
     ``connectors`` is False, studs and sockets kept where a printed part
-    meets other bricks vertically (:mod:`core.connectors`).  With
+    meets other bricks vertically (:mod:`core.connectors`) and anchor tabs
+    added to regions that would touch LEGO only sideways
+    (:func:`core.high_res.anchor`).  With
     printed parts and ``slice_parts``, the whole model and the plate of all
     printed parts are print-timed (:func:`core.print_time.print_time`); the
     print times stay None without printed parts, so a plain run slices
@@ -138,8 +141,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
     boxes = [high_res_stage.as_box(b) for b in high_res]
-    cells = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
-                  units=units, scale=scale)
+    marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
+                   units=units, scale=scale)
+    cells = high_res_stage.anchor(grid, marked) if connectors else marked
     if cells.any():
         layout = timed("layout", 0.4, high_res_stage.lay_out_around, grid, cells, chosen, seed=seed)
     else:
@@ -162,7 +166,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
                       seconds_per_brick=float(seconds_per_brick), connectors=links,
                       seconds_per_part=float(seconds_per_part), clearance=float(clearance),
-                      profile=None if profile is None else str(profile))
+                      profile=None if profile is None else str(profile),
+                      marks={"marked_cells": int(np.count_nonzero(marked)),
+                             "anchor_cells": int(np.count_nonzero(cells & ~marked))})
     if made and slice_parts:
         timed("print_time", 0.85, print_times, fab)
     return fab
@@ -305,6 +311,7 @@ def report(fab: Fabrication) -> dict:
             "unconnectable": list(st.unconnectable),
             "incomplete_studs": incomplete,
         },
+        "high_res": dict(fab.marks),
         "printed_parts": [_part_json(fab, p) for p in fab.printed],
         "print_time_s": None if full is None else {
             "full_model": round(full.seconds, 1),

@@ -1,9 +1,12 @@
 """Watch folder: legofy model files as they appear in a folder (e.g. exported by Blender).
 
-A new file (STL, OBJ, PLY, 3MF, STEP) is imported and legofied; a file that
-is written again replaces its Source's geometry, so its Fabrication
-recomputes as the next iteration (keeping the layout where nothing
-changed).  Files are taken once completely written (:mod:`core.watch`).
+A new file (STL, OBJ, PLY, 3MF, STEP) is imported and legofied; a new
+version of a model already legofied in the document (the same file written
+again, or a versioned name: ``part_v2.stl`` after ``part.stl``) replaces
+its Source's geometry, so its Fabrication recomputes as the next iteration
+(keeping the layout where nothing changed, highlighting what changed).
+Imported objects remember their file (``ModelFile``), so this also works
+after the document was saved and reopened.  Files are taken once completely written (:mod:`core.watch`).
 The watcher polls on a Qt timer and lives as a child of FreeCAD's main
 window; running the command again stops it.
 """
@@ -84,7 +87,6 @@ class FolderWatch:
         self.folder = folder
         self.doc_name = doc.Name
         self.watcher = FolderWatcher(Path(folder))
-        self.sources: dict[str, str] = {}
         self.timer = QtCore.QTimer(Gui.getMainWindow())
         self.timer.setObjectName(WATCHER_NAME)
         self.timer.fabrickator = self
@@ -102,27 +104,18 @@ class FolderWatch:
             self.take(str(path))
 
     def take(self, path: str) -> None:
-        """Legofy a new file, or update the Source a known file was imported as."""
+        """Legofy a new model, or feed a new version of a known one (the same file written
+        again, or a versioned name like ``part_v2.stl``) to its Fabrication as an
+        iteration (:func:`FabrickatorWorkbench.make.feed_file`)."""
         from FabrickatorWorkbench import make
-        from FabrickatorWorkbench.objects.fabrication import is_fabrication
 
         doc = App.getDocument(self.doc_name)
         name = os.path.basename(path)
-        known = doc.getObject(self.sources.get(name, "")) if name in self.sources else None
         with transaction(doc, f"Watch folder: {name}"):
-            if known is not None:
-                make.reload_model(known, path)
-                fabs = [o for o in known.InList if is_fabrication(o)]
-                if fabs:
-                    recompute_or_fail(*fabs)
-                else:
-                    doc.recompute()
-                log.message(f"{name} changed: {', '.join(f.Label + ' ' + f.Status for f in fabs)}")
-            else:
-                source, fab = make.legofy_file(path, doc)
-                self.sources[name] = source.Name
-                recompute_or_fail(fab)
-                log.message(f"{name} appeared: {fab.Label} {fab.Status}")
+            source, fabs, new = make.feed_file(path, doc)
+            recompute_or_fail(*fabs)
+            what = "appeared" if new else f"is a new version of {source.Label}"
+            log.message(f"{name} {what}: {', '.join(f.Label + ' ' + f.Status for f in fabs)}")
         if App.GuiUp and Gui.ActiveDocument is not None:
             Gui.SendMsgToActiveView("ViewFit")
 

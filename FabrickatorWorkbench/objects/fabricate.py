@@ -40,6 +40,9 @@ class Result:
     report: dict
     inputs: dict
     snapshot: str | None = None
+    #: Whether only the Source (or nothing) changed since the last result: then the tree
+    #: marks what changed (new bricks highlighted, removed ones as ghosts).
+    marks: bool = True
 
 
 def cell_size() -> App.Vector:
@@ -87,9 +90,47 @@ def recompute(obj) -> bool:
         obj.Status = f"failed, previous result kept: {reason.split('failed: ', 1)[-1]}"
         return False
     obj.Status = "failed while updating the tree (see the Report view)"
+    first = not obj.LayoutJson
     kept, changed = tree.sync(obj, result)
     _store(obj, result, kept, changed)
+    obj.Changes = change_lines(obj, first, result.marks)
+    for line in obj.Changes:
+        log.message(f"{obj.Label}: {line}")
     return True
+
+
+def change_lines(obj, first: bool, marks: bool = True) -> list[str]:
+    """What the last recompute of Fabrication ``obj`` changed, one line per category:
+    bricks to take off (the ghosts), bricks to add (the highlighted ones), printed
+    parts to reprint, and what stays.  Without ``marks`` (parameters, regions or
+    brush edits changed) one line says the layout was made for the new inputs."""
+    from FabrickatorWorkbench.objects import tree
+
+    parts = tree.printed_parts(obj)
+    printing = [p.PartId for p in parts if p.Reprint]
+    if first or not marks:
+        return [("first layout" if first else "new layout for the changed parameters, regions or "
+                 "brush edits") + f": {obj.Bricks} brick(s) to place"
+                + (f", print {', '.join(printing)}" if printing else "")]
+    changes = json.loads(obj.ReportJson).get("changes") if obj.ReportJson else None
+    how = "iteration on the previous layout" if changes is not None else "laid out anew"
+    added = sorted(b.BrickId for b in tree.bricks(obj) if b.Changed)
+    removed = sorted(g.BrickId for g in tree.ghosts(obj))
+    unchanged = [p.PartId for p in parts if not p.Reprint]
+    return [f"take off: {_ids(removed)}",
+            f"add: {_ids(added)}",
+            f"reprint: {', '.join(printing) if printing else 'no printed part'}",
+            f"keep: {obj.BricksKept} brick(s)"
+            + (f", printed part(s) {', '.join(unchanged)} as printed" if unchanged else "")
+            + f" ({how})"]
+
+
+def _ids(ids: list[int], shown: int = 12) -> str:
+    """'3 brick(s): 4, 9, 12' (at most ``shown`` ids listed), or 'no brick'."""
+    if not ids:
+        return "no brick"
+    listed = ", ".join(str(i) for i in ids[:shown]) + (", ..." if len(ids) > shown else "")
+    return f"{len(ids)} brick(s): {listed}"
 
 
 def run_core(obj) -> Result:
@@ -118,7 +159,8 @@ def run_core(obj) -> Result:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, scale)
         fab, changes = None, None
-        if obj.KeepLayout and obj.IterationState and _last_inputs(obj) == inputs:
+        marks = _last_inputs(obj) == inputs
+        if obj.KeepLayout and obj.IterationState and marks:
             fab, changes = _iterate(obj, path, boxes, solids, work, progress)
         if fab is None:
             kwargs = dict(scale=scale, seed=int(obj.Seed), parts=obj.BrickSet.strip() or None,
@@ -140,7 +182,7 @@ def run_core(obj) -> Result:
             report["changes"] = changes
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
         snapshot = _snapshot(fab, float(obj.Clearance.Value))
-    return Result(fab, order, report, inputs, snapshot)
+    return Result(fab, order, report, inputs, snapshot, marks)
 
 
 def region_signature(obj) -> str:

@@ -85,6 +85,10 @@ PROPERTIES = (
          QT("App::Property", "Bricks kept from the previous recompute"), 0, READ_ONLY),
     Prop("App::PropertyInteger", "BricksChanged", "Result",
          QT("App::Property", "Bricks new or changed in the last recompute"), 0, READ_ONLY),
+    Prop("App::PropertyStringList", "Changes", "Result",
+         QT("App::Property", "What the last recompute changed: bricks to take off (shown as "
+                             "ghosts), bricks to add (highlighted), printed parts to reprint"),
+         None, READ_ONLY),
     Prop("App::PropertyVector", "GridOrigin", "Result",
          QT("App::Property", "Min corner of cell (0, 0, 0), mm"), None, READ_ONLY),
     Prop("App::PropertyString", "LayoutJson", "Result",
@@ -120,9 +124,12 @@ class Fabrication:
         if App.GuiUp:
             from FabrickatorWorkbench.objects import prototype, tree
             from FabrickatorWorkbench.viewproviders import attach_missing
+            from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
             attach_missing(obj)
             for proto in tree.prototypes(obj.Document):
                 prototype.apply_colour(proto)
+            for ghost in tree.ghosts(obj):
+                apply_ghost_look(ghost)
 
     def execute(self, obj):
         from FabrickatorWorkbench.objects import fabricate

@@ -44,11 +44,18 @@ def make_prototype(doc, part: str, colour: tuple, shape):
 
 
 def apply_colour(obj) -> None:
-    """Show the prototype (and so every link to it) in its ``Color`` (GUI only)."""
+    """Show the prototype (and so every link to it) in its ``Color`` (GUI only); the
+    prototypes of highlighted (new) bricks also glow, so they stand out from LEGO greens."""
+    from FabrickatorWorkbench.objects.tree import HIGHLIGHT_COLOUR, _rgb
+
     view = getattr(obj, "ViewObject", None)
     if view is not None:
         colour = tuple(obj.Color[:3])
         if tuple(view.ShapeColor[:3]) != colour:
             view.ShapeColor = colour
+        if _rgb(colour) == _rgb(HIGHLIGHT_COLOUR):
+            material = view.ShapeMaterial
+            material.EmissiveColor = tuple(0.45 * c for c in HIGHLIGHT_COLOUR)
+            view.ShapeMaterial = material
         if view.Visibility:
             view.Visibility = False

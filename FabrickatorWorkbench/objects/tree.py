@@ -8,8 +8,21 @@ printed parts in a "Printed parts" group, regions in a "High-res regions"
 group, all inside the Fabrication.
 
 :func:`sync` brings the tree in line with a new core result and keeps every
-brick object whose brick (part, cell, size, kind) is still in the layout, so
-a recompute that changes little changes few objects.
+brick object whose brick is still in the layout (after a design iteration:
+the same brick id, :mod:`core.iterate` keeps ids stable; otherwise the same
+part, cell, size and kind), so a recompute that changes little changes few
+objects.  What the recompute changed stays visible until the next one:
+
+* new bricks (``Changed``) link to the prototype of their part in
+  :data:`HIGHLIGHT_COLOUR`, so they stand out in the 3D view (in a document
+  made without the GUI too); the next recompute that does not change them
+  gives them their LEGO colour back, and :func:`clear_changes` does at once;
+* bricks taken off are *ghosts*: one ``App::Link`` each (role
+  ``RemovedBrick``, the prototype the brick had, where the brick was) in a
+  "Removed bricks" group, drawn grey and transparent in the GUI
+  (:func:`FabrickatorWorkbench.viewproviders.brick.apply_ghost_look`).  They
+  are not bricks of the layout (:func:`bricks` leaves them out) and the next
+  recompute replaces them.
 """
 
 from __future__ import annotations
@@ -28,9 +41,14 @@ LAYER_ROLE = "Layer"
 PRINTED_GROUP_ROLE = "PrintedParts"
 REGIONS_GROUP_ROLE = "Regions"
 PROTOTYPES_ROLE = "Prototypes"
+GHOST_ROLE = "RemovedBrick"
+GHOSTS_GROUP_ROLE = "RemovedBricks"
 
 #: Colour of printed parts (a light, PLA-like orange).
 PRINTED_COLOUR = (0.96, 0.62, 0.26)
+#: Colour of bricks new in the last recompute (a bright green no LEGO brick of
+#: the layout has, :data:`core.render.PALETTE`).
+HIGHLIGHT_COLOUR = (0.1, 1.0, 0.45)
 
 BRICK_PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base", QT("App::Property", "Fabrickator object role"),
@@ -55,6 +73,26 @@ BRICK_PROPERTIES = (
 )
 
 
+GHOST_PROPERTIES = (
+    Prop("App::PropertyString", "FabrickatorRole", "Base", QT("App::Property", "Fabrickator object role"),
+         GHOST_ROLE, HIDDEN),
+    Prop("App::PropertyString", "PartNumber", "Removed brick",
+         QT("App::Property", "LEGO design number"), "", READ_ONLY),
+    Prop("App::PropertyIntegerList", "Cell", "Removed brick",
+         QT("App::Property", "Min cell (i, j, k) the brick took, in the current grid"), None,
+         READ_ONLY),
+    Prop("App::PropertyIntegerList", "Size", "Removed brick",
+         QT("App::Property", "Extent in cells along x, y, z"), None, READ_ONLY),
+    Prop("App::PropertyString", "Kind", "Removed brick",
+         QT("App::Property", "lego, or printed (part of a printed part)"), "", READ_ONLY),
+    Prop("App::PropertyString", "PrintedPart", "Removed brick",
+         QT("App::Property", "ID of the printed part the brick belonged to, if printed"), "",
+         READ_ONLY),
+    Prop("App::PropertyInteger", "BrickId", "Removed brick",
+         QT("App::Property", "Id the brick had in the previous layout"), 0, READ_ONLY),
+)
+
+
 def role(obj) -> str | None:
     """The Fabrickator role of an object (None for other objects)."""
     return getattr(obj, "FabrickatorRole", None)
@@ -75,6 +113,12 @@ def bricks(fab) -> list:
     return [b for g in layer_groups(fab) for b in g.Group if role(b) == BRICK_ROLE]
 
 
+def ghosts(fab) -> list:
+    """The removed bricks (ghosts) the last recompute took off."""
+    return [g for grp in child_groups(fab, GHOSTS_GROUP_ROLE) for g in grp.Group
+            if role(g) == GHOST_ROLE]
+
+
 def printed_parts(fab) -> list:
     """The PrintedPart objects of a Fabrication, by ID."""
     return [p for g in child_groups(fab, PRINTED_GROUP_ROLE) for p in g.Group
@@ -87,12 +131,12 @@ def prototypes(doc) -> list:
 
 
 def owned(fab) -> list:
-    """Every object the Fabrication made (groups, bricks, printed parts), children first."""
+    """Every object the Fabrication made (groups, bricks, ghosts, printed parts), children first."""
     out = []
     for g in fab.Contents:
-        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE):
-            out += [c for c in g.Group if role(c) in (BRICK_ROLE, "PrintedPart")]
-        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, REGIONS_GROUP_ROLE):
+        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, GHOSTS_GROUP_ROLE):
+            out += [c for c in g.Group if role(c) in (BRICK_ROLE, "PrintedPart", GHOST_ROLE)]
+        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, REGIONS_GROUP_ROLE, GHOSTS_GROUP_ROLE):
             out.append(g)
     return out
 
@@ -114,7 +158,13 @@ def placement(brick, origin, cell) -> App.Placement:
 
 
 def sync(fab, result) -> tuple[int, int]:
-    """Make the tree under ``fab`` show ``result``; returns (bricks kept, bricks new or changed)."""
+    """Make the tree under ``fab`` show ``result``; returns (bricks kept, bricks new or changed).
+
+    When only the Source changed (``result.marks``), new bricks are
+    highlighted and the bricks taken off become the ghosts of the "Removed
+    bricks" group; otherwise (the first layout, or new parameters, regions or
+    brush edits) nothing is marked.  Either way the previous marks go.
+    """
     from core.render import brick_colours
 
     from FabrickatorWorkbench.objects import prototype as prototypes_module
@@ -124,17 +174,18 @@ def sync(fab, result) -> tuple[int, int]:
     origin = [float(v) for v in layout.grid.origin]
     cell = [float(v) for v in layout.grid.cell]
     colours = brick_colours(layout, layout.labels())
-    had_layout = bool(fab.LayoutJson)
+    had_layout = bool(fab.LayoutJson) and getattr(result, "marks", True)
+    by_id = result.report.get("changes") is not None
     existing = {}
     for obj in bricks(fab):
-        existing.setdefault(_key(obj.PartNumber, obj.Cell, obj.Size, obj.Kind), obj)
+        existing.setdefault(_brick_key(obj, by_id), obj)
     made = []
     protos = Prototypes(doc)
     by_layer: dict[int, list] = defaultdict(list)
     kept = changed = 0
     for brick, rgb in zip(layout.bricks, colours):
-        key = _key(brick.part, brick.cell, brick.size, brick.kind)
-        obj = existing.pop(key, None)
+        obj = existing.pop(_key(brick.part, brick.cell, brick.size, brick.kind, brick.id, by_id),
+                           None)
         new = obj is None
         if new:
             obj = doc.addObject("App::Link", "Brick")
@@ -143,33 +194,129 @@ def sync(fab, result) -> tuple[int, int]:
             changed += 1
         else:
             kept += 1
-        _update_brick(obj, brick, protos.get(brick.part, tuple(float(c) for c in rgb)),
-                      placement(brick, origin, cell), changed=had_layout and new)
+        highlight = had_layout and new
+        proto = (protos.get(brick.part, HIGHLIGHT_COLOUR) if highlight
+                 else _lego_prototype(obj, brick, protos, tuple(float(c) for c in rgb)))
+        _update_brick(obj, brick, proto, placement(brick, origin, cell), changed=highlight)
         by_layer[brick.cell[2]].append(obj)
-    for obj in existing.values():
+    removed = list(existing.values())
+    ghost_group = _sync_ghosts(fab, removed if had_layout else [], origin, cell, made)
+    for obj in removed:
         doc.removeObject(obj.Name)
     layers = _sync_layers(fab, by_layer, made, origin[2], cell[2])
     printed_group = _group(fab, PRINTED_GROUP_ROLE, "Printed parts", made)
     printed_group.Group = _sync_printed(fab, printed_group, result, made)
     regions_group = _group(fab, REGIONS_GROUP_ROLE, "High-res regions", made)
     regions_group.Group = list(fab.Regions)
-    fab.Contents = [regions_group, printed_group] + layers
+    fab.Contents = ([regions_group, printed_group] + ([ghost_group] if ghost_group else [])
+                    + layers)
     made += protos.made
     for obj in made + owned(fab) + protos.touched():
         if "Touched" in obj.State:
             obj.purgeTouched()
     if App.GuiUp:
         from FabrickatorWorkbench.viewproviders import attach_missing
+        from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
         for obj in made:
             attach_missing(obj)
         for proto in protos.made:
             if role(proto) == prototypes_module.ROLE:
                 prototypes_module.apply_colour(proto)
+        for ghost in ghosts(fab):
+            apply_ghost_look(ghost)
     return kept, changed
 
 
-def _key(part, cell, size, kind) -> tuple:
+def clear_changes(fab) -> int:
+    """Take the marks of the last recompute away: highlighted bricks get their LEGO
+    colour back and the ghosts go.  Returns how many bricks were highlighted."""
+    from core.render import brick_colours
+
+    from FabrickatorWorkbench.make import layout as stored_layout
+    from FabrickatorWorkbench.objects import prototype as prototypes_module
+
+    marked = [b for b in bricks(fab) if b.Changed]
+    protos_touched = []
+    if marked:
+        layout = stored_layout(fab)
+        rgb = {b.id: tuple(float(c) for c in colour)
+               for b, colour in zip(layout.bricks, brick_colours(layout, layout.labels()))}
+        protos = Prototypes(fab.Document)
+        for obj in marked:
+            obj.Changed = False
+            obj.LinkedObject = protos.get(obj.PartNumber, rgb.get(obj.BrickId, HIGHLIGHT_COLOUR))
+        if App.GuiUp:
+            for proto in protos.made:
+                if role(proto) == prototypes_module.ROLE:
+                    prototypes_module.apply_colour(proto)
+        protos_touched = protos.made + protos.touched()
+    _sync_ghosts(fab, [], None, None, [])
+    for obj in [fab] + marked + protos_touched:
+        if "Touched" in obj.State:
+            obj.purgeTouched()
+    return len(marked)
+
+
+def _brick_key(obj, by_id: bool):
+    """The key of a brick object: its id (iterations keep ids) or what it is and where."""
+    return _key(obj.PartNumber, obj.Cell, obj.Size, obj.Kind, obj.BrickId, by_id)
+
+
+def _key(part, cell, size, kind, brick_id=0, by_id: bool = False):
+    if by_id:
+        return int(brick_id)
     return (str(part), tuple(int(c) for c in cell), tuple(int(s) for s in size), str(kind))
+
+
+def _lego_prototype(obj, brick, protos, rgb: tuple):
+    """The prototype a kept or new brick links to: a kept LEGO brick keeps its colour
+    (so unchanged bricks look the same after a recompute), else the layout's colour."""
+    linked = obj.LinkedObject if obj.TypeId == "App::Link" else None
+    if (brick.kind == "lego" and linked is not None and role(linked) == "Prototype"
+            and linked.PartNumber == brick.part and obj.Kind == "lego"
+            and _rgb(linked.Color) != _rgb(HIGHLIGHT_COLOUR)):
+        return linked
+    return protos.get(brick.part, rgb)
+
+
+def _sync_ghosts(fab, removed: list, origin, cell, made: list):
+    """Replace the ghosts of ``fab`` by ghosts of the brick objects ``removed`` (their
+    cells expressed in the new grid, ``origin`` / ``cell``); the group, or None when
+    there are no ghosts (an empty group is deleted)."""
+    doc = fab.Document
+    groups = child_groups(fab, GHOSTS_GROUP_ROLE)
+    for group in groups:
+        old = [g for g in group.Group if role(g) == GHOST_ROLE]
+        group.Group = []
+        for ghost in old:
+            doc.removeObject(ghost.Name)
+    if not removed:
+        if groups:
+            fab.Contents = [g for g in fab.Contents if role(g) != GHOSTS_GROUP_ROLE]
+        for group in groups:
+            doc.removeObject(group.Name)
+        return None
+    group = groups[0] if groups else new_group(doc, "RemovedBricks", GHOSTS_GROUP_ROLE,
+                                               "Removed bricks")
+    if not groups:
+        made.append(group)
+    old_origin, old_cell = tuple(fab.GridOrigin), tuple(fab.CellSize)
+    out = []
+    for brick in removed:
+        ghost = doc.addObject("App::Link", "RemovedBrick")
+        ensure(ghost, GHOST_PROPERTIES)
+        ghost.LinkedObject = brick.LinkedObject
+        ghost.Placement = brick.Placement
+        at = [int(round((old_origin[n] + brick.Cell[n] * old_cell[n] - origin[n]) / cell[n]))
+              for n in range(3)]
+        ghost.PartNumber, ghost.Cell, ghost.Size = brick.PartNumber, at, list(brick.Size)
+        ghost.Kind, ghost.PrintedPart, ghost.BrickId = brick.Kind, brick.PrintedPart, brick.BrickId
+        ghost.Label = f"{brick.PartNumber} ({at[0]},{at[1]},{at[2]}) removed"
+        ghost.Visibility = True
+        made.append(ghost)
+        out.append(ghost)
+    group.Group = out
+    return group
 
 
 def _update_brick(obj, brick, proto, where: App.Placement, changed: bool) -> None:
@@ -274,7 +421,10 @@ def _sync_printed(fab, group, result, made: list) -> list:
         obj.Shape = (bridge.occ_to_part(part.solid) if part.solid is not None
                      else bridge.trimesh_to_part(part.mesh))
         obj.PartId = part.id
-        obj.Label = part.id
+        obj.Reprint = part.id in reprint
+        label = f"{part.id} (reprint)" if changes and obj.Reprint else part.id
+        if obj.Label != label:
+            obj.Label = label
         obj.BrickIds = [int(b) for b in part.bricks]
         obj.Cells = int(part.cells)
         obj.VolumeMm3 = float(part.volume_mm3)
@@ -285,7 +435,6 @@ def _sync_printed(fab, group, result, made: list) -> list:
         obj.PrintTime = float(part.print_s or 0.0)
         obj.PrintTimeMethod = method
         obj.Step = int(step_of.get(part.id, 0))
-        obj.Reprint = part.id in reprint
         out.append(obj)
     for obj in existing.values():
         doc.removeObject(obj.Name)

@@ -278,8 +278,13 @@ class TestFabrication(FabrickatorTestCase):
         self.assertTrue(part.Shape.isValid())
         self.assertGreater(part.Shape.Volume, 100.0)
         self.assertAlmostEqual(part.Shape.Volume, part.VolumeMm3, delta=1e-3 * part.VolumeMm3)
-        outside = part.Shape.cut(source.Shape)  # full height: no connectors to other bricks
-        self.assertLess(outside.Volume, 1e-3 * part.Shape.Volume)
+        # Full height, so it touches LEGO only sideways: anchor tabs in the bottom layer
+        # reach under the LEGO beside it, and only their studs (connectors) leave the part.
+        outside = part.Shape.cut(source.Shape)
+        self.assertLess(outside.Volume, 0.05 * part.Shape.Volume)
+        if outside.Volume > 1e-6:
+            self.assertLess(outside.BoundBox.ZMin, 3.2 + 1e-3)
+            self.assertLess(outside.BoundBox.ZMax, 3.2 + 1.7 + 0.4)
         printed = [b for b in fab().bricks(f) if b.Kind == "printed"]
         self.assertEqual(sorted(b.BrickId for b in printed), sorted(part.BrickIds))
         self.assertTrue(all(not b.Visibility and b.PrintedPart == "P1" for b in printed))
@@ -391,6 +396,203 @@ class TestFabrication(FabrickatorTestCase):
         self.assertTrue(all(b.PartNumber in {"3024", "3023", "3623", "3710", "3666", "3460", "3022",
                                              "3021", "3020", "3795", "3034"}
                             for b in fab().bricks(f)))
+
+
+def near(lo, hi, region, margin=(8.0, 8.0, 9.6)) -> bool:
+    """Whether the box lo..hi lies within ``margin`` (one brick) of the box ``region``."""
+    return all(hi[n] > region[0][n] - margin[n] - 1e-6 and lo[n] < region[1][n] + margin[n] + 1e-6
+               for n in range(3))
+
+
+def same_placement(a, b, tol=1e-9) -> bool:
+    return (a.Base - b.Base).Length <= tol and all(abs(x - y) <= tol
+                                                    for x, y in zip(a.Rotation.Q, b.Rotation.Q))
+
+
+class TestIteration(FabrickatorTestCase):
+    """Design iteration (issue 6): a parametric edit of the Source keeps the layout where
+    nothing changed, highlights the new bricks, shows the removed ones as ghosts and
+    marks only the printed parts to reprint."""
+
+    #: The edit: the Pad of a 40 x 24 x 19.2 mm Body grows to 28.8 mm.
+    TALLER = 28.8
+    EDITED = ((0.0, 0.0, 19.2), (40.0, 24.0, 28.8))
+
+    def raise_pad(self, boxes=()):
+        body, _, pad = padded_body(self.doc)
+        f = fab().make_fabrication(body, slice_print_times=False)
+        for box in boxes:
+            fab().mark_high_res(f, box=box)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(fab().ghosts(f), [])
+        self.assertFalse(any(b.Changed for b in fab().bricks(f)))
+        before = {b.BrickId: (b.Name, b.PartNumber, App.Placement(b.Placement))
+                  for b in fab().bricks(f)}
+        pad.Length = self.TALLER
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        return f, before
+
+    def test_taller_pad_highlights_the_added_bricks_near_the_edit_and_ghosts_the_removed(self):
+        from FabrickatorWorkbench.objects.tree import HIGHLIGHT_COLOUR
+
+        f, before = self.raise_pad()
+        changes = fab().report(f)["changes"]
+        self.assertEqual(changes["transform"]["method"], "identity")
+        added = {e["id"] for e in changes["add"]}
+        taken = {e["id"] for e in changes["take_off"]}
+        bricks = fab().bricks(f)
+        highlighted = {b.BrickId for b in bricks if b.Changed}
+        self.assertTrue(added)
+        self.assertEqual(highlighted, added)
+        self.assertEqual(f.BricksChanged, len(added))
+        self.assertLess(len(added), len(bricks))
+        self.assertEqual(len(covered_cells(f)), f.Plates)
+        self.assertEqual(f.Plates, 5 * 3 * 9)
+        for b in bricks:
+            green = tuple(round(c, 3) for c in b.LinkedObject.Color[:3]) == tuple(
+                round(round(c * 255) / 255, 3) for c in HIGHLIGHT_COLOUR)
+            self.assertEqual(green, b.Changed, b.Label)
+            if b.Changed:
+                self.assertTrue(near(*cell_box(f, b), self.EDITED), (b.Label, cell_box(f, b)))
+            else:
+                name, part, where = before[b.BrickId]
+                self.assertEqual((b.Name, b.PartNumber), (name, part))
+                self.assertTrue(same_placement(b.Placement, where), b.Label)
+        self.assertEqual(f.BricksKept, len(bricks) - len(added))
+        self.assertEqual(changes["bricks_kept"], f.BricksKept)
+        ghosts = fab().ghosts(f)
+        self.assertEqual({g.BrickId for g in ghosts}, taken)
+        self.assertEqual(len(ghosts), len(taken))
+        for g in ghosts:
+            self.assertNotIn(g, bricks)
+            name, part, where = before[g.BrickId]
+            self.assertEqual(g.LinkedObject.PartNumber, part)
+            self.assertTrue(same_placement(g.Placement, where), g.Label)
+            self.assertIsNone(self.doc.getObject(name))
+        lines = list(f.Changes)
+        self.assertEqual([line.split(":")[0] for line in lines], ["take off", "add", "reprint", "keep"])
+        self.assertIn(f"{len(added)} brick(s)", lines[1])
+        self.assertIn(f"{len(taken)} brick(s)" if taken else "no brick", lines[0])
+
+        path = self.path("iterated.FCStd")
+        self.doc.saveAs(path)
+        App.closeDocument(self.doc.Name)
+        self.doc = App.openDocument(path)
+        f = fab().fabrications(self.doc)[0]
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
+        self.assertEqual({g.BrickId for g in fab().ghosts(f)}, taken)
+        self.assertEqual({b.BrickId for b in fab().bricks(f) if b.Changed}, added)
+        self.assertEqual(list(f.Changes), lines)
+
+        sketch = self.doc.getObject("Sketch")
+        before = {b.BrickId: (b.Name, b.PartNumber, App.Placement(b.Placement))
+                  for b in fab().bricks(f)}
+        sketch.setDatum("Length", App.Units.Quantity("32 mm"))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        changes = fab().report(f)["changes"]
+        taken = {e["id"] for e in changes["take_off"]}
+        self.assertTrue(taken)
+        ghosts = fab().ghosts(f)
+        self.assertEqual({g.BrickId for g in ghosts}, taken)
+        self.assertEqual(len(ghosts), len(taken))
+        for g in ghosts:
+            name, part, where = before[g.BrickId]
+            self.assertEqual(g.LinkedObject.PartNumber, part)
+            self.assertTrue(same_placement(g.Placement, where), g.Label)
+            self.assertTrue(near(*cell_box(f, g), ((32.0, 0.0, 0.0), (40.0, 24.0, 28.8))), g.Label)
+        self.assertEqual({b.BrickId for b in fab().bricks(f) if b.Changed},
+                         {e["id"] for e in changes["add"]})
+        for b in fab().bricks(f):
+            if not b.Changed:
+                self.assertEqual(before[b.BrickId][0], b.Name)
+        self.assertEqual(len(covered_cells(f)), f.Plates)
+
+        names = {b.BrickId: b.Name for b in fab().bricks(f)}
+        self.assertTrue(fab().recompute(f))
+        self.assertEqual(fab().ghosts(f), [])
+        self.assertFalse(any(b.Changed for b in fab().bricks(f)))
+        self.assertEqual({b.BrickId: b.Name for b in fab().bricks(f)}, names)
+        self.assertEqual(f.Changes[:2], ["take off: no brick", "add: no brick"])
+        self.assertEqual([g.Name for g in f.Contents if "Removed" in g.Label], [])
+
+    def test_printed_part_away_from_the_edit_is_not_reprinted(self):
+        f, _ = self.raise_pad(boxes=[(0, 0, 0, 8, 8, 3.2), (32, 16, 16, 40, 24, 19.2)])
+        taken = {e["id"] for e in fab().report(f)["changes"]["take_off"]}
+        self.assertTrue(taken)
+        self.assertEqual({g.BrickId for g in fab().ghosts(f)}, taken)
+        parts = {p.PartId: p for p in fab().printed_parts(f)}
+        self.assertEqual(sorted(parts), ["P1", "P2"])
+        bottom = next(p for p in parts.values() if p.Shape.BoundBox.ZMax < 9.6)
+        top = next(p for p in parts.values() if p is not bottom)
+        self.assertFalse(bottom.Reprint)
+        self.assertEqual(bottom.Label, bottom.PartId)
+        self.assertTrue(top.Reprint)
+        self.assertEqual(top.Label, f"{top.PartId} (reprint)")
+        self.assertGreater(top.Shape.BoundBox.ZMax, 19.2)
+        self.assertEqual(fab().report(f)["changes"]["parts_reprinted"], [top.PartId])
+        self.assertEqual(f.Changes[2], f"reprint: {top.PartId}")
+        self.assertIn(f"printed part(s) {bottom.PartId} as printed", f.Changes[3])
+        self.assertFalse(any(b.Changed for b in fab().bricks(f) if b.PrintedPart == bottom.PartId))
+
+    def test_clear_changes_takes_the_marks_away(self):
+        f, _ = self.raise_pad()
+        highlighted = [b for b in fab().bricks(f) if b.Changed]
+        self.green = {b.LinkedObject.Name for b in highlighted}
+        self.assertEqual(fab().clear_changes(f), len(highlighted))
+        self.assertEqual(fab().ghosts(f), [])
+        self.assertFalse(any(b.Changed for b in fab().bricks(f)))
+        self.assertTrue(highlighted)
+        self.assertTrue(all(b.LinkedObject.PartNumber == b.PartNumber for b in highlighted))
+        self.assertEqual({b.LinkedObject.Name for b in highlighted} & self.green, set())
+        self.assertEqual(list(f.Changes), [])
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
+
+    def test_a_new_version_of_a_watched_file_iterates_its_fabrication(self):
+        import trimesh
+
+        folder = Path(self.path("watched"))
+        folder.mkdir()
+        block = trimesh.creation.box((48.0, 32.0, 9.6))
+        block.apply_translation(-block.bounds[0])
+        block.export(folder / "bracket.stl")
+        source, (f,), new = fab().feed_file(folder / "bracket.stl", self.doc)
+        self.assertTrue(new)
+        self.doc.recompute()
+        self.assertEqual(f.Plates, 6 * 4 * 3)
+        kept = {b.BrickId: b.Name for b in fab().bricks(f)}
+        longer = trimesh.creation.box((64.0, 32.0, 9.6))
+        longer.apply_translation(-longer.bounds[0])
+        longer.export(folder / "bracket_v2.stl")
+        again, fabs, new = fab().feed_file(folder / "bracket_v2.stl", self.doc)
+        self.assertFalse(new)
+        self.assertEqual((again, fabs), (source, [f]))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(f.Plates, 8 * 4 * 3)
+        self.assertEqual(len(fab().fabrications(self.doc)), 1)
+        changes = fab().report(f)["changes"]
+        self.assertEqual(changes["transform"]["method"], "identity")
+        self.assertEqual({b.BrickId for b in fab().bricks(f) if b.Changed},
+                         {e["id"] for e in changes["add"]})
+        for b in fab().bricks(f):
+            if not b.Changed:
+                self.assertEqual(kept.get(b.BrickId), b.Name)
+        self.assertEqual(f.BricksKept, changes["bricks_kept"])
+        self.assertGreater(f.BricksKept, 0)
+        self.assertEqual(fab().model_name("bracket (1).stl"), "bracket")
+        self.assertEqual(fab().model_name("gear2.stl"), "gear2")
+        other, (g,), new = fab().feed_file(_copy(folder / "bracket.stl", folder / "gear.stl"),
+                                           self.doc)
+        self.assertTrue(new)
+        self.assertNotEqual(g, f)
+
+
+def _copy(a: Path, b: Path) -> Path:
+    b.write_bytes(a.read_bytes())
+    return b
 
 
 class TestDocument(FabrickatorTestCase):

@@ -111,3 +111,17 @@ def test_part_edits_split_and_merge_printed_bricks(wall_files):
     assert len(merged.printed) == 1 and sorted(merged.printed[0].bricks) == sorted(ids)
     with pytest.raises(InputError, match="op must be"):
         pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False, part_edits=[{"op": "glue"}])
+
+
+def test_a_seat_standing_through_the_floor_is_anchored(tmp_path):
+    floor = cq.Workplane("XY").box(48.0, 48.0, 6.4, centered=(True, True, False))
+    seat = cq.Workplane("XY").circle(6.0).circle(1.7).extrude(25.6)
+    step = tmp_path / "seat.step"
+    cq.exporters.export(floor.union(seat), str(step))
+    box = "-7,-7,0,7,7,26"
+    fab = pipeline.run(step, high_res=[box], slice_parts=False)
+    assert fab.stability.components == 1
+    assert pipeline.report(fab)["high_res"]["anchor_cells"] > 0
+    assert fab.printed[0].complete_studs
+    loose = pipeline.run(step, high_res=[box], slice_parts=False, connectors=False)
+    assert loose.stability.components > 1

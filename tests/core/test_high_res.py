@@ -71,3 +71,29 @@ def test_as_box_takes_text_six_numbers_or_corners():
     for bad in ([1, 2, 3], "a,b", [[0, 0, 0], [1, 1, 0]]):
         with pytest.raises(InputError):
             as_box(bad)
+
+
+def _floor_and_column() -> tuple[Grid, np.ndarray]:
+    """A 6x6 floor two layers thick with a 2x2 column through all 8 layers, the column marked."""
+    filled = np.zeros((6, 6, 8), dtype=bool)
+    filled[:, :, :2] = True
+    filled[2:4, 2:4, :] = True
+    marked = np.zeros_like(filled)
+    marked[2:4, 2:4, :] = True
+    return Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), marked
+
+
+def test_anchor_adds_a_tab_under_the_lego_next_to_a_sideways_only_region():
+    grid, marked = _floor_and_column()
+    out = high_res.anchor(grid, marked)
+    tab = out & ~marked
+    assert np.array_equal(np.flatnonzero(tab.any(axis=(0, 1))), [0])
+    assert tab[:, :, 0].sum() == 4
+    assert {tuple(c) for c in np.argwhere(tab[:, :, 0])} == {(1, 3), (4, 3), (3, 1), (3, 4)}
+    assert not (out & ~grid.filled).any()
+
+
+def test_anchor_leaves_regions_that_already_touch_lego_vertically():
+    grid, marked = _floor_and_column()
+    marked[:, :, :1] = False
+    assert np.array_equal(high_res.anchor(grid, marked), marked & grid.filled)

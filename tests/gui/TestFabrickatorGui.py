@@ -513,6 +513,50 @@ class TestAssembly(GuiTestCase):
         self.assertFalse(any(b.ViewObject.OverrideMaterial for b in lego))
 
 
+class TestIteration(GuiTestCase):
+    def test_pad_edit_highlights_changed_bricks_and_ghosts_removed_ones(self):
+        f = self.fabrication()
+        body, sketch, pad = (self.doc.getObject(n) for n in ("Body", "Sketch", "Pad"))
+        colour = {b.BrickId: tuple(b.LinkedObject.ViewObject.ShapeColor[:3]) for b in fab().bricks(f)}
+        pad.Length = 28.8
+        sketch.setDatum("Length", App.Units.Quantity("32 mm"))
+        self.doc.recompute()
+        settle()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        changes = fab().report(f)["changes"]
+        bricks = fab().bricks(f)
+        changed = [b for b in bricks if b.Changed]
+        unchanged = [b for b in bricks if not b.Changed]
+        self.assertEqual({b.BrickId for b in changed}, {e["id"] for e in changes["add"]})
+        self.assertTrue(changed and unchanged)
+
+        def shown(b):
+            return tuple(round(c, 3) for c in b.LinkedObject.ViewObject.ShapeColor[:3])
+
+        lego = {shown(b) for b in unchanged}
+        for b in changed:
+            self.assertNotIn(shown(b), lego, b.Label)
+        for b in unchanged:  # unchanged bricks look as before the edit
+            self.assertEqual(tuple(b.LinkedObject.ViewObject.ShapeColor[:3]), colour[b.BrickId])
+        ghosts = fab().ghosts(f)
+        self.assertEqual({g.BrickId for g in ghosts}, {e["id"] for e in changes["take_off"]})
+        self.assertTrue(ghosts)
+        for g in ghosts:
+            self.assertTrue(g.ViewObject.OverrideMaterial)
+            self.assertGreater(g.ViewObject.ShapeMaterial.Transparency, 0.5)
+            self.assertTrue(g.Visibility)
+        group = Gui.getDocument(self.doc.Name).getObject(f.Name)
+        self.assertIn(ghosts[0].InList[0], group.claimChildren())
+        body.ViewObject.Visibility = False
+        fit()
+        self.assertGreater(screenshot("iteration").stat().st_size, 0)
+        Gui.Selection.addSelection(f)
+        fab().clear_changes(f)
+        settle()
+        self.assertEqual(fab().ghosts(f), [])
+        self.assertFalse(any(b.Changed for b in fab().bricks(f)))
+
+
 class TestHeadlessDocument(GuiTestCase):
     def test_document_made_without_gui_opens_with_view_providers_and_colours(self):
         path = self.tmp / "headless.FCStd"
