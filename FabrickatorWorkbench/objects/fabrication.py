@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, Stateless, ensure
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -105,7 +105,7 @@ PROPERTIES = (
 )
 
 
-class Fabrication:
+class Fabrication(Stateless):
     """Proxy of a Fabrication object; its recompute runs the core pipeline."""
 
     def __init__(self, obj):
@@ -134,18 +134,6 @@ class Fabrication:
     def execute(self, obj):
         from FabrickatorWorkbench.objects import fabricate
         fabricate.recompute(obj)
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
 
 
 def is_fabrication(obj) -> bool:

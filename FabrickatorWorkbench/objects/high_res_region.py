@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, Stateless, ensure
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -43,7 +43,7 @@ PROPERTIES = (
 )
 
 
-class HighResRegion:
+class HighResRegion(Stateless):
     """Proxy of a high-res region; its Shape shows what it marks."""
 
     def __init__(self, obj):
@@ -58,18 +58,6 @@ class HighResRegion:
 
     def execute(self, obj):
         obj.Shape = region_shape(obj)
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
 
 
 def boxes(obj) -> list[tuple[float, ...]]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, Stateless, ensure
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -47,7 +47,7 @@ PROPERTIES = (
 )
 
 
-class PrintedPart:
+class PrintedPart(Stateless):
     """Proxy of a PrintedPart; the shape is set by its Fabrication."""
 
     def __init__(self, obj):
@@ -62,15 +62,3 @@ class PrintedPart:
 
     def execute(self, obj):
         """Nothing to compute: the Fabrication writes the shape."""
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None

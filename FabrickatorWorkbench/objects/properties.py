@@ -40,3 +40,20 @@ def ensure(obj, props) -> list[str]:
         if p.mode != NORMAL:
             obj.setEditorMode(p.name, p.mode)
     return added
+
+
+class Stateless:
+    """Base of proxies (objects and view providers) that keep nothing of their own:
+    everything lives in the object's properties, so nothing is serialised."""
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from FabrickatorWorkbench.objects.properties import Stateless
 from FabrickatorWorkbench.viewproviders import icon
 
 
-class ViewProvider:
+class ViewProvider(Stateless):
     """Base of Fabrickator's Python view providers."""
 
     ICON = "Fabrickator"
@@ -19,15 +20,3 @@ class ViewProvider:
 
     def getIcon(self):
         return icon(self.ICON)
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
