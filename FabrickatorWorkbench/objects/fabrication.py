@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, Stateless, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -105,27 +105,23 @@ PROPERTIES = (
 )
 
 
-class Fabrication(Stateless):
+class Fabrication(FeatureProxy):
     """Proxy of a Fabrication object; its recompute runs the core pipeline."""
 
-    def __init__(self, obj):
-        obj.Proxy = self
-        self.ensure_properties(obj)
+    PROPERTIES = PROPERTIES
 
     def ensure_properties(self, obj) -> None:
-        """Add what is missing (idempotent)."""
-        ensure(obj, PROPERTIES)
+        """Add what is missing (idempotent), with the preferred cell size."""
+        super().ensure_properties(obj)
         if obj.CellSize.Length == 0:
             from FabrickatorWorkbench.objects.fabricate import cell_size
             obj.CellSize = cell_size()
 
     def onDocumentRestored(self, obj):
-        self.ensure_properties(obj)
+        super().onDocumentRestored(obj)
         if App.GuiUp:
             from FabrickatorWorkbench.objects import prototype, tree
-            from FabrickatorWorkbench.viewproviders import attach_missing
             from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
-            attach_missing(obj)
             for proto in tree.prototypes(obj.Document):
                 prototype.apply_colour(proto)
             for ghost in tree.ghosts(obj):

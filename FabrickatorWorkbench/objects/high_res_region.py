@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, Stateless, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, FeatureProxy
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -43,18 +43,10 @@ PROPERTIES = (
 )
 
 
-class HighResRegion(Stateless):
+class HighResRegion(FeatureProxy):
     """Proxy of a high-res region; its Shape shows what it marks."""
 
-    def __init__(self, obj):
-        obj.Proxy = self
-        ensure(obj, PROPERTIES)
-
-    def onDocumentRestored(self, obj):
-        ensure(obj, PROPERTIES)
-        if App.GuiUp:
-            from FabrickatorWorkbench.viewproviders import attach_missing
-            attach_missing(obj)
+    PROPERTIES = PROPERTIES
 
     def execute(self, obj):
         obj.Shape = region_shape(obj)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import FreeCAD as App
 
-from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, Stateless, ensure
+from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -47,18 +47,10 @@ PROPERTIES = (
 )
 
 
-class PrintedPart(Stateless):
+class PrintedPart(FeatureProxy):
     """Proxy of a PrintedPart; the shape is set by its Fabrication."""
 
-    def __init__(self, obj):
-        obj.Proxy = self
-        ensure(obj, PROPERTIES)
-
-    def onDocumentRestored(self, obj):
-        ensure(obj, PROPERTIES)
-        if App.GuiUp:
-            from FabrickatorWorkbench.viewproviders import attach_missing
-            attach_missing(obj)
+    PROPERTIES = PROPERTIES
 
     def execute(self, obj):
         """Nothing to compute: the Fabrication writes the shape."""

@@ -57,3 +57,27 @@ class Stateless:
 
     def __setstate__(self, state):
         return None
+
+
+class FeatureProxy(Stateless):
+    """Base of the FeaturePython proxies: the subclass's ``PROPERTIES`` are added
+    on creation and again on restore (``__init__`` is not called then), and a
+    restored object gets its view provider when the GUI is up."""
+
+    PROPERTIES: tuple = ()
+
+    def __init__(self, obj):
+        obj.Proxy = self
+        self.ensure_properties(obj)
+
+    def ensure_properties(self, obj) -> None:
+        """Add what is missing (idempotent)."""
+        ensure(obj, self.PROPERTIES)
+
+    def onDocumentRestored(self, obj):
+        import FreeCAD as App
+
+        self.ensure_properties(obj)
+        if App.GuiUp:
+            from FabrickatorWorkbench.viewproviders import attach_missing
+            attach_missing(obj)
