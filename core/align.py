@@ -199,16 +199,13 @@ def brep_sides(shape) -> Sides:
     from OCP.BRepGProp import BRepGProp
     from OCP.GeomAbs import GeomAbs_Plane
     from OCP.GProp import GProp_GProps
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
+    from OCP.TopAbs import TopAbs_REVERSED
+
+    from core.brick_solids import face_list
 
     normals, centroids, areas = [], [], []
     total = 0.0
-    explorer = TopExp_Explorer(shape, TopAbs_FACE)
-    while explorer.More():
-        face = TopoDS.Face_s(explorer.Current())
-        explorer.Next()
+    for face in face_list(shape):
         props = GProp_GProps()
         BRepGProp.SurfaceProperties_s(face, props)
         total += props.Mass()

@@ -315,15 +315,11 @@ def _face_table(shape) -> _Faces:
     from OCP.BRepBndLib import BRepBndLib
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
+
+    from core.brick_solids import face_list
 
     kind, area, centroid, boxes, faces = [], [], [], [], []
-    explorer = TopExp_Explorer(shape, TopAbs_FACE)
-    while explorer.More():
-        face = TopoDS.Face_s(explorer.Current())
-        explorer.Next()
+    for face in face_list(shape):
         props = GProp_GProps()
         BRepGProp.SurfaceProperties_s(face, props)
         c = props.CentreOfMass()
