@@ -166,8 +166,9 @@ def _summary(doc: dict, out) -> None:
     if doc["printed_parts"]:
         pt = doc["print_time_s"] or {}
         print(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
-              f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts "
-              f"+ {doc['assembly_s']} s assembly: speed-up {doc['speedup']}")
+              f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
+              f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
+              f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
     ch = doc.get("changes")
     if ch:
         t = ch["transform"]

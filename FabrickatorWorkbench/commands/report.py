@@ -51,7 +51,11 @@ def summary(fab) -> list[str]:
                      f"{_time(times['printed_parts'])} + assembly {_time(doc['assembly_s'])} "
                      f"({times['method']})")
     if doc.get("speedup"):
-        lines.append(f"speed-up {doc['speedup']:.2f}x over printing the whole part")
+        gains = doc["speedups"]
+        printing = f"{gains['printing']:.2f}x" if gains.get("printing") else "nothing to print"
+        lines.append(f"speed-up {doc['speedup']:.2f}x over printing the whole part, building the "
+                     f"LEGO while the parts print (printing alone {printing}; building after "
+                     f"printing {gains['sequential']:.2f}x)")
     return lines
 
 

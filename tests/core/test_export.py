@@ -70,6 +70,12 @@ def test_cli_high_res_box_on_the_demo_makes_parts(tmp_path):
     assert doc["bricks"]["printed"] == len(part["bricks"]) > 0
     assert doc["print_time_s"]["method"].startswith("estimate")
     assert doc["speedup"] > 0 and doc["assembly_s"] > 0
+    split, pt = doc["assembly_split_s"], doc["print_time_s"]
+    assert split["lego"] + split["insert_printed_parts"] == pytest.approx(doc["assembly_s"], abs=0.1)
+    assert doc["fabrication_s"] == pytest.approx(
+        max(pt["printed_parts"], split["lego"]) + split["insert_printed_parts"], abs=0.2)
+    assert doc["speedup"] == pytest.approx(pt["full_model"] / doc["fabrication_s"], rel=1e-3)
+    assert doc["speedups"]["sequential"] <= doc["speedup"] == doc["speedups"]["fabrication"]
     layout = json.loads((out / "layout.json").read_text())
     kinds = {b["id"]: (b["kind"], b["printed_part"]) for b in layout["bricks"]}
     assert all(kinds[i] == ("printed", "P1") for i in part["bricks"])

@@ -1,0 +1,54 @@
+"""Tests of the time model of core.pipeline: assembly split, fabrication time and speed-ups."""
+
+from types import SimpleNamespace
+
+import pytest
+
+from core import pipeline
+from core.print_time import PrintEstimate
+
+
+def _fab(lego: int, parts: int, full_s: float, parts_s: float | None, iteration=None):
+    bricks = [SimpleNamespace(kind="lego", printed_part=None) for _ in range(lego)]
+    for p in range(parts):
+        bricks += [SimpleNamespace(kind="printed", printed_part=f"P{p + 1}") for _ in range(3)]
+    return SimpleNamespace(
+        layout=SimpleNamespace(bricks=bricks), iteration=iteration,
+        seconds_per_brick=10.0, seconds_per_part=30.0,
+        print_full=None if parts_s is None else PrintEstimate(full_s, "test", None),
+        print_parts=None if parts_s is None else PrintEstimate(parts_s, "test", None))
+
+
+def test_printer_bound_fabrication_is_print_plus_insertion():
+    fab = _fab(lego=100, parts=2, full_s=36000.0, parts_s=3000.0)
+    assert pipeline.assembly_split(fab) == (1000.0, 60.0)
+    assert pipeline.assembly_seconds(fab) == 1060.0
+    assert pipeline.fabrication_seconds(fab) == 3060.0
+    gains = pipeline.speedups(fab)
+    assert gains["fabrication"] == pytest.approx(36000 / 3060)
+    assert gains["printing"] == pytest.approx(12.0)
+    assert gains["sequential"] == pytest.approx(36000 / 4060)
+
+
+def test_builder_bound_fabrication_is_building_plus_insertion():
+    fab = _fab(lego=600, parts=1, full_s=36000.0, parts_s=1200.0)
+    assert pipeline.fabrication_seconds(fab) == 6000.0 + 30.0
+    gains = pipeline.speedups(fab)
+    assert gains["fabrication"] == pytest.approx(36000 / 6030)
+    assert gains["fabrication"] >= gains["sequential"]
+
+
+def test_nothing_printed_and_not_sliced():
+    fab = _fab(lego=50, parts=0, full_s=9000.0, parts_s=0.0)
+    assert pipeline.fabrication_seconds(fab) == 500.0
+    assert pipeline.speedups(fab)["printing"] == float("inf")
+    unsliced = _fab(lego=50, parts=1, full_s=0.0, parts_s=None)
+    assert pipeline.fabrication_seconds(unsliced) is None and pipeline.speedups(unsliced) is None
+
+
+def test_iteration_counts_the_rework_only():
+    changes = {"take_off": [{"kind": "lego"}, {"kind": "printed"}], "add": [{"kind": "lego"}] * 3}
+    iteration = SimpleNamespace(changes=changes, reprinted=["P2"])
+    fab = _fab(lego=300, parts=2, full_s=20000.0, parts_s=900.0, iteration=iteration)
+    assert pipeline.assembly_split(fab) == (40.0, 30.0)
+    assert pipeline.fabrication_seconds(fab) == 930.0
