@@ -17,7 +17,11 @@ the part, and only what changed is rebuilt and reprinted.
   3. **High-res marks** carry over: previous printed cells that are still
      filled, plus every connected piece of added cells that touches them
      (a lengthened nose piece stays printed), plus new ``high_res`` boxes
-     or solids (given in the new file's coordinates).
+     or solids (given in the new file's coordinates).  With ``connectors``,
+     every marked region that differs from the previous printed parts and
+     touches LEGO only sideways gets *anchor tabs* as in a fresh run
+     (:func:`core.high_res.anchor`, :func:`_anchor`), so its printed part
+     clamps; regions that are a previous part unchanged get none.
   4. **Keep** every previous brick whose cells are all still filled and
      whose kind (LEGO / printed) still fits the marks; a printed part is
      kept whole or not at all (not when a freed marked cell touches it).
@@ -295,6 +299,7 @@ class Iteration:
     seed: int
     rings: int
     timings_s: dict[str, float] = field(default_factory=dict)
+    marks: dict = field(default_factory=dict)
 
 
 def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, ...] = CATALOG,
@@ -306,8 +311,12 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
     ``high_res`` boxes ("X0,Y0,Z0,X1,Y1,Z1" or (2, 3) arrays) and
     ``high_res_solids`` (files in ``units``/``scale``) are in the new
     file's coordinates and mark cells in addition to the carried-over
-    marks.  Promises: the layout covers every filled cell of the new grid
-    exactly once; every kept brick has its previous id, part, size and
+    marks; unless ``connectors`` is False, marked regions that changed get
+    anchor tabs (:func:`_anchor`).  ``marks`` of the result are counted as
+    a fresh run's (``marked_cells``: cells to print before the tabs,
+    carried-over ones included; ``anchor_cells``: tab cells added).
+    Promises: the layout covers every filled cell of the new grid exactly
+    once; every kept brick has its previous id, part, size and
     (shifted) cell; every printed part not in ``reprinted`` is either the
     previous print itself (same bricks, surface unchanged around it) or was
     cut again and differs from the previous print by at most
@@ -332,7 +341,8 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
     grid, offset = diff_stage.legofy_on(previous.grid, aligned.mesh, aligned.watertight)
     cells = diff_stage.cell_diff(previous.grid, grid, offset)
     marked = _marks(previous, cells, high_res, high_res_solids, alignment.transform, units, scale)
-    plan = _keep(previous, cells, marked, allowed)
+    to_print = _anchor(previous, cells, marked) if connectors else marked
+    plan = _keep(previous, cells, to_print, allowed)
     changed = np.zeros((0, 2, 3))
     if plan.kept_parts:
         tol = SAME_SURFACE_MM + 4.0 * min(alignment.residual_mm, 1.0)
@@ -341,7 +351,7 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
 
     clock = time.perf_counter()
     progress(0.35, "layout of the changed neighbourhood")
-    layout, rings = _relayout(previous, grid, plan, marked, parts, seed)
+    layout, rings = _relayout(previous, grid, plan, to_print, parts, seed)
     timings["layout"] = _lap(clock)
 
     clock = time.perf_counter()
@@ -362,7 +372,9 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
                      layout=layout, stability=st, printed=made,
                      reprinted=[r["id"] for r in reprint_info if r["reprint"]],
                      connectors=links, changes=changes, parts=tuple(parts), seed=seed,
-                     rings=rings, timings_s=timings)
+                     rings=rings, timings_s=timings,
+                     marks={"marked_cells": int(np.count_nonzero(marked)),
+                            "anchor_cells": int(np.count_nonzero(to_print & ~marked))})
 
 
 def _lap(start: float) -> float:
@@ -399,6 +411,51 @@ def _marks(previous: Previous, cells: diff_stage.CellDiff, boxes, solids, transf
         marked |= voxelize.legofy(moved, cell=grid.cell, origin=grid.origin, shape=shape,
                                   closed=region.watertight).filled
     return marked & filled
+
+
+#: In-layer neighbourhood (x and y, not z): where an anchor tab touches its region.
+_LATERAL = np.zeros((3, 3, 3), dtype=bool)
+_LATERAL[:, :, 1] = ndimage.generate_binary_structure(2, 1)
+
+
+def _anchor(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray) -> np.ndarray:
+    """``marked`` plus the anchor tabs (:func:`core.high_res.anchor`) of the marked
+    regions that changed.
+
+    A region (6-connected marked cells) is unchanged when every cell of it
+    belongs to a previous printed part that is still whole (all its cells,
+    shifted into the new grid, filled and marked); such a region keeps the
+    tabs it had (or had not) and gets none now, so an iteration that marks
+    nothing new keeps every brick.  Every other region (new boxes or
+    solids, added pieces, parts that lost or gained cells) is anchored as
+    in a fresh run: tab cells next to it in one layer let a region that
+    touches LEGO only sideways reach under (or over) its LEGO neighbours.
+    Returns a new bool array.
+    """
+    grid = cells.grid
+    marked = np.asarray(marked, dtype=bool)
+    tabs = high_res.anchor(grid, marked) & ~marked
+    if not tabs.any():
+        return marked.copy()
+    shape = np.array(grid.shape)
+    members: dict[str | None, list[Brick]] = {}
+    for b in previous.layout.bricks:
+        if b.kind == "printed":
+            members.setdefault(b.printed_part, []).append(b)
+    whole = np.zeros(grid.shape, dtype=bool)
+    for bricks in members.values():
+        part = np.zeros(grid.shape, dtype=bool)
+        for b in bricks:
+            c = np.array(b.cell) - cells.offset
+            if not (np.all(c >= 0) and np.all(c + np.array(b.size) <= shape)):
+                break
+            part[tuple(slice(int(lo), int(lo + n)) for lo, n in zip(c, b.size))] = True
+        else:
+            if marked[part].all():
+                whole |= part
+    labels, _ = ndimage.label(marked, structure=stability_stage.FACE_STRUCTURE)
+    changed = np.isin(labels, np.unique(labels[marked & ~whole]))
+    return marked | (tabs & ndimage.binary_dilation(changed, structure=_LATERAL))
 
 
 @dataclass
@@ -721,7 +778,8 @@ def to_fabrication(iteration: Iteration, seconds_per_brick: float | None = None)
     from core import pipeline
     fab = pipeline.Fabrication(iteration.model, iteration.parts, iteration.grid, iteration.layout,
                                iteration.stability, iteration.seed, dict(iteration.timings_s),
-                               list(iteration.printed), connectors=iteration.connectors)
+                               list(iteration.printed), connectors=iteration.connectors,
+                               marks=dict(iteration.marks))
     if seconds_per_brick is not None:
         fab.seconds_per_brick = float(seconds_per_brick)
     return fab

@@ -14,7 +14,7 @@ import trimesh
 from cadquery import exporters
 from scipy.spatial.transform import Rotation
 
-from core import align, export, iterate, mesh_io, pipeline
+from core import align, export, high_res, iterate, mesh_io, pipeline
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -176,6 +176,88 @@ def test_openbot_hole_cut_through_the_floor(openbot, tmp_path):
     assert not removed & kept_ids
     assert min(b.id for b in it.layout.bricks if b.id not in {x.id for x in fab.layout.bricks}) > max(
         x.id for x in fab.layout.bricks)
+
+
+# --------------------------------------------------------------------------- OpenBot (B-rep, anchor tabs)
+
+#: A screw seat of the OpenBot chassis: a boss standing on the floor through
+#: every layer, so its cells touch LEGO only sideways (model mm).
+SCREW_SEAT = "-95,-42,0,-81,-28,29.5"
+
+
+@pytest.fixture(scope="module")
+def openbot_step(tmp_path_factory):
+    """The OpenBot chassis STEP, fabricated without marks, as a previous output folder."""
+    path = _model("openbot_body_bottom.step")
+    folder = tmp_path_factory.mktemp("openbot_step")
+    fab = pipeline.run(path, slice_parts=False)
+    assert not fab.printed
+    iterate.snapshot(fab, folder)
+    return path, fab, folder
+
+
+def _printed_cells(layout) -> set[tuple[int, int, int]]:
+    return {c for b in layout.bricks if b.kind == "printed" for c in _cells_of(b)}
+
+
+def _clamps_vertically(layout) -> bool:
+    """Some printed cell has a LEGO cell directly above or below it."""
+    lego = {c for b in layout.bricks if b.kind == "lego" for c in _cells_of(b)}
+    return any((i, j, k + d) in lego for i, j, k in _printed_cells(layout) for d in (-1, 1))
+
+
+def test_screw_seat_marked_later_gets_anchor_tabs_as_in_a_fresh_run(openbot_step, tmp_path):
+    """A region marked in an iteration that touches LEGO only sideways gets anchor
+    tabs like a fresh run's (core.high_res.anchor), so its printed part clamps;
+    without connectors no tabs are added and the part stays loose."""
+    path, base, folder = openbot_step
+    fresh = pipeline.report(pipeline.run(path, high_res=[SCREW_SEAT], slice_parts=False))
+    assert fresh["high_res"]["anchor_cells"] > 0
+    assert fresh["stability"]["components"] == fresh["stability"]["regions"]
+
+    fab = pipeline.run(path, high_res=[SCREW_SEAT], previous=folder, slice_parts=False)
+    doc = pipeline.report(fab)
+    it = fab.iteration
+    assert it.changes["transform"]["method"] == "identity"
+    assert it.changes["cells_added"] == it.changes["cells_removed"] == 0
+    assert it.changes["parts_reprinted"] == ["P1"] and [p.id for p in it.printed] == ["P1"]
+    marks = doc["high_res"]
+    assert marks["marked_cells"] > 0 and 0 < marks["anchor_cells"] <= 4
+    seat = {tuple(c) for c in np.argwhere(high_res.marked_cells(it.grid, [SCREW_SEAT]))}
+    tabs = _printed_cells(it.layout) - seat
+    assert len(tabs) == marks["anchor_cells"]
+    assert _clamps_vertically(it.layout)
+    assert doc["stability"]["components"] == doc["stability"]["regions"] == fresh["stability"]["regions"]
+    _covers_exactly(it)
+    _near_edit(it, high_res.parse_box(SCREW_SEAT))
+
+    loose = pipeline.run(path, high_res=[SCREW_SEAT], previous=folder, slice_parts=False,
+                         connectors=False)
+    doc = pipeline.report(loose)
+    assert doc["high_res"] == {"marked_cells": marks["marked_cells"], "anchor_cells": 0}
+    assert _printed_cells(loose.layout) == seat
+    assert not _clamps_vertically(loose.layout)
+    assert doc["stability"]["components"] > doc["stability"]["regions"]
+
+
+def test_printed_parts_are_kept_when_nothing_new_is_marked(openbot_step, tmp_path):
+    """Anchor tabs only matter where the marks change: iterating again, with no
+    new marks, adds no tabs and keeps every brick, both on the anchored version
+    and on one whose part was made loose without connectors."""
+    path, base, folder = openbot_step
+    for connectors in (True, False):
+        first = pipeline.run(path, high_res=[SCREW_SEAT], previous=folder, slice_parts=False,
+                             connectors=connectors)
+        assert (first.marks["anchor_cells"] > 0) == connectors
+        second_folder = tmp_path / f"first_{connectors}"
+        iterate.snapshot(first, second_folder)
+        again = pipeline.run(path, previous=second_folder, slice_parts=False)
+        ch = again.iteration.changes
+        assert again.marks == {"marked_cells": len(_printed_cells(first.layout)), "anchor_cells": 0}
+        assert ch["bricks_changed"] == ch["bricks_removed"] == 0
+        assert ch["bricks_kept"] == len(first.layout.bricks)
+        assert ch["parts_kept"] == ["P1"] and ch["parts_reprinted"] == []
+        assert again.stability.components == first.stability.components
 
 
 # --------------------------------------------------------------------------- HMD (B-rep, printed parts)
