@@ -57,6 +57,9 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--no-connectors", action="store_true",
                help="cut printed parts exactly, even where that cuts the studs and "
                           "sockets they clamp with")
+    fab.add_argument("--no-grid-fit", action="store_true",
+               help="keep the grid centred on the part instead of shifting it so that the "
+                          "high-res regions print the least")
     fab.add_argument("--no-picture", action="store_true", help="do not render layout.png")
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
     wat = sub.add_parser("watch", help="fabricate every new version of a model saved into a folder",
@@ -113,7 +116,8 @@ def main(argv: list[str] | None = None) -> int:
                                  clearance=args.clearance,
                                  seconds_per_brick=args.seconds_per_brick,
                                  seconds_per_part=args.seconds_per_part,
-                                 previous=args.previous, connectors=not args.no_connectors)
+                                 previous=args.previous, connectors=not args.no_connectors,
+                                 fit_grid=not args.no_grid_fit)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2

@@ -33,11 +33,6 @@ from core.model import Grid
 
 #: Extents within this (mm) of a whole number of cells get exactly that many.
 WHOLE_CELL_TOL_MM = 1e-6
-#: Vertex coordinates this close (mm) to a cell boundary of the previous lattice are
-#: put on it (times the model's size over 250 mm when larger): an STL stores
-#: float32, so a face that lay on a boundary comes back from a rotated re-export
-#: some 1e-5 mm off it, and legofy would count that as filling the next cell.
-LATTICE_SNAP_MM = 1e-4
 #: Triangles / faces whose corners (centroid, area) agree within this (mm) are the same.
 SAME_SURFACE_MM = 1e-3
 #: At most this many unmatched triangles are narrowed down to the places that differ
@@ -86,8 +81,8 @@ def legofy_on(previous: Grid, mesh: trimesh.Trimesh,
               closed: bool | None = None) -> tuple[Grid, np.ndarray]:
     """``mesh`` legofied on the lattice of ``previous``: the new grid and its offset.
 
-    Vertex coordinates within :data:`LATTICE_SNAP_MM` of a cell boundary
-    are first put on it (:func:`snap_to_lattice`).  The grid covers the
+    Vertex coordinates within :data:`core.voxelize.LATTICE_SNAP_MM` of a
+    cell boundary are first put on it (:func:`core.voxelize.snap_to_lattice`).  The grid covers the
     mesh's bounding box in whole cells of the previous lattice and is then
     cropped to its filled cells; returns ``(grid, offset)`` with previous
     index = new index + offset.  Raises :class:`InputError` when the mesh
@@ -95,7 +90,7 @@ def legofy_on(previous: Grid, mesh: trimesh.Trimesh,
     """
     cell = np.asarray(previous.cell, dtype=np.float64)
     origin = np.asarray(previous.origin, dtype=np.float64)
-    mesh = snap_to_lattice(mesh, origin, cell)
+    mesh = voxelize.snap_to_lattice(mesh, origin, cell)
     tol = WHOLE_CELL_TOL_MM / cell
     lo = np.floor((mesh.bounds[0] - origin) / cell + tol).astype(np.int64)
     hi = np.ceil((mesh.bounds[1] - origin) / cell - tol).astype(np.int64)
@@ -107,24 +102,6 @@ def legofy_on(previous: Grid, mesh: trimesh.Trimesh,
     a, b = idx.min(axis=0), idx.max(axis=0) + 1
     filled = np.ascontiguousarray(grid.filled[a[0]:b[0], a[1]:b[1], a[2]:b[2]])
     return Grid(origin=origin + (lo + a) * cell, cell=cell.copy(), filled=filled), lo + a
-
-
-def snap_to_lattice(mesh: trimesh.Trimesh, origin, cell) -> trimesh.Trimesh:
-    """``mesh`` (a copy when anything moves) with every vertex coordinate within
-    the snap tolerance of a lattice plane ``origin + n * cell`` put on that plane."""
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    if len(v) == 0:
-        return mesh
-    size = float(np.abs(v).max())
-    tol = LATTICE_SNAP_MM * max(1.0, size / 250.0)
-    rel = (v - origin) / cell
-    near = np.rint(rel)
-    close = np.abs(rel - near) * cell < tol
-    if not close.any():
-        return mesh
-    out = mesh.copy()
-    out.vertices = np.where(close, origin + near * cell, v)
-    return out
 
 
 def cell_diff(previous: Grid, grid: Grid, offset: np.ndarray) -> CellDiff:

@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from core import build_order, catalog, connectors as connectors_stage, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
+from core import build_order, catalog, connectors as connectors_stage, grid_fit, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
 from core import print_time as print_time_stage, stability as stability_stage, voxelize
 from core.brick_solids import BrickGeometry
 from core.errors import InputError
@@ -58,6 +58,7 @@ class Fabrication:
     iteration: object | None = None
     profile: str | None = None
     marks: dict = field(default_factory=dict)
+    fit: grid_fit.GridFit | None = None
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -79,7 +80,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
         connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART,
         previous: str | os.PathLike | None = None, part_edits=(),
-        profile: str | os.PathLike | None = None) -> Fabrication:
+        profile: str | os.PathLike | None = None, fit_grid: bool = True) -> Fabrication:
     """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
 
     ``parts`` restricts the brick set (see :func:`core.catalog.select`).
@@ -90,7 +91,9 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     the layout, which then keeps its bricks inside or outside the marked
     cells (:func:`core.high_res.lay_out_around`; brick ids refer to that
     layout) (:mod:`core.high_res`,
-    :mod:`core.printed`), with FDM ``clearance`` (mm, a diameter) and, unless
+    :mod:`core.printed`); unless ``fit_grid`` is False the grid is first
+    shifted in x and y so that the boxes and solids mark the least of the
+    model (:func:`core.grid_fit.fit`), with FDM ``clearance`` (mm, a diameter) and, unless
     ``connectors`` is False, studs and sockets kept where a printed part
     meets other bricks vertically (:mod:`core.connectors`) and anchor tabs
     added to regions that would touch LEGO only sideways
@@ -134,13 +137,20 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                         seconds_per_brick=float(seconds_per_brick),
                         seconds_per_part=float(seconds_per_part), slice_parts=slice_parts,
                         profile=profile)
-    grid = timed("legofy", 0.2, voxelize.legofy, model.mesh, closed=model.watertight)
+    boxes = [high_res_stage.as_box(b) for b in high_res]
+    fit = None
+    if fit_grid and (boxes or high_res_solids):
+        fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, boxes, high_res_solids, units=units,
+                    scale=scale, closed=model.watertight)
+    origin, shape = voxelize.grid_frame(model.mesh.bounds) if fit is None else (fit.origin, fit.shape)
+    grid = timed("legofy", 0.2, voxelize.legofy,
+                 voxelize.snap_to_lattice(model.mesh, origin, np.asarray(CELL_MM)),
+                 origin=origin, shape=shape, closed=model.watertight)
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
-    boxes = [high_res_stage.as_box(b) for b in high_res]
     marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
                    units=units, scale=scale)
     cells = high_res_stage.anchor(grid, marked) if connectors else marked
@@ -168,7 +178,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                       seconds_per_part=float(seconds_per_part), clearance=float(clearance),
                       profile=None if profile is None else str(profile),
                       marks={"marked_cells": int(np.count_nonzero(marked)),
-                             "anchor_cells": int(np.count_nonzero(cells & ~marked))})
+                             "anchor_cells": int(np.count_nonzero(cells & ~marked))}, fit=fit)
     if made and slice_parts:
         timed("print_time", 0.85, print_times, fab)
     return fab
@@ -328,7 +338,11 @@ def report(fab: Fabrication) -> dict:
             "origin_mm": [round(float(v), 6) for v in fab.grid.origin],
             "shape": list(fab.grid.shape),
             "cell_mm": [float(c) for c in fab.grid.cell],
-            "alignment": "z from the part's lowest point; x and y centred on the part's bounding box",
+            "alignment": "z from the part's lowest point; x and y centred on the part's bounding box"
+            if fab.fit is None or fab.fit.shift_mm == (0.0, 0.0) else
+            "z from the part's lowest point; x and y shifted from centred on the part's bounding "
+            "box so that the high-res regions mark the least of the model",
+            **({} if fab.fit is None else {"fit": fab.fit.to_json()}),
         },
         "plates": fab.grid.count,
         "bricks": {
@@ -455,7 +469,7 @@ def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm"
     ``printing`` are the high-res and iteration keywords of :func:`run` (``previous``, ``high_res``,
     ``high_res_solids``, ``high_res_bricks``, ``clearance``,
     ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``,
-    ``part_edits``, ``profile``).
+    ``part_edits``, ``profile``, ``fit_grid``).
     """
     _prepare_out(Path(out))
     fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress, **printing)

@@ -75,6 +75,12 @@ from core.model import CELL_MM, Grid
 EPS_MM = 1e-6
 #: An extent within this (mm) of a whole number of cells gets exactly that many.
 WHOLE_CELL_TOL_MM = 1e-6
+#: Vertex coordinates this close (mm) to a cell boundary of a grid are put on it
+#: by :func:`snap_to_lattice` (times the model's size over 250 mm when larger):
+#: an STL stores float32 and CAD tessellates in floats, so a face meant to lie on
+#: a boundary (a re-export, a wall at whole millimetres) comes back some 1e-5 mm
+#: off it, and legofy would count that as filling the next cell.
+LATTICE_SNAP_MM = 1e-4
 #: Sample point of each cell, in cells from the cell's min corner.
 SAMPLE_FRACTION = (0.5 + 0.1234567, 0.5 + 0.0765432, 0.5 + 0.1471)
 
@@ -108,6 +114,24 @@ def grid_frame(bounds: np.ndarray, cell=CELL_MM) -> tuple[np.ndarray, tuple[int,
     origin = b[0] - (counts * c - extent) / 2.0
     origin[2] = b[0, 2]
     return origin, tuple(int(n) for n in counts)
+
+
+def snap_to_lattice(mesh: trimesh.Trimesh, origin, cell) -> trimesh.Trimesh:
+    """``mesh`` (a copy when anything moves) with every vertex coordinate within
+    the snap tolerance of a lattice plane ``origin + n * cell`` put on that plane."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    if len(v) == 0:
+        return mesh
+    size = float(np.abs(v).max())
+    tol = LATTICE_SNAP_MM * max(1.0, size / 250.0)
+    rel = (v - origin) / cell
+    near = np.rint(rel)
+    close = np.abs(rel - near) * cell < tol
+    if not close.any():
+        return mesh
+    out = mesh.copy()
+    out.vertices = np.where(close, origin + near * cell, v)
+    return out
 
 
 def legofy(mesh: trimesh.Trimesh, cell=CELL_MM, origin=None, shape=None,

@@ -167,7 +167,7 @@ def run_core(obj) -> Result:
                           high_res=boxes, high_res_solids=solids,
                           clearance=float(obj.Clearance.Value),
                           seconds_per_brick=float(obj.SecondsPerBrick), slice_parts=True,
-                          progress=progress)
+                          progress=progress, fit_grid=bool(obj.FitGrid))
             kwargs["part_edits"] = [{"op": e["op"],
                                      "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
                                     for e in edits(obj)]

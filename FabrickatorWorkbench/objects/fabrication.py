@@ -27,7 +27,8 @@ ROLE = "Fabrication"
 
 #: Inputs the user edits; the last values that recomputed fine are kept in
 #: ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "Clearance", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes")
+PARAMETERS = ("BrickSet", "Clearance", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
+              "FitGrid")
 
 PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base",
@@ -51,6 +52,10 @@ PROPERTIES = (
     Prop("App::PropertyBool", "SlicePrintTimes", "Fabrication",
          QT("App::Property", "Slice the whole part and the printed parts with PrusaSlicer on "
                              "recompute (slower); otherwise print times are estimated"), False),
+    Prop("App::PropertyBool", "FitGrid", "Fabrication",
+         QT("App::Property", "Shift the grid (up to one stud in x and y) so that the high-res "
+                             "regions print the least; off: the grid is centred on the part"),
+         True),
     Prop("App::PropertyBool", "KeepLayout", "Fabrication",
          QT("App::Property", "When only the Source changed, keep the previous layout wherever "
                              "the part did not change and reprint only changed printed parts"),

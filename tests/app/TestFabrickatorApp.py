@@ -279,9 +279,10 @@ class TestFabrication(FabrickatorTestCase):
         self.assertGreater(part.Shape.Volume, 100.0)
         self.assertAlmostEqual(part.Shape.Volume, part.VolumeMm3, delta=1e-3 * part.VolumeMm3)
         # Full height, so it touches LEGO only sideways: anchor tabs in the bottom layer
-        # reach under the LEGO beside it, and only their studs (connectors) leave the part.
+        # reach under the LEGO beside it, and only their studs and sockets (connectors)
+        # leave the model, all within the bottom layer and its studs.
         outside = part.Shape.cut(source.Shape)
-        self.assertLess(outside.Volume, 0.05 * part.Shape.Volume)
+        self.assertLess(outside.Volume, 0.1 * part.Shape.Volume)
         if outside.Volume > 1e-6:
             self.assertLess(outside.BoundBox.ZMin, 3.2 + 1e-3)
             self.assertLess(outside.BoundBox.ZMax, 3.2 + 1.7 + 0.4)
