@@ -51,6 +51,7 @@ test: $(VENV)/.installed
 bench: examples/build/hmd.step
 	$(PY) bench/bench.py
 	$(PY) bench/bench_printed.py
+	$(PY) bench/bench_grid_fit.py
 	$(PY) bench/bench_merge.py
 	$(PY) bench/bench_instructions.py
 	$(PY) bench/bench_iterate.py
