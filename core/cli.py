@@ -167,6 +167,11 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
+    fit = doc["grid"].get("fit")
+    if fit and any(fit["shift_mm"]):
+        vol = fit["marked_model_mm3"]
+        print(f"grid shifted {fit['shift_mm'][0]:g}, {fit['shift_mm'][1]:g} mm in x, y: the high-res "
+              f"cells hold {vol['fitted']:.0f} mm³ of the part instead of {vol['centred']:.0f}")
     if doc["printed_parts"]:
         pt = doc["print_time_s"] or {}
         print(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "

@@ -102,3 +102,27 @@ def test_iterating_on_a_fitted_grid_changes_nothing_when_the_part_did_not(tmp_pa
     changes = doc["changes"]
     assert changes["cells_added"] == changes["cells_removed"] == changes["bricks_changed"] == 0
     assert changes["parts_reprinted"] == []
+
+
+def test_cli_says_how_the_grid_moved_and_no_grid_fit_keeps_it_centred(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    path = tmp_path / "block.stl"
+    _block().export(path)
+    box = "--high-res=" + ",".join(str(v) for v in PLATE.ravel())
+    env = {"FABRICKATOR_SLICER": "none", "PATH": "/usr/bin:/bin"}
+    runs = {}
+    for name, extra in (("fitted", []), ("centred", ["--no-grid-fit"])):
+        out = tmp_path / name
+        run = subprocess.run([sys.executable, "-m", "core", "fabricate", str(path), "--out", str(out),
+                              box, "--no-picture", "--quiet", *extra],
+                             cwd=ROOT, capture_output=True, text=True, env=env)
+        assert run.returncode == 0, run.stderr
+        runs[name] = (run.stdout, json.loads((out / "report.json").read_text()))
+    stdout, doc = runs["fitted"]
+    assert "grid shifted" in stdout and doc["grid"]["fit"]["shift_mm"][1] < 0
+    stdout, doc = runs["centred"]
+    assert "grid shifted" not in stdout and "fit" not in doc["grid"]
+    assert "centred" in doc["grid"]["alignment"]
