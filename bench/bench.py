@@ -123,8 +123,9 @@ def main() -> int:
     for path in paths:
         rows.append(bench_model(path, args.time_limit))
         print(f"  measured {path.name}", file=sys.stderr)
+    order = ["load s", "grid_fit s", "legofy s", "high_res s", "layout s", "stability s"]
     stage_cols = sorted({k for r in rows for k in r if k.endswith(" s") and k != "total s"},
-                        key=["load s", "legofy s", "layout s", "stability s"].index)
+                        key=lambda k: (order.index(k) if k in order else len(order), k))
     columns = (["model", "triangles", "cells", "bricks", "bricks/cell", "components/regions",
                 "weak", "weak (leaf only)"] + stage_cols + ["total s", "lower bound", "lb optimal", "ratio"])
     ok = [r for r in rows if "error" not in r]
