@@ -14,7 +14,7 @@ The measure is sampled, not exact: the model is legofied
 around the regions, whose boundaries include every candidate's cell
 boundaries, so each fine cell lies in exactly one cell of each candidate.
 A candidate's cost is the fine model cells inside the cells it marks (boxes
-as :func:`core.high_res.box_cells` marks them; region solids legofied on
+as :func:`core.high_res.box_range` marks them; region solids legofied on
 the same fine grid, a cell marked when it holds one of their fine cells).
 The shift from the centred frame (:func:`core.voxelize.grid_frame`) is
 kept unless another saves more than :data:`MIN_GAIN` of its cost.
@@ -28,7 +28,7 @@ import numpy as np
 import trimesh
 
 from core import mesh_io, voxelize
-from core.high_res import EPS_MM, as_box
+from core.high_res import as_box, box_range
 from core.model import CELL_MM
 
 #: Shift step in x and y (mm); every shift 0, 1, ..., 7 mm of the 8 mm pitch is tried.
@@ -127,10 +127,7 @@ def _marked_volume(origin: np.ndarray, cell: np.ndarray, boxes, centres, index, 
     keys = np.stack([coarse[a][index[a]] for a in range(3)], axis=1)
     hit = np.zeros(len(keys), dtype=bool)
     for box in boxes:
-        rel = (box - origin) / cell
-        eps = EPS_MM / cell
-        first = np.floor(rel[0] + eps).astype(np.int64)
-        stop = np.ceil(rel[1] - eps).astype(np.int64)
+        first, stop = box_range(origin, cell, box)
         hit |= np.all((keys >= first) & (keys < stop), axis=1)
     if len(marked_fine[0]):
         touched = np.unique(np.stack([coarse[a][marked_fine[a]] for a in range(3)], axis=1), axis=0)

@@ -63,13 +63,21 @@ def as_box(value) -> np.ndarray:
     return parse_box(",".join(repr(float(v)) for v in flat) if flat.size == 6 else repr(value))
 
 
+def box_range(origin, cell, box) -> tuple[np.ndarray, np.ndarray]:
+    """Cell indices ``first`` (inclusive) and ``stop`` (exclusive) per axis of the cells of
+    the lattice ``origin + n * cell`` that share positive volume with ``box`` ((2, 3) mm);
+    not clipped to any grid."""
+    cell = np.asarray(cell, dtype=np.float64)
+    rel = (np.asarray(box, dtype=np.float64) - origin) / cell
+    eps = EPS_MM / cell
+    return np.floor(rel[0] + eps).astype(np.int64), np.ceil(rel[1] - eps).astype(np.int64)
+
+
 def box_cells(grid: Grid, box) -> np.ndarray:
     """Grid-shaped bool array: the cells that share positive volume with ``box`` ((2, 3) mm)."""
-    box = np.asarray(box, dtype=np.float64)
-    rel = (box - grid.origin) / grid.cell
-    eps = EPS_MM / grid.cell
-    lo = np.clip(np.floor(rel[0] + eps).astype(np.int64), 0, grid.shape)
-    hi = np.clip(np.ceil(rel[1] - eps).astype(np.int64), 0, grid.shape)
+    first, stop = box_range(grid.origin, grid.cell, box)
+    lo = np.clip(first, 0, grid.shape)
+    hi = np.clip(stop, 0, grid.shape)
     out = np.zeros(grid.shape, dtype=bool)
     out[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = True
     return out

@@ -259,11 +259,8 @@ def assembly_split(fab: Fabrication) -> tuple[float, float]:
     add, each reprinted part to insert.
     """
     if fab.iteration is None:
-        total = build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, fab.seconds_per_part)
-        parts = len({b.printed_part for b in fab.layout.bricks
-                     if b.kind == "printed" and b.printed_part is not None})
-        insert = fab.seconds_per_part * parts
-        return total - insert, insert
+        return (build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, 0.0),
+                build_order.assembly_seconds(fab.layout, 0.0, fab.seconds_per_part))
     ch = fab.iteration.changes
     moves = sum(1 for b in ch["take_off"] + ch["add"] if b.get("kind", "lego") == "lego")
     return fab.seconds_per_brick * moves, fab.seconds_per_part * len(fab.iteration.reprinted)
