@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from core import mesh_io, voxelize
-from core.high_res import as_box, box_range
+from core import voxelize
+from core.high_res import as_box, box_range, load_region
 from core.model import CELL_MM
 
 #: Shift step in x and y (mm); every shift 0, 1, ..., 7 mm of the 8 mm pitch is tried.
@@ -75,14 +75,14 @@ def fit(mesh: trimesh.Trimesh, boxes=(), solids=(), units: str = "mm", scale: fl
     """The grid frame whose high-res cells hold the least of the model (module docstring).
 
     ``boxes`` are (2, 3) arrays or "X0,..,Z1" strings (model mm), ``solids``
-    region files loaded like :func:`core.high_res.solid_cells` does.  With no
+    region files or loaded regions (:func:`core.high_res.load_region`).  With no
     region, or none near the model, it is the centred frame.  Raises
     InputError for a bad box or an unreadable region file.
     """
     c = np.asarray(cell, dtype=np.float64)
     base, base_shape = voxelize.grid_frame(mesh.bounds, c)
     boxes = [as_box(b) for b in boxes]
-    regions = [mesh_io.load_model(p, units=units, scale=scale) for p in solids]
+    regions = [load_region(p, units=units, scale=scale) for p in solids]
     extents = boxes + [r.mesh.bounds for r in regions]
     centred = GridFit(base, base_shape, (0.0, 0.0), 0.0, 0.0)
     if not extents:

@@ -83,16 +83,25 @@ def box_cells(grid: Grid, box) -> np.ndarray:
     return out
 
 
-def solid_cells(grid: Grid, path: str | os.PathLike, units: str = "mm",
+def load_region(region, units: str = "mm", scale: float = 1.0) -> mesh_io.LoadedModel:
+    """A region solid: ``region`` itself when already loaded, else the file loaded like a
+    model (:func:`core.mesh_io.load_model`); InputError for a file that cannot be loaded."""
+    if isinstance(region, mesh_io.LoadedModel):
+        return region
+    return mesh_io.load_model(region, units=units, scale=scale)
+
+
+def solid_cells(grid: Grid, path, units: str = "mm",
                 scale: float = 1.0) -> np.ndarray:
     """Grid-shaped bool array: the cells the region solid in file ``path`` shares volume with.
 
+    ``path`` may also be a region already loaded (:func:`load_region`).
     The solid is loaded like a model (:func:`core.mesh_io.load_model`) and
     legofied on the model's grid (same origin and shape), so the answer is
     exact in the same sense as legofy's.  Raises :class:`InputError` for a
     file that cannot be loaded.
     """
-    region = mesh_io.load_model(path, units=units, scale=scale)
+    region = load_region(path, units=units, scale=scale)
     return voxelize.legofy(region.mesh, cell=grid.cell, origin=grid.origin,
                            shape=np.array(grid.shape, dtype=np.int64),
                            closed=region.watertight).filled

@@ -138,9 +138,10 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                         seconds_per_part=float(seconds_per_part), slice_parts=slice_parts,
                         profile=profile)
     boxes = [high_res_stage.as_box(b) for b in high_res]
+    regions = [high_res_stage.load_region(p, units=units, scale=scale) for p in high_res_solids]
     fit = None
-    if fit_grid and (boxes or high_res_solids):
-        fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, boxes, high_res_solids, units=units,
+    if fit_grid and (boxes or regions):
+        fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, boxes, regions, units=units,
                     scale=scale, closed=model.watertight)
     origin, shape = voxelize.grid_frame(model.mesh.bounds) if fit is None else (fit.origin, fit.shape)
     grid = timed("legofy", 0.2, voxelize.legofy,
@@ -151,7 +152,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
     geometry = BrickGeometry(clearance=float(clearance))
     geometry.check(1)
-    marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, high_res_solids,
+    marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, regions,
                    units=units, scale=scale)
     cells = high_res_stage.anchor(grid, marked) if connectors else marked
     if cells.any():
