@@ -12,6 +12,7 @@ import time
 
 from core import __version__
 from core.errors import InputError
+from core.interfaces import Fit
 from core.mesh_io import UNITS
 
 
@@ -96,8 +97,12 @@ def _model_options(p: argparse.ArgumentParser) -> None:
                    help="box in model mm whose bricks become printed parts (repeatable; write --high-res=-5,... when it starts with a minus)")
     p.add_argument("--high-res-solid", action="append", default=[], metavar="FILE",
                    help="region solid (STL/STEP/...) whose bricks become printed (repeatable)")
-    p.add_argument("--clearance", type=float, default=0.1, metavar="MM",
-                   help="FDM clearance of printed studs and holes, a diameter (default 0.1)")
+    p.add_argument("--stud-fit", type=float, default=Fit.stud_fit, metavar="MM",
+                   help=f"printed studs are 4.8 + MM across (signed; default {Fit.stud_fit:+g}, "
+                        f"Ø{Fit().stud_diameter:g}); find your printer's value with calibration-strip")
+    p.add_argument("--socket-fit", type=float, default=Fit.socket_fit, metavar="MM",
+                   help=f"printed sockets are 4.8 + MM between the walls a real stud touches "
+                        f"(signed, negative is tighter; default {Fit.socket_fit:+g})")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -113,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
                                  seed=args.seed, parts=args.parts,
                                  picture=not args.no_picture, progress=progress,
                                  high_res=args.high_res, high_res_solids=args.high_res_solid,
-                                 clearance=args.clearance,
+                                 stud_fit=args.stud_fit, socket_fit=args.socket_fit,
                                  seconds_per_brick=args.seconds_per_brick,
                                  seconds_per_part=args.seconds_per_part,
                                  previous=args.previous, connectors=not args.no_connectors,
@@ -144,7 +149,8 @@ def _watch(args) -> int:
                                          seed=args.seed, parts=args.parts, progress=progress,
                                          high_res=args.high_res,
                                          high_res_solids=args.high_res_solid,
-                                         clearance=args.clearance, previous=previous)
+                                         stud_fit=args.stud_fit, socket_fit=args.socket_fit,
+                                         previous=previous)
             except InputError as err:
                 sys.stderr.write(f"error: {path.name}: {err}\n")
                 continue

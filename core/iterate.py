@@ -77,7 +77,7 @@ from core import connectors as connectors_stage
 from core import diff as diff_stage
 from core import high_res, layout as layout_stage, mesh_io, printed as printed_stage
 from core import stability as stability_stage, voxelize
-from core.brick_solids import BrickGeometry
+from core.interfaces import Fit
 from core.catalog import BY_NUMBER, CATALOG, Part
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
@@ -104,14 +104,14 @@ def _noop(fraction: float, message: str) -> None:
 # --------------------------------------------------------------------------- snapshot
 
 
-def snapshot(fab, folder: str | os.PathLike, clearance: float | None = None) -> Path:
+def snapshot(fab, folder: str | os.PathLike, fit: Fit | None = None) -> Path:
     """Write what a later iteration needs into ``folder/iteration/``; returns that folder.
 
     ``fab`` is a :class:`core.pipeline.Fabrication`.  Written: ``model.ply``
     (the repaired model mesh, mm), ``model.brep`` for B-rep input,
     ``parts/<id>.ply`` (and ``.brep``) per printed part, and ``state.json``
-    with the layout, its stability, the brick set, seed, ``clearance``
-    (when given) and every printed part's record (bricks, studs, tubes,
+    with the layout, its stability, the brick set, seed, the stud and
+    socket ``fit`` (when given) and every printed part's record (bricks, studs, tubes,
     clamp cells, engraving).
     """
     out = Path(folder) / SNAPSHOT_DIR
@@ -136,7 +136,7 @@ def snapshot(fab, folder: str | os.PathLike, clearance: float | None = None) -> 
                       "weak_points": list(st.weak_points)},
         "brick_set": [p.number for p in fab.parts],
         "seed": fab.seed,
-        "clearance": None if clearance is None else float(clearance),
+        "fit": None if fit is None else dataclasses.asdict(fit),
         "printed": records,
     }
     (out / "state.json").write_text(json.dumps(state))
@@ -304,7 +304,7 @@ class Iteration:
 
 def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, ...] = CATALOG,
             seed: int = 0, high_res=(), high_res_solids=(), units: str = "mm", scale: float = 1.0,
-            clearance: float = BrickGeometry.clearance, connectors: bool = True,
+            fit: Fit = Fit(), connectors: bool = True,
             progress: Progress | None = None) -> Iteration:
     """The new version ``model`` as an iteration on ``previous`` (module docstring, steps 1-6).
 
@@ -325,8 +325,7 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
     """
     progress = progress or _noop
     timings: dict[str, float] = {}
-    geometry = BrickGeometry(clearance=float(clearance))
-    geometry.check(1)
+    fit = fit.check()
     allowed = {p.number for p in parts}
 
     clock = time.perf_counter()
@@ -356,7 +355,7 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
 
     clock = time.perf_counter()
     progress(0.6, "printed parts")
-    made, reprint_info, links = _printed(previous, layout, plan, aligned, changed, geometry,
+    made, reprint_info, links = _printed(previous, layout, plan, aligned, changed, fit,
                                          connectors)
     timings["printed_parts"] = _lap(clock)
 
@@ -580,19 +579,19 @@ def _kept_clamp(previous: Previous, plan: _Plan, grid: Grid) -> tuple[np.ndarray
     return printed_stage.clamp_masks(Layout(grid, []), kept)
 
 
-def _part_region(grid: Grid, bricks: list[Brick], geometry: BrickGeometry) -> np.ndarray:
+def _part_region(grid: Grid, bricks: list[Brick], fit: Fit) -> np.ndarray:
     """Boxes (n, 2, 3) mm around each brick of a printed part, its studs and a margin."""
     out = []
     for b in bricks:
         lo = grid.origin + np.array(b.cell) * grid.cell - PART_MARGIN_MM
         hi = grid.origin + (np.array(b.cell) + np.array(b.size)) * grid.cell + PART_MARGIN_MM
-        hi[2] += geometry.stud_height
+        hi[2] += fit.stud_height
         out.append([lo, hi])
     return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
 
 
 def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.LoadedModel,
-             changed: np.ndarray, geometry: BrickGeometry, connectors: bool):
+             changed: np.ndarray, fit: Fit, connectors: bool):
     """Printed parts of the new layout: kept, rebuilt or new (step 5).
 
     Returns (parts, one reprint record per part, connectors of all parts).
@@ -606,7 +605,7 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
     all_groups = list(kept_groups.values()) + [g for _, g in named]
     if not all_groups:
         return [], [], None
-    links = connectors_stage.find(layout, all_groups if connectors else [], geometry)
+    links = connectors_stage.find(layout, all_groups if connectors else [])
     rebuild: list[tuple[str, list[int], str | None]] = []
     made: dict[str, printed_stage.PrintedPart] = {}
     shift = -plan.offset
@@ -616,13 +615,14 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
         why = None
         if old is None:
             why = "no previous print on record"
-        elif diff_stage.boxes_meet(changed, _part_region(layout.grid, bricks, geometry)):
+        elif diff_stage.boxes_meet(changed, _part_region(layout.grid, bricks, fit)):
             why = "the model's surface changed at the part"
-        elif connectors and (_connector_cells(layout, group, geometry)
-                             != _connector_cells(previous.layout, group, geometry, shift)):
+        elif connectors and (_connector_cells(layout, group)
+                             != _connector_cells(previous.layout, group, shift)):
             why = "bricks above or below it changed, so its connectors change"
-        elif previous.state.get("clearance") not in (None, geometry.clearance):
-            why = "the printing clearance changed"
+        elif previous.state.get("fit") != dataclasses.asdict(fit):
+            why = ("the stud and socket fit changed" if previous.state.get("fit")
+                   else "printed before its studs and sockets were made to fit (an earlier version)")
         if why is None:
             made[pid] = _shifted_part(old, shift)
         else:
@@ -632,12 +632,9 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
                      "symmetric_difference_mm3": 0.0} for pid in made}
     if rebuild:
         source = printed_stage.model_solid(model)
-        build_links = connectors_stage.find(layout, [g for _, g, _ in rebuild] if connectors else [],
-                                            geometry)
-        source = connectors_stage.with_connectors(source, build_links)
         for pid, group, why in rebuild:
-            part = printed_stage.build_part(pid, [index[i] for i in group], layout, source, geometry)
-            connectors_stage.mark_grip([part], build_links)
+            part = printed_stage.build_part(pid, [index[i] for i in group], layout, source, fit,
+                                            links=None, connectors=connectors)
             made[pid] = part
             records[pid] = _compare(previous.parts.get(pid), part, why)
     printed_stage.apply(layout, list(made.values()))
@@ -645,10 +642,10 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
     return [made[p] for p in order], [records[p] for p in order], links
 
 
-def _connector_cells(layout: Layout, group: list[int], geometry: BrickGeometry,
+def _connector_cells(layout: Layout, group: list[int],
                      shift=(0, 0, 0)) -> tuple[frozenset, frozenset]:
     """The top and bottom connector cells of one printed group, moved by ``shift``."""
-    found = connectors_stage.find(layout, [group], geometry)
+    found = connectors_stage.find(layout, [group])
     s = np.asarray(shift, dtype=np.int64)
     return (frozenset(map(tuple, (found.top + s).tolist())),
             frozenset(map(tuple, (found.bottom + s).tolist())))

@@ -21,8 +21,8 @@ from typing import Callable
 import numpy as np
 
 from core import build_order, catalog, connectors as connectors_stage, grid_fit, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
+from core.interfaces import Fit
 from core import print_time as print_time_stage, stability as stability_stage, voxelize
-from core.brick_solids import BrickGeometry
 from core.errors import InputError
 from core.model import CELL_MM, Grid, Layout
 
@@ -54,7 +54,7 @@ class Fabrication:
     seconds_per_brick: float = SECONDS_PER_BRICK
     connectors: connectors_stage.Connectors | None = None
     seconds_per_part: float = SECONDS_PER_PART
-    clearance: float = BrickGeometry.clearance
+    interface: Fit = field(default_factory=Fit)
     iteration: object | None = None
     profile: str | None = None
     marks: dict = field(default_factory=dict)
@@ -76,7 +76,8 @@ def _noop(fraction: float, message: str) -> None:
 
 def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: int = 0,
         parts: str | None = None, progress: Progress | None = None, high_res=(),
-        high_res_solids=(), high_res_bricks=(), clearance: float = BrickGeometry.clearance,
+        high_res_solids=(), high_res_bricks=(), stud_fit: float = Fit.stud_fit,
+        socket_fit: float = Fit.socket_fit,
         seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
         connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART,
         previous: str | os.PathLike | None = None, part_edits=(),
@@ -93,9 +94,11 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     layout) (:mod:`core.high_res`,
     :mod:`core.printed`); unless ``fit_grid`` is False the grid is first
     shifted in x and y so that the boxes and solids mark the least of the
-    model (:func:`core.grid_fit.fit`), with FDM ``clearance`` (mm, a diameter) and, unless
-    ``connectors`` is False, studs and sockets kept where a printed part
-    meets other bricks vertically (:mod:`core.connectors`) and anchor tabs
+    model (:func:`core.grid_fit.fit`); unless
+    ``connectors`` is False, a printed part gets a stud or a socket wherever it
+    meets another brick directly above or below (:mod:`core.connectors`,
+    :mod:`core.interfaces`; printed studs are 4.8 + ``stud_fit`` mm across,
+    sockets 4.8 + ``socket_fit`` mm between their walls) and anchor tabs
     added to regions that would touch LEGO only sideways
     (:func:`core.high_res.anchor`).  With
     printed parts and ``slice_parts``, the whole model and the plate of all
@@ -127,13 +130,14 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         return value
 
     model = timed("load", 0.0, mesh_io.load_model, path, units=units, scale=scale)
+    interface = Fit(stud_fit=stud_fit, socket_fit=socket_fit).check()
     for flag, value in (("--seconds-per-brick", seconds_per_brick), ("--seconds-per-part", seconds_per_part)):
         if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1e6):
             raise InputError(f"{flag} {value!r} must be a number of seconds >= 0")
     if previous is not None:
         return _iterate(previous, model, chosen, seed, timed, timings, progress, high_res=high_res,
                         high_res_solids=high_res_solids, units=units, scale=scale,
-                        clearance=float(clearance), connectors=connectors,
+                        fit=interface, connectors=connectors,
                         seconds_per_brick=float(seconds_per_brick),
                         seconds_per_part=float(seconds_per_part), slice_parts=slice_parts,
                         profile=profile)
@@ -150,8 +154,6 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
     if grid.count == 0:
         raise InputError(f"{Path(path).name}: the part fills no cell of the "
                          f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
-    geometry = BrickGeometry(clearance=float(clearance))
-    geometry.check(1)
     marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, regions,
                    units=units, scale=scale)
     cells = high_res_stage.anchor(grid, marked) if connectors else marked
@@ -165,18 +167,16 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
         groups = _edited(layout, high_res_stage.groups(layout, ids), part_edits)
         if groups:
-            source = printed_stage.model_solid(model)
-            links = connectors_stage.find(layout, groups if connectors else [], geometry)
-            source = timed("connectors", 0.6, connectors_stage.with_connectors, source, links)
+            source = timed("model_solid", 0.6, printed_stage.model_solid, model)
+            links = connectors_stage.find(layout, groups if connectors else [])
             made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
-                         source, geometry)
-            connectors_stage.mark_grip(made, links)
+                         source, interface, connectors)
             printed_stage.apply(layout, made)
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
                       seconds_per_brick=float(seconds_per_brick), connectors=links,
-                      seconds_per_part=float(seconds_per_part), clearance=float(clearance),
+                      seconds_per_part=float(seconds_per_part), interface=interface,
                       profile=None if profile is None else str(profile),
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))}, fit=fit)
@@ -192,7 +192,7 @@ def _iterate(previous, model, chosen, seed, timed, timings: dict, progress, slic
     before = timed("previous", 0.05, iterate_stage.load_previous, previous)
     it = iterate_stage.iterate(before, model, chosen, seed, progress=progress, **marks)
     fab = iterate_stage.to_fabrication(it, seconds_per_brick)
-    fab.seconds_per_part, fab.clearance, fab.iteration = seconds_per_part, marks["clearance"], it
+    fab.seconds_per_part, fab.interface, fab.iteration = seconds_per_part, marks["fit"], it
     fab.profile = None if profile is None else str(profile)
     if fab.printed and slice_parts:
         timed("print_time", 0.85, print_times, fab)
@@ -362,7 +362,7 @@ def report(fab: Fabrication) -> dict:
             "incomplete_studs": incomplete,
         },
         "high_res": dict(fab.marks),
-        "printed_parts": [_part_json(fab, p) for p in fab.printed],
+        "printed_parts": [p.to_json() for p in fab.printed],
         "print_time_s": None if full is None else {
             "full_model": round(full.seconds, 1),
             "printed_parts": round(plate.seconds, 1),
@@ -383,18 +383,6 @@ def report(fab: Fabrication) -> dict:
         "timings_s": dict(fab.timings_s),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
-
-
-def _part_json(fab: Fabrication, part: printed_stage.PrintedPart) -> dict:
-    """A printed part's report entry, with its connector counts (:mod:`core.connectors`)."""
-    doc = part.to_json()
-    if fab.connectors is not None:
-        index = {b.id: b for b in fab.layout.bricks}
-        cells = {(i + c[0], j + c[1], k + c[2]) for bid in part.bricks
-                 for c in [index[bid].cell] for i, j, k in np.ndindex(*index[bid].size)}
-        top, bottom = fab.connectors.count_for(cells)
-        doc["connectors"] = {"studs_kept": top, "sockets_kept": bottom}
-    return doc
 
 
 def _prepare_out(out: Path) -> None:
@@ -442,7 +430,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
                                        f"{len(fab.layout.bricks)} bricks")
         fab.timings_s["write"] = round(time.perf_counter() - start, 4)
         from core import iterate as iterate_stage
-        iterate_stage.snapshot(fab, tmp, clearance=fab.clearance)
+        iterate_stage.snapshot(fab, tmp, fit=fab.interface)
         if fab.iteration is not None:
             iterate_stage.changes_page(fab.iteration, tmp / "changes.html")
         doc = report(fab)
@@ -465,7 +453,7 @@ def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm"
     """Run the pipeline on ``path`` and write its outputs into ``out``; returns the report.
 
     ``printing`` are the high-res and iteration keywords of :func:`run` (``previous``, ``high_res``,
-    ``high_res_solids``, ``high_res_bricks``, ``clearance``,
+    ``high_res_solids``, ``high_res_bricks``, ``stud_fit``, ``socket_fit``,
     ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``,
     ``part_edits``, ``profile``, ``fit_grid``).
     """

@@ -1,44 +1,36 @@
-"""Printed parts: marked LEGO bricks intersected exactly with the user's part.
+"""Printed parts: the model inside the marked bricks, kept whole, plus studs and sockets.
 
-The paper's central idea ("Converting Lego bricks into 3D printable
-bricks", "Merging and splitting", "Detecting the completeness of knobs and
-tubes"):
+The paper printed each marked brick as the LEGO brick solid intersected
+with the model, which carves the brick's hollow underside into exactly the
+geometry the user marked as exact.  Here a printed part is
 
-* **Envelope.**  The bricks of one part are merged by
-  :func:`core.brick_solids.merged_solid` the paper's way, by removing
-  faces, not by a Boolean union: each brick is built with the sides it
-  shares with another brick of the part *flush* (on the cell boundary, no
-  play), without studs where a brick of the part stands on it and with a
-  solid underside where it stands on one, and with its faces split along
-  every rectangle where it touches another brick, so the two bricks have
-  one exactly coincident, tagged face there.  Those faces are dropped, the
-  rest is sewn into one closed solid and ``ShapeUpgrade_UnifySameDomain``
-  merges the coplanar pieces of the outer faces: a merged part has no
-  internal faces and no internal voids, and its volume is that of the
-  union of the bricks.  A Boolean fuse of the same brick solids is only the
-  fallback when sewing does not give one valid solid
-  (``PrintedPart.merge_method`` says which).  Splitting a part rebuilds
-  each piece from its own bricks, so the faces along the split come back.
-* **Intersection.**  Printed part = envelope ∩ model.  For B-rep input
-  (STEP, FCStd) this is ``BRepAlgoAPI_Common`` with the model's solid.  For
-  mesh input it is a manifold3d Boolean: the model mesh (converted to a
-  Manifold once per model, :func:`model_solid`) is first cropped to the
-  envelope's box, then intersected with the envelope's tessellation; the
-  result is exact with respect to the model mesh.
-* **Completeness.**  Studs, tubes, pins and cavities are *exposed* when no
-  brick of the same part covers them (a stud with a part brick above is
-  internal).  An exposed feature is complete when the intersection left it
-  whole.  With OCC this is read from the Common's history: the feature's
-  tagged faces (carried through the merge) must be neither modified (split)
-  nor deleted.  With manifold3d it is the equivalent from manifold's
-  provenance tracking: the triangles of the result that come from the
-  envelope (by mesh run / original id) are assigned to features by
-  position, and a feature is complete when it kept its whole area.
+    ((model ∩ envelope) ∪ connector material) − socket holes
+
+where the envelope is the part's cells (held back by LEGO's 0.1 mm play
+only on the sides that face a brick of another part), and the connector
+material, the studs and the socket holes exist only where the part meets a
+brick of another part directly above or below it (:mod:`core.connectors`
+finds those cells, :func:`core.interfaces.plan` lays the solids out).  No
+cavity anywhere else: over air, on the grid's bottom and over other bricks
+of the same part the model is kept exactly.
+
+* **B-rep models** (STEP, FCStd) are cut with OpenCascade (the part is an
+  exact solid: its STEP has true cylinders for the studs); **meshes** with
+  manifold3d.  A model of several solids or shells is first made one solid
+  (their union, :func:`model_solid`).
+* **Studs and sockets are complete by construction**: they are added after
+  the intersection, so the model cannot cut them.  ``studs`` / ``sockets``
+  of a part list them by cell; without connectors (``connectors=False``)
+  the same cells are listed as missing, so the stability check knows the
+  part does not clamp there.
+* **One solid.**  When the model inside the envelope falls into several
+  pieces, each loose piece is joined to the rest by the shortest bar that
+  stays inside the envelope (:data:`BAR_MM` square, reported in
+  ``joins``); when no such bar exists the part is refused in one line.
 """
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, field
 
@@ -46,20 +38,21 @@ import cadquery as cq
 import manifold3d as m3
 import numpy as np
 import trimesh
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
-from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
-from OCP.gp import gp_Pnt
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
+from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Shape
+from scipy.spatial import cKDTree
 
-from core import high_res
-from core.brick_solids import (SIDE_TAGS, BooleanFailed, BrickGeometry, merged_solid, part_contacts,
-                               run_boolean, to_trimesh)
+from core import connectors as connectors_stage, high_res, interfaces
+from core.brick_solids import SIDE_TAGS, BooleanFailed, run_boolean, to_trimesh
 from core.errors import InputError
+from core.interfaces import Fit
 from core.mesh_io import LoadedModel
 from core.model import Brick, Layout
 
@@ -77,18 +70,21 @@ ENGRAVE_OVERSHOOT_MM = 0.2
 ENGRAVE_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
 #: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
 SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
-#: Tolerance (mm) when assigning mesh triangles to studs, tubes and cavities.
-FEATURE_TOL_MM = 0.02
-#: Relative area a mesh feature may lose to rounding and still count as whole.
-AREA_RTOL = 1e-6
+#: Side (mm) of the square bar that joins a loose piece of a part to the rest.
+BAR_MM = 2.0
+#: Segments of a stud's circle in a mesh part (the B-rep part has a true cylinder).
+STUD_SEGMENTS = 96
+#: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
+CRUMB_MM3 = 1e-3
 
 
 @dataclass
 class ModelSolid:
-    """The model as the intersection sees it: an OCC solid or a manifold3d Manifold."""
+    """The model as a Boolean operand: an OCC solid (B-rep input) and always a
+    manifold3d Manifold of its closed mesh (to measure where the model is)."""
 
+    manifold: m3.Manifold
     brep: TopoDS_Shape | None = None
-    manifold: m3.Manifold | None = None
 
     @property
     def kind(self) -> str:
@@ -97,23 +93,22 @@ class ModelSolid:
 
 @dataclass
 class PrintedPart:
-    """One printed part: marked bricks merged and intersected with the model.
+    """One printed part: the model inside its bricks, with studs and sockets where it meets LEGO.
 
     ``bricks`` are layout brick ids, ``cells`` the number of 1x1 plate cells
     they cover; ``solid`` the OCC shape (B-rep input; None for mesh input,
     whose exact result is ``mesh``); ``mesh`` a watertight tessellation in
-    model mm; ``studs`` / ``tubes`` map feature names (``"<brick>:stud:a,b"``,
-    ``"<brick>:tube:a,b"``, ``"<brick>:pin:a"``, ``"<brick>:cavity"``) of the
-    exposed features to True when complete.  ``top_ok`` / ``bottom_ok`` map a
-    grid cell (i, j, k) of a brick's top / bottom layer to whether a brick
-    above / below can clamp there.  ``engraved`` says whether the id is cut
-    into a side; ``engraving`` is then a dict saying where (brick, side,
-    centre, outward normal, text size, font size, depth), else the reason
-    why not.  ``merge_method`` says how the bricks' envelope was merged
-    (:attr:`core.brick_solids.MergedSolid.method`: "single brick", "face
-    removal", or "fuse (...)" when face removal failed).  ``stl``, ``step``,
-    ``pose`` (the print orientation chosen by :func:`core.export.print_pose`)
-    and ``print_s`` are filled by export and print time.
+    model mm.  ``studs`` / ``sockets`` map ``"i,j,k"`` of each cell where
+    the part meets another brick above / below to True when a stud /
+    socket is there (False with connectors switched off).  ``top_ok`` /
+    ``bottom_ok`` map those grid cells (i, j, k) to the same, for the
+    stability check.  ``kept_mm3`` is the model's volume inside the
+    envelope (before studs and sockets), ``envelope_mm3`` the part's cells'
+    volume; ``joins`` the bars that join loose pieces.  ``engraved`` says
+    whether the id is cut into a side; ``engraving`` is then a dict saying
+    where (brick, side, centre, outward normal, text size, font size,
+    depth), else the reason why not.  ``stl``, ``step``, ``pose`` and
+    ``print_s`` are filled by export and print time.
     """
 
     id: str
@@ -123,11 +118,13 @@ class PrintedPart:
     mesh: trimesh.Trimesh
     volume_mm3: float
     studs: dict[str, bool] = field(default_factory=dict)
-    tubes: dict[str, bool] = field(default_factory=dict)
+    sockets: dict[str, bool] = field(default_factory=dict)
     top_ok: dict[tuple[int, int, int], bool] = field(default_factory=dict)
     bottom_ok: dict[tuple[int, int, int], bool] = field(default_factory=dict)
     pieces: int = 1
-    merge_method: str = "single brick"
+    kept_mm3: float = 0.0
+    envelope_mm3: float = 0.0
+    joins: list = field(default_factory=list)
     engraved: bool = False
     engraving: dict | str = "not engraved: engraving switched off"
     stl: str | None = None
@@ -144,23 +141,33 @@ class PrintedPart:
         return sorted(k for k, v in self.studs.items() if not v)
 
     @property
-    def complete_tubes(self) -> list[str]:
-        return sorted(k for k, v in self.tubes.items() if v)
-
-    @property
-    def incomplete_tubes(self) -> list[str]:
-        return sorted(k for k, v in self.tubes.items() if not v)
+    def engaged(self) -> dict:
+        """Studs and sockets engaged with the bricks above and below, and whether
+        that is enough to hold the part (two or more), with the reason when not."""
+        studs = sum(self.studs.values())
+        sockets = sum(self.sockets.values())
+        out = {"studs": int(studs), "sockets": int(sockets)}
+        if studs + sockets >= 2:
+            return {**out, "clamps": True}
+        if not self.studs and not self.sockets:
+            why = "no brick of another part lies directly above or below it (it touches them only sideways, or not at all)"
+        elif studs + sockets < len(self.studs) + len(self.sockets):
+            why = "studs and sockets are switched off (--no-connectors)"
+        else:
+            why = "it meets another brick above or below in only one cell"
+        return {**out, "clamps": False, "why": f"fewer than two studs and sockets engaged: {why}"}
 
     def to_json(self) -> dict:
         return {
             "id": self.id, "bricks": list(self.bricks), "cells": self.cells,
             "volume_mm3": round(self.volume_mm3, 3), "pieces": self.pieces,
-            "merge": self.merge_method,
+            "kept_mm3": round(self.kept_mm3, 3), "envelope_mm3": round(self.envelope_mm3, 3),
+            "joins": list(self.joins),
             "stl": self.stl, "step": self.step,
             "print_s": None if self.print_s is None else round(self.print_s, 1),
+            "engaged": self.engaged,
             "complete_studs": len(self.complete_studs),
             "incomplete_studs": self.incomplete_studs,
-            "incomplete_tubes": self.incomplete_tubes,
             "engraved": self.engraved,
             "engraving": self.engraving,
             "print_pose": self.pose,
@@ -168,18 +175,46 @@ class PrintedPart:
 
 
 def model_solid(model: LoadedModel) -> ModelSolid:
-    """The model as a Boolean operand: its B-rep when it has one, else its mesh as a Manifold.
+    """The model as one Boolean operand: the union of its solids (B-rep) or shells (mesh).
 
-    Raises :class:`InputError` when a mesh model is not a closed oriented
-    2-manifold (an open or self-touching mesh cannot be intersected exactly).
+    A mesh of several closed shells becomes their union (a shell inside
+    another that faces inward stays a cavity); a B-rep of several solids is
+    fused into one.  Raises :class:`InputError` when a mesh model is not a
+    closed oriented 2-manifold (an open or self-touching mesh cannot be
+    intersected exactly).
     """
-    if model.brep is not None:
-        return ModelSolid(brep=model.brep)
-    manifold = _manifold(model.mesh)
+    manifold = _union_of_shells(model.mesh)
     if manifold.status() != m3.Error.NoError or manifold.is_empty():
         raise InputError(f"{model.path}: the mesh is not a closed manifold solid "
                          f"({manifold.status().name}), so printed parts cannot be cut from it")
-    return ModelSolid(manifold=manifold)
+    brep = None
+    if model.brep is not None:
+        solids = _solids(model.brep)
+        if not solids:
+            raise InputError(f"{model.path}: the file has no solid to cut printed parts from")
+        brep = solids[0] if len(solids) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), solids[0], solids[1:]))
+    return ModelSolid(manifold=manifold, brep=brep)
+
+
+def _union_of_shells(mesh: trimesh.Trimesh) -> m3.Manifold:
+    """The closed ``mesh`` as one Manifold: its shells united, inward-facing shells subtracted."""
+    whole = _manifold(mesh)
+    if whole.status() != m3.Error.NoError:
+        return whole
+    shells = mesh.split(only_watertight=False)
+    if len(shells) <= 1:
+        return whole
+    outward = [_manifold(s) for s in shells if s.volume > 0]
+    inward = []
+    for shell in (s.copy() for s in shells if s.volume < 0):
+        shell.invert()
+        inward.append(_manifold(shell))
+    if not outward or any(m.status() != m3.Error.NoError for m in outward + inward):
+        return whole
+    union = m3.Manifold.batch_boolean(outward, m3.OpType.Add) if len(outward) > 1 else outward[0]
+    if inward:
+        union = union - m3.Manifold.batch_boolean(inward, m3.OpType.Add)
+    return m3.Manifold(union.to_mesh64())
 
 
 def merge(groups: list[list[int]], brick_ids) -> list[list[int]]:
@@ -197,12 +232,14 @@ def split(groups: list[list[int]], brick_ids) -> list[list[int]]:
     return [g for g in out if g] + [[i] for i in sorted(ids)]
 
 
-def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid,
-                geometry: BrickGeometry = BrickGeometry(), engrave: bool = True) -> list[PrintedPart]:
+def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit: Fit = Fit(),
+                connectors: bool = True, engrave: bool = True) -> list[PrintedPart]:
     """One :class:`PrintedPart` per group of brick ids, named P1, P2, ... in group order.
 
     Every group must be face-to-face connected (InputError otherwise), and
-    no brick may be in two groups.  Does not change ``layout``; see
+    no brick may be in two groups.  With ``connectors`` every cell where a
+    part meets a brick of another group or a LEGO brick directly above or
+    below gets a stud or a socket.  Does not change ``layout``; see
     :func:`apply`.
     """
     seen: set[int] = set()
@@ -214,25 +251,12 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid,
         if not high_res.is_connected(layout, g):
             raise InputError(f"bricks {sorted(g)[:8]} do not touch face to face; "
                              "a merged printed part must be one piece")
+    fit.check()
     by_id = {b.id: b for b in layout.bricks}
-    source = _settled(source)
-    return [build_part(f"P{n + 1}", [by_id[i] for i in sorted(g)], layout, source, geometry, engrave)
+    links = connectors_stage.find(layout, groups)
+    return [build_part(f"P{n + 1}", [by_id[i] for i in sorted(g)], layout, source, fit, links,
+                       connectors, engrave)
             for n, g in enumerate(groups)]
-
-
-def _settled(source: ModelSolid) -> ModelSolid:
-    """``source`` with a mesh model evaluated into a plain Manifold of its own.
-
-    manifold3d evaluates Booleans lazily; a model that is itself an
-    unevaluated Boolean (the model united with connector boxes) shared by
-    the intersections of several parts crashed manifold3d 3.0.1 (a
-    segmentation fault in ``to_mesh64``, the model relativty_hmd_body with
-    four parts), the crash manifold's issue #1378 describes.  Rebuilding
-    the model once from its evaluated mesh gives every part a leaf operand.
-    """
-    if source.kind != "mesh":
-        return source
-    return ModelSolid(manifold=m3.Manifold(source.manifold.to_mesh64()))
 
 
 def apply(layout: Layout, parts: list[PrintedPart]) -> None:
@@ -246,9 +270,9 @@ def apply(layout: Layout, parts: list[PrintedPart]) -> None:
 def clamp_masks(layout: Layout, parts: list[PrintedPart]) -> tuple[np.ndarray, np.ndarray]:
     """Grid-shaped bool arrays (studs_ok, bottom_ok) for :func:`core.stability.brick_graph`.
 
-    ``studs_ok`` is False at the top-layer cells of printed bricks whose stud
-    there is incomplete; ``bottom_ok`` False at bottom-layer cells of printed
-    bricks whose cavity or neighbouring tube/pin is cut; True elsewhere.
+    ``studs_ok`` is False at the top-layer cells of printed parts that meet
+    a brick above without a stud; ``bottom_ok`` False at bottom-layer cells
+    that stand on a brick without a socket; True elsewhere.
     """
     studs_ok = np.ones(layout.grid.shape, dtype=bool)
     bottom_ok = np.ones(layout.grid.shape, dtype=bool)
@@ -260,101 +284,237 @@ def clamp_masks(layout: Layout, parts: list[PrintedPart]) -> tuple[np.ndarray, n
     return studs_ok, bottom_ok
 
 
-@dataclass
-class _Member:
-    """One brick of a part, with its solid and what of it is exposed."""
-
-    brick: Brick
-    origin: np.ndarray
-    flush: tuple[str, ...]
-    studs: list[tuple[int, int]]
-    tubes: list[str]
-    cavity: bool
-    open_sides: dict[str, float]
-
-
 def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelSolid,
-               geometry: BrickGeometry = BrickGeometry(), engrave: bool = True) -> PrintedPart:
-    """The printed part made of ``bricks`` (one connected group of the layout): envelope ∩ model.
+               fit: Fit = Fit(), links: connectors_stage.Connectors | None = None,
+               connectors: bool = True, engrave: bool = True) -> PrintedPart:
+    """The printed part made of ``bricks`` (one connected group of the layout).
 
-    Promises: the result lies inside both the envelope and the model; its
-    mesh is watertight; ``studs``/``tubes`` say which exposed features are
-    complete; ``engraved`` says whether the id was cut into a side.  Raises
-    :class:`InputError` when nothing of the model lies in the bricks.
+    ``links`` are the connector cells of the layout's printed parts
+    (:func:`core.connectors.find`; found for ``bricks`` alone when None).
+    Promises: the result is one valid closed solid (its mesh watertight)
+    that equals the model inside the envelope except for the studs, the
+    sockets and the material that carries them (:func:`core.interfaces.plan`)
+    and the bars that join loose pieces; it lies inside the bricks' cells
+    but for the studs on top.  Raises :class:`InputError` when nothing of
+    the model lies in the bricks, or its pieces cannot be joined inside them.
     """
-    grid = layout.grid
-    if not np.allclose(grid.cell[:2], geometry.pitch) or not math.isclose(grid.cell[2], geometry.plate_height):
-        raise InputError("brick geometry pitch and plate height must match the grid cell size")
-    members = _members(bricks, layout, geometry)
-    merged = merged_solid([b.cell for b in bricks], [b.size for b in bricks], geometry, grid.origin,
-                          names=[b.id for b in bricks])
-    envelope, tagged = merged.shape, merged.tagged
-    if source.kind == "brep":
-        common = BRepAlgoAPI_Common()
-        result = _run(common, envelope, [source.brep])
-        cut = {}
-        for face, tag in tagged:
-            hit = common.IsDeleted(face) or common.Modified(face).Size() > 0
-            cut[tag] = cut.get(tag, False) or hit
-        solid = _unify(BRepBuilderAPI_Copy(result).Shape())
-        if _count_solids(solid) == 0:
-            raise InputError(f"printed part {part_id}: the model does not reach into its bricks")
-        mesh = to_trimesh(solid)
-    else:
-        solid = None
-        mesh, cut = _mesh_common(envelope, members, source.manifold, geometry)
-    part = _assemble(part_id, members, solid, mesh, cut)
-    part.merge_method = merged.method
-    if engrave:
-        _engrave(part, members, geometry)
-    return part
-
-
-def _members(bricks: list[Brick], layout: Layout, geometry: BrickGeometry) -> list[_Member]:
-    """Flush sides and exposed features of each brick of one part."""
     grid = layout.grid
     ids = {b.id for b in bricks}
     lab = layout.labels()
     id_of = np.array([b.id for b in layout.bricks] + [-1], dtype=np.int64)
-    part_of = np.isin(id_of[lab], list(ids))
-    nz = grid.shape[2]
+    mine = np.isin(id_of[lab], list(ids)) & (lab >= 0)
+    other = (lab >= 0) & ~mine
+    if links is None:
+        links = connectors_stage.find(layout, [sorted(ids)])
+    top = np.array([c for c in links.top.tolist() if mine[tuple(c)]], dtype=int).reshape(-1, 3)
+    bottom = np.array([c for c in links.bottom.tolist() if mine[tuple(c)]], dtype=int).reshape(-1, 3)
+    engine = _Brep(source.brep) if source.kind == "brep" else _Mesh(source.manifold)
+    lo_all = grid.origin + np.min([b.cell for b in bricks], axis=0) * grid.cell
+    hi_all = grid.origin + np.max([np.add(b.cell, b.size) for b in bricks], axis=0) * grid.cell
+    near = source.manifold ^ _cube(lo_all - 1.0, hi_all + 1.0)
+    layout_plan = interfaces.plan(grid.origin, grid.cell, mine, other,
+                                  [(b.cell, b.size) for b in bricks],
+                                  top if connectors else np.zeros((0, 3), int),
+                                  bottom if connectors else np.zeros((0, 3), int),
+                                  lambda lo, hi: _extent(near, lo, hi), fit)
+    envelope = engine.cut(engine.union([engine.box(lo, hi) for lo, hi in layout_plan.envelope]),
+                          [engine.box(lo, hi) for lo, hi in layout_plan.play])
+    kept = engine.common(envelope, lo_all - 1.0, hi_all + 1.0)
+    kept_mm3 = engine.volume(kept)
+    if kept_mm3 <= CRUMB_MM3:
+        raise InputError(f"printed part {part_id}: the model does not reach into its bricks")
+    kept, joins = _joined(part_id, engine, kept, envelope)
+    shape = engine.union([kept]
+                         + [engine.box(lo, hi) for lo, hi in layout_plan.fills]
+                         + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
+                            for x, y, z0, z1 in layout_plan.studs])
+    shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
+    shape = engine.only_solid(shape, part_id)
+    names = {tuple(c): ",".join(map(str, c)) for c in np.concatenate([top, bottom]).tolist()}
+    studs = {names[tuple(c)]: connectors for c in top.tolist()}
+    sockets = {names[tuple(c)]: connectors for c in bottom.tolist()}
+    part = PrintedPart(id=part_id, bricks=sorted(ids),
+                       cells=int(sum(np.prod(b.size) for b in bricks)),
+                       solid=shape if source.kind == "brep" else None,
+                       mesh=engine.mesh(shape), volume_mm3=engine.volume(shape),
+                       studs=studs, sockets=sockets,
+                       top_ok={tuple(c): connectors for c in top.tolist()},
+                       bottom_ok={tuple(c): connectors for c in bottom.tolist()},
+                       pieces=1, kept_mm3=kept_mm3,
+                       envelope_mm3=engine.volume(envelope), joins=joins)
+    if engrave:
+        _engrave(part, bricks, grid, mine, other, fit, engine)
+    return part
+
+
+def _extent(model: m3.Manifold, lo, hi) -> tuple[float, float] | None:
+    """(zmin, zmax) of ``model`` inside the box (lo, hi), None where it has no volume there."""
+    inside = model ^ _cube(lo, hi)
+    if inside.is_empty() or inside.volume() <= CRUMB_MM3:
+        return None
+    box = inside.bounding_box()
+    return float(box[2]), float(box[5])
+
+
+def _cube(lo, hi) -> m3.Manifold:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return m3.Manifold.cube(list(hi - lo)).translate(list(lo))
+
+
+def _joined(part_id: str, engine, kept, envelope):
+    """``kept`` with every loose piece joined to the largest by a straight bar of
+    :data:`BAR_MM` that lies inside ``envelope``; the bars as JSON.
+
+    Joins the pieces one at a time, the piece nearest to the growing whole
+    first.  Raises InputError when a piece cannot be reached inside the
+    envelope (its cells touch the others', but the straight bar between the
+    nearest points leaves them)."""
+    pieces = engine.pieces(kept)
+    if len(pieces) <= 1:
+        return kept, []
+    pieces.sort(key=engine.volume, reverse=True)
+    whole, rest, joins = pieces[0], pieces[1:], []
+    while rest:
+        target = _surface_points(engine.mesh(whole))
+        tree = cKDTree(target)
+        best = None
+        for n, piece in enumerate(rest):
+            points = _surface_points(engine.mesh(piece))
+            dist, idx = tree.query(points)
+            m = int(np.argmin(dist))
+            if best is None or dist[m] < best[0]:
+                best = (float(dist[m]), n, points[m], target[idx[m]])
+        gap, n, a, b = best
+        bar = engine.bar(a, b, BAR_MM)
+        if engine.volume(engine.cut(bar, [envelope])) > 1e-3 * engine.volume(bar):
+            raise InputError(f"printed part {part_id}: the model inside its bricks is "
+                             f"{len(pieces)} loose pieces that cannot be joined inside them; "
+                             f"mark a region that holds them together, or split the part")
+        whole = engine.union([whole, rest.pop(n), bar])
+        joins.append({"from_mm": [round(float(v), 3) for v in a], "to_mm": [round(float(v), 3) for v in b],
+                      "length_mm": round(gap, 3), "bar_mm": BAR_MM})
+    return whole, joins
+
+
+def _surface_points(mesh: trimesh.Trimesh, count: int = 4000) -> np.ndarray:
+    """Vertices and evenly spread surface samples of ``mesh`` (deterministic)."""
+    samples = trimesh.sample.sample_surface_even(mesh, count, seed=0)[0] if len(mesh.faces) else np.zeros((0, 3))
+    return np.concatenate([np.asarray(mesh.vertices), samples])
+
+
+class _Mesh:
+    """The part's Booleans on manifold3d Manifolds (mesh models)."""
+
+    def __init__(self, model: m3.Manifold):
+        self.model = model
+
+    def box(self, lo, hi) -> m3.Manifold:
+        return _cube(lo, hi)
+
+    def cylinder(self, x, y, z0, z1, r) -> m3.Manifold:
+        return m3.Manifold.cylinder(float(z1 - z0), float(r), -1.0, STUD_SEGMENTS).translate([x, y, z0])
+
+    def bar(self, a, b, side) -> m3.Manifold:
+        return _bar_hull(np.asarray(a), np.asarray(b), side)
+
+    def union(self, shapes):
+        return shapes[0] if len(shapes) == 1 else m3.Manifold.batch_boolean(shapes, m3.OpType.Add)
+
+    def cut(self, shape, tools):
+        return shape if not tools else shape - self.union(tools)
+
+    def common(self, envelope, lo, hi):
+        return m3.Manifold(((self.model ^ _cube(lo, hi)) ^ envelope).to_mesh64())
+
+    def volume(self, shape) -> float:
+        return float(shape.volume())
+
+    def pieces(self, shape) -> list:
+        return [p for p in shape.decompose() if p.volume() > CRUMB_MM3]
+
+    def only_solid(self, shape, part_id: str):
+        pieces = self.pieces(shape)
+        if len(pieces) != 1:
+            raise InputError(f"bug: printed part {part_id} came out as {len(pieces)} pieces")
+        return m3.Manifold(pieces[0].to_mesh64())
+
+    def mesh(self, shape) -> trimesh.Trimesh:
+        out = shape.to_mesh64()
+        mesh = trimesh.Trimesh(np.asarray(out.vert_properties, np.float64)[:, :3],
+                               np.asarray(out.tri_verts, np.int64), process=False)
+        mesh.merge_vertices()
+        return mesh
+
+
+def _bar_hull(a: np.ndarray, b: np.ndarray, side: float) -> m3.Manifold:
+    """The convex hull of two axis-aligned cubes of ``side`` centred on ``a`` and ``b``."""
+    corners = np.array(np.meshgrid(*[[-side / 2, side / 2]] * 3, indexing="ij")).reshape(3, -1).T
+    return m3.Manifold.hull_points(np.concatenate([a + corners, b + corners]).tolist())
+
+
+class _Brep:
+    """The part's Booleans on OpenCascade shapes (B-rep models)."""
+
+    def __init__(self, model: TopoDS_Shape):
+        self.model = model
+
+    def box(self, lo, hi) -> TopoDS_Shape:
+        return BRepPrimAPI_MakeBox(gp_Pnt(*map(float, lo)), gp_Pnt(*map(float, hi))).Shape()
+
+    def cylinder(self, x, y, z0, z1, r) -> TopoDS_Shape:
+        axis = gp_Ax2(gp_Pnt(float(x), float(y), float(z0)), gp_Dir(0, 0, 1))
+        return BRepPrimAPI_MakeCylinder(axis, float(r), float(z1 - z0)).Shape()
+
+    def bar(self, a, b, side) -> TopoDS_Shape:
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        axis = b - a
+        length = float(np.linalg.norm(axis))
+        direction = axis / length if length > 1e-9 else np.array([0.0, 0.0, 1.0])
+        frame = gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(*direction))
+        x, y = (np.array([v.X(), v.Y(), v.Z()]) for v in (frame.XDirection(), frame.YDirection()))
+        corner = a - direction * side / 2 - (x + y) * side / 2
+        return BRepPrimAPI_MakeBox(gp_Ax2(gp_Pnt(*corner), gp_Dir(*direction), gp_Dir(*x)),
+                                   side, side, length + side).Shape()
+
+    def union(self, shapes):
+        return shapes[0] if len(shapes) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:]))
+
+    def cut(self, shape, tools):
+        return shape if not tools else _unify(_run(BRepAlgoAPI_Cut(), shape, tools))
+
+    def common(self, envelope, lo, hi):
+        return _unify(_run(BRepAlgoAPI_Common(), self.model, [envelope]))
+
+    def volume(self, shape) -> float:
+        return float(cq.Shape.cast(shape).Volume()) if _solids(shape) else 0.0
+
+    def pieces(self, shape) -> list:
+        return [s for s in _solids(shape) if float(cq.Shape.cast(s).Volume()) > CRUMB_MM3]
+
+    def only_solid(self, shape, part_id: str):
+        pieces = self.pieces(shape)
+        if len(pieces) != 1 or not BRepCheck_Analyzer(pieces[0]).IsValid():
+            raise InputError(f"bug: printed part {part_id} came out as {len(pieces)} piece(s)"
+                             + ("" if len(pieces) != 1 else ", not a valid solid"))
+        return pieces[0]
+
+    def mesh(self, shape) -> trimesh.Trimesh:
+        return to_trimesh(shape)
+
+
+def _solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
     out = []
-    contacts = part_contacts([b.cell for b in bricks], [b.size for b in bricks], geometry, grid.origin)
-    for b, contact in zip(bricks, contacts):
-        i, j, k = b.cell
-        sx, sy, sz = b.size
-        above = part_of[i:i + sx, j:j + sy, k + sz] if k + sz < nz else np.zeros((sx, sy), bool)
-        below = part_of[i:i + sx, j:j + sy, k - 1] if k > 0 else np.zeros((sx, sy), bool)
-        studs = [(a, c) for a in range(sx) for c in range(sy) if not above[a, c]]
-        tubes = []
-        if sx >= 2 and sy >= 2:
-            tubes = [f"tube:{a},{c}" for a in range(sx - 1) for c in range(sy - 1)
-                     if not below[a:a + 2, c:c + 2].any()]
-        elif max(sx, sy) >= 2:
-            line = below.ravel()
-            tubes = [f"pin:{a}" for a in range(max(sx, sy) - 1) if not line[a:a + 2].any()]
-        origin = grid.origin + np.array(b.cell) * grid.cell
-        out.append(_Member(b, origin, contact.flush, studs, tubes,
-                           not below.all(), _open_sides(grid.filled, b)))
+    explorer = TopExp_Explorer(shape, TopAbs_SOLID)
+    while explorer.More():
+        out.append(explorer.Current())
+        explorer.Next()
     return out
 
 
-def _open_sides(filled: np.ndarray, b: Brick) -> dict[str, float]:
-    """Per outer side of brick ``b``, the fraction of the cells just across it that are
-    empty (1.0 at the grid's border): how visible that side is on the finished model."""
-    i, j, k = b.cell
-    sx, sy, sz = b.size
-    padded = np.pad(np.asarray(filled, dtype=bool), 1)
-    i, j, k = i + 1, j + 1, k + 1
-    across = {"side-x": padded[i - 1, j:j + sy, k:k + sz], "side+x": padded[i + sx, j:j + sy, k:k + sz],
-              "side-y": padded[i:i + sx, j - 1, k:k + sz], "side+y": padded[i:i + sx, j + sy, k:k + sz]}
-    return {side: float(1.0 - cells.mean()) for side, cells in across.items()}
-
-
-def _run(op, argument, tools, tagged: list | None = None, parallel: bool = True):
+def _run(op, argument, tools):
     """:func:`core.brick_solids.run_boolean` for a printed part; a failure is bad input."""
     try:
-        return run_boolean(op, argument, tools, tagged, parallel)
+        return run_boolean(op, argument, list(tools), None, True)
     except BooleanFailed:
         raise InputError("OpenCascade could not compute a printed part (Boolean failed)") from None
 
@@ -366,171 +526,36 @@ def _unify(shape: TopoDS_Shape) -> TopoDS_Shape:
     return unify.Shape()
 
 
-def _count_solids(shape: TopoDS_Shape) -> int:
-    explorer = TopExp_Explorer(shape, TopAbs_SOLID)
-    n = 0
-    while explorer.More():
-        n += 1
-        explorer.Next()
-    return n
+def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, other: np.ndarray,
+             fit: Fit, engine) -> None:
+    """Cut the part id ENGRAVE_DEPTH_MM deep into a flat vertical side where it fits.
 
-
-def _mesh_common(envelope: TopoDS_Shape, members: list[_Member], model: m3.Manifold,
-                 geometry: BrickGeometry) -> tuple[trimesh.Trimesh, dict[str, bool]]:
-    """Envelope ∩ model with manifold3d, the model cropped to the envelope's box first;
-    the result mesh and, per feature tag, whether it was cut (lost area)."""
-    env_mesh = to_trimesh(envelope)
-    env = _manifold(env_mesh).as_original()
-    if env.status() != m3.Error.NoError:
-        raise InputError("the printed part's brick envelope could not be meshed as a solid")
-    lo, hi = env_mesh.bounds
-    crop = m3.Manifold.cube(list(hi - lo + 2.0)).translate(list(lo - 1.0))
-    result = env ^ (model ^ crop)
-    out = result.to_mesh64()
-    vertices = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
-    faces = np.asarray(out.tri_verts, dtype=np.int64)
-    if len(faces) == 0:
-        return trimesh.Trimesh(), {}
-    runs = np.asarray(out.run_index, dtype=np.int64) // 3
-    origin_ids = np.asarray(out.run_original_id, dtype=np.int64)
-    source = np.repeat(origin_ids, np.diff(runs))
-    from_env = source == env.original_id()
-    mesh = trimesh.Trimesh(vertices, faces, process=False)
-    tags = _feature_tags(env_mesh.triangles_center, members, geometry)
-    before = _area_by_tag(tags, env_mesh.area_faces)
-    tags_after = _feature_tags(mesh.triangles_center[from_env], members, geometry)
-    after = _area_by_tag(tags_after, mesh.area_faces[from_env])
-    cut = {t: after.get(t, 0.0) < area * (1 - AREA_RTOL) - 1e-9 for t, area in before.items()}
-    mesh.merge_vertices()
-    return mesh, cut
-
-
-def _area_by_tag(tags: np.ndarray, areas: np.ndarray) -> dict[str, float]:
-    names, inverse = np.unique(tags, return_inverse=True)
-    sums = np.bincount(inverse, weights=areas, minlength=len(names))
-    return {str(n): float(s) for n, s in zip(names, sums) if n}
-
-
-def _feature_tags(centres: np.ndarray, members: list[_Member], geometry: BrickGeometry) -> np.ndarray:
-    """Feature tag of each triangle (by its centre): ``"<brick>:stud:a,b"``, tube, pin,
-    cavity, or "" for the rest (outer sides, top, bottom rim, fillers)."""
-    g, tol = geometry, FEATURE_TOL_MM
-    out = np.full(len(centres), "", dtype=object)
-    x, y, z = centres.T
-    for m in members:
-        b, (ox, oy, oz) = m.brick, m.origin
-        sx, sy, sz = b.size
-        ztop = oz + sz * g.plate_height
-        ceiling = ztop - g.top
-        inside = (x > ox - tol) & (x < ox + sx * g.pitch + tol) & (y > oy - tol) & (y < oy + sy * g.pitch + tol)
-        u, v = (x - ox) / g.pitch, (y - oy) / g.pitch
-        a, c = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
-        near = np.hypot((u - a - 0.5) * g.pitch, (v - c - 0.5) * g.pitch) < g.printed_stud_diameter / 2 + tol
-        stud = inside & near & (z > ztop + tol) & (z < ztop + g.stud_height + tol)
-        for i in np.flatnonzero(stud):
-            out[i] = f"{b.id}:stud:{a[i]},{c[i]}"
-        low = inside & (z > oz - tol) & (z < ceiling - tol)
-        wall = g.play + g.printed_wall
-        cavity = low & (z > oz + tol) & (x > ox + wall - tol) & (x < ox + sx * g.pitch - wall + tol) \
-            & (y > oy + wall - tol) & (y < oy + sy * g.pitch - wall + tol)
-        if sx >= 2 and sy >= 2:
-            na, nc = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
-            tube = low & (np.hypot((u - na) * g.pitch, (v - nc) * g.pitch) < g.printed_tube_outer / 2 + tol) \
-                & (na >= 1) & (na < sx) & (nc >= 1) & (nc < sy)
-            names = np.array([f"{b.id}:tube:{p},{q}" for p, q in zip(na - 1, nc - 1)], dtype=object)
-        elif max(sx, sy) >= 2:
-            along = u if sx > 1 else v
-            across = v if sx > 1 else u
-            na = np.rint(along).astype(np.int64)
-            tube = low & (np.hypot((along - na) * g.pitch, (across - 0.5) * g.pitch)
-                          < g.printed_pin_diameter / 2 + tol) & (na >= 1) & (na < max(sx, sy))
-            names = np.array([f"{b.id}:pin:{p}" for p in na - 1], dtype=object)
-        else:
-            tube = np.zeros(len(centres), bool)
-            names = np.zeros(len(centres), dtype=object)
-        out[cavity & ~tube] = f"{b.id}:cavity"
-        out[tube] = names[tube]
-    return out
-
-
-def _assemble(part_id: str, members: list[_Member], solid, mesh: trimesh.Trimesh,
-              cut: dict[str, bool]) -> PrintedPart:
-    """The PrintedPart from the Boolean's result and the per-tag cut flags."""
-    studs: dict[str, bool] = {}
-    tubes: dict[str, bool] = {}
-    top_ok: dict[tuple[int, int, int], bool] = {}
-    bottom_ok: dict[tuple[int, int, int], bool] = {}
-    for m in members:
-        b = m.brick
-        i, j, k = b.cell
-        sx, sy, sz = b.size
-        for a, c in m.studs:
-            name = f"{b.id}:stud:{a},{c}"
-            studs[name] = not cut.get(name, True)
-            top_ok[(i + a, j + c, k + sz - 1)] = studs[name]
-        for t in m.tubes:
-            tubes[f"{b.id}:{t}"] = not cut.get(f"{b.id}:{t}", True)
-        cavity_ok = not cut.get(f"{b.id}:cavity", False) if m.cavity else True
-        if m.cavity:
-            tubes[f"{b.id}:cavity"] = cavity_ok
-        for a in range(sx):
-            for c in range(sy):
-                near = [t for t in m.tubes if _tube_touches(t, a, c)]
-                bottom_ok[(i + a, j + c, k)] = cavity_ok and all(tubes[f"{b.id}:{t}"] for t in near)
-    volume = float(cq.Shape.cast(solid).Volume()) if solid is not None else float(mesh.volume)
-    pieces = _count_solids(solid) if solid is not None else int(mesh.body_count)
-    return PrintedPart(id=part_id, bricks=sorted(m.brick.id for m in members),
-                       cells=int(sum(np.prod(m.brick.size) for m in members)), solid=solid,
-                       mesh=mesh, volume_mm3=volume, studs=studs, tubes=tubes,
-                       top_ok=top_ok, bottom_ok=bottom_ok, pieces=pieces)
-
-
-def _tube_touches(tag: str, a: int, c: int) -> bool:
-    """True when the tube/pin ``tag`` stands at a corner of footprint cell (a, c)."""
-    kind, _, where = tag.partition(":")
-    if kind == "tube":
-        p, q = (int(v) for v in where.split(","))
-        return p <= a <= p + 1 and q <= c <= q + 1
-    p = int(where)
-    return p <= max(a, c) <= p + 1
-
-
-def _engrave(part: PrintedPart, members: list[_Member], geometry: BrickGeometry) -> None:
-    """Cut the part id ENGRAVE_DEPTH_MM deep into an outer flat side where it fits.
-
-    Candidates are the non-flush outer sides of the part's bricks: those that
-    take the largest text first, then those on the outside of the model (no
-    filled cells across them), then the largest.  For each, the biggest of
-    ENGRAVE_FONT_SIZES whose text (plus ENGRAVE_MARGIN_MM) fits the side is
-    placed centred on it, and the side is
-    taken only when the slab behind the text, ENGRAVE_DEPTH_MM +
-    ENGRAVE_KEEP_MM deep, lies wholly inside the part: then the part still
-    has the flat side there (the intersection did not cut it away) and at
-    least ENGRAVE_KEEP_MM of wall stays behind the letters.  Sets
-    ``engraved``, ``engraving`` (where, or why not) and updates the part's
-    solid, mesh and volume.
+    Candidates are the outer sides of the part's bricks (sides that do not
+    face another brick of the part): those that take the largest text
+    first, then those that face other bricks (a face the envelope cut, not
+    one the designer drew; hidden once built), then the largest.  For each,
+    the biggest of ENGRAVE_FONT_SIZES whose text (plus ENGRAVE_MARGIN_MM)
+    fits the side is placed centred on it, and the side is taken only when
+    the slab behind the text, ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM deep, lies
+    wholly inside the part: then the part has a flat side there and at
+    least ENGRAVE_KEEP_MM of wall stays behind the letters.  The side is
+    vertical, so in an upright print it faces sideways.  Sets ``engraved``,
+    ``engraving`` (where, or why not) and updates the part's solid, mesh and
+    volume.
     """
-    g = geometry
-    if ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM > g.printed_wall + 1e-9:
-        part.engraving = (f"not engraved: walls of {g.printed_wall:.2f} mm are too thin for "
-                          f"{ENGRAVE_DEPTH_MM} mm deep text")
-        return
-    if part.solid is None and _manifold(part.mesh).status() != m3.Error.NoError:
-        part.engraving = "not engraved: the part's mesh is not a closed manifold"
-        return
     sizes = {f: _text_size(part.id, f) for f in ENGRAVE_FONT_SIZES}
     candidates = []
-    for m in members:
+    for b in bricks:
         for side in SIDE_TAGS:
-            if side in m.flush:
+            face = _side_face(b, side, grid, mine, other, fit)
+            if face is None:
                 continue
-            face = _side_face(m, side, g)
             fits = [f for f in ENGRAVE_FONT_SIZES
                     if sizes[f][0] + 2 * ENGRAVE_MARGIN_MM <= face["width"]
                     and sizes[f][1] + 2 * ENGRAVE_MARGIN_MM <= face["height"]]
             if fits:
-                candidates.append((-max(fits), -m.open_sides[side], -face["width"] * face["height"],
-                                   m.brick.id, SIDE_TAGS.index(side), face, max(fits)))
+                candidates.append((-max(fits), -face["hidden"], -face["width"] * face["height"],
+                                   b.id, SIDE_TAGS.index(side), face, max(fits)))
     candidates.sort(key=lambda c: c[:5])
     inside = _inside_test(part)
     for *_, face, font in candidates:
@@ -540,17 +565,12 @@ def _engrave(part: PrintedPart, members: list[_Member], geometry: BrickGeometry)
             continue
         text = _text_solid(part.id, font, face)
         if part.solid is not None:
-            solid = _unify(_run(BRepAlgoAPI_Cut(), part.solid, [text]))
+            solid = engine.only_solid(engine.cut(part.solid, [text]), part.id)
             part.solid, part.mesh = solid, to_trimesh(solid)
-            part.volume_mm3 = float(cq.Shape.cast(solid).Volume())
-            part.pieces = _count_solids(solid)
+            part.volume_mm3 = engine.volume(solid)
         else:
-            cut = _manifold(part.mesh) - _manifold(to_trimesh(text))
-            out = cut.to_mesh64()
-            mesh = trimesh.Trimesh(np.asarray(out.vert_properties, np.float64)[:, :3],
-                                   np.asarray(out.tri_verts, np.int64), process=False)
-            mesh.merge_vertices()
-            part.mesh, part.volume_mm3, part.pieces = mesh, float(cut.volume()), int(mesh.body_count)
+            cut = engine.only_solid(_manifold(part.mesh) - _manifold(to_trimesh(text)), part.id)
+            part.mesh, part.volume_mm3 = engine.mesh(cut), float(cut.volume())
         part.engraved = True
         part.engraving = {"brick": face["brick"], "side": face["side"],
                           "centre_mm": [round(float(v), 4) for v in face["centre"]],
@@ -560,23 +580,38 @@ def _engrave(part: PrintedPart, members: list[_Member], geometry: BrickGeometry)
         return
     part.engraving = ("not engraved: no outer flat side large enough for the id"
                       if not candidates else
-                      "not engraved: no outer side large enough stays whole after the intersection")
+                      "not engraved: no outer side large enough stays whole")
 
 
-def _side_face(m: _Member, side: str, g: BrickGeometry) -> dict:
-    """The outer side ``side`` of member ``m``: centre, outward normal, horizontal
-    reading direction, width and height (mm) of its flat body (studs excluded)."""
-    b, (ox, oy, oz) = m.brick, m.origin
+def _side_face(b: Brick, side: str, grid, mine: np.ndarray, other: np.ndarray, fit: Fit) -> dict | None:
+    """The outer side ``side`` of brick ``b`` as a plane rectangle: centre, outward
+    normal, horizontal reading direction, width and height (mm), and ``hidden``,
+    the fraction of the cells across it that other bricks fill; None when
+    every cell across belongs to the part."""
+    i, j, k = b.cell
     sx, sy, sz = b.size
     axis = 0 if side[-1] == "x" else 1
-    sign = 1.0 if side[-2] == "+" else -1.0
-    lo = np.array([ox + g.play, oy + g.play, oz])
-    hi = np.array([ox + sx * g.pitch - g.play, oy + sy * g.pitch - g.play, oz + sz * g.plate_height])
+    sign = 1 if side[-2] == "+" else -1
+    nx, ny, _ = mine.shape
+    if axis == 0:
+        at = i + sx if sign > 0 else i - 1
+        span = (slice(at, at + 1), slice(j, j + sy), slice(k, k + sz)) if 0 <= at < nx else None
+    else:
+        at = j + sy if sign > 0 else j - 1
+        span = (slice(i, i + sx), slice(at, at + 1), slice(k, k + sz)) if 0 <= at < ny else None
+    if span is not None and mine[span].all():
+        return None
+    hidden = float(other[span].mean()) if span is not None else 0.0
+    lo = np.asarray(grid.origin) + np.array(b.cell) * grid.cell
+    hi = lo + np.array(b.size) * grid.cell
+    lo[:2] += fit.play
+    hi[:2] -= fit.play
     centre = (lo + hi) / 2
-    centre[axis] = hi[axis] if sign > 0 else lo[axis]
+    boundary = (hi[axis] + fit.play) if sign > 0 else (lo[axis] - fit.play)
+    centre[axis] = boundary - sign * (fit.play if hidden > 0 else 0.0)
     normal = np.zeros(3)
     normal[axis] = sign
-    return {"brick": b.id, "side": side, "centre": centre, "normal": normal,
+    return {"brick": b.id, "side": side, "centre": centre, "normal": normal, "hidden": hidden,
             "right": np.cross([0.0, 0.0, 1.0], normal),
             "width": float(hi[1 - axis] - lo[1 - axis]), "height": float(hi[2] - lo[2])}
 
