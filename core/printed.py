@@ -74,6 +74,8 @@ SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 BAR_MM = 2.0
 #: Segments of a stud's circle in a mesh part (the B-rep part has a true cylinder).
 STUD_SEGMENTS = 96
+#: Nearest point pairs tried for a bar that joins two loose pieces inside the bricks.
+JOIN_TRIES = 400
 #: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
 CRUMB_MM3 = 1e-3
 
@@ -366,9 +368,9 @@ def _joined(part_id: str, engine, kept, envelope):
     :data:`BAR_MM` that lies inside ``envelope``; the bars as JSON.
 
     Joins the pieces one at a time, the piece nearest to the growing whole
-    first.  Raises InputError when a piece cannot be reached inside the
-    envelope (its cells touch the others', but the straight bar between the
-    nearest points leaves them)."""
+    first, by the shortest bar between a point of it and a point of the
+    whole that lies inside the envelope (of the :data:`JOIN_TRIES` nearest
+    pairs).  Raises InputError when no such bar is found."""
     pieces = engine.pieces(kept)
     if len(pieces) <= 1:
         return kept, []
@@ -377,16 +379,17 @@ def _joined(part_id: str, engine, kept, envelope):
     while rest:
         target = _surface_points(engine.mesh(whole))
         tree = cKDTree(target)
-        best = None
+        found = []
         for n, piece in enumerate(rest):
             points = _surface_points(engine.mesh(piece))
             dist, idx = tree.query(points)
-            m = int(np.argmin(dist))
-            if best is None or dist[m] < best[0]:
-                best = (float(dist[m]), n, points[m], target[idx[m]])
-        gap, n, a, b = best
-        bar = engine.bar(a, b, BAR_MM)
-        if engine.volume(engine.cut(bar, [envelope])) > 1e-3 * engine.volume(bar):
+            found += [(float(d), n, p, target[i]) for d, p, i in zip(dist, points, idx)]
+        found.sort(key=lambda f: f[0])
+        for gap, n, a, b in found[:JOIN_TRIES]:
+            bar = engine.bar(a, b, BAR_MM)
+            if engine.volume(engine.cut(bar, [envelope])) <= 1e-6 * engine.volume(bar):
+                break
+        else:
             raise InputError(f"printed part {part_id}: the model inside its bricks is "
                              f"{len(pieces)} loose pieces that cannot be joined inside them; "
                              f"mark a region that holds them together, or split the part")
