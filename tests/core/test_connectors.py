@@ -1,4 +1,4 @@
-"""Connectors: printed parts thinner than a brick still clamp onto the LEGO above and below."""
+"""Connectors: printed parts, even thinner than a brick, clamp onto the LEGO above and below."""
 
 from __future__ import annotations
 
@@ -7,8 +7,7 @@ import manifold3d as m3
 import numpy as np
 import pytest
 
-from core import connectors, pipeline, printed
-from core.brick_solids import BrickGeometry, brick_solid, to_trimesh
+from core import connectors, pipeline
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
@@ -39,63 +38,60 @@ def _stack() -> Layout:
     return Layout(grid, bricks)
 
 
-def test_find_marks_vertical_contacts_only():
+def test_find_marks_every_vertical_contact_cell():
     found = connectors.find(_stack(), [[1]])
     assert sorted(map(tuple, found.top.tolist())) == [(0, 0, 5), (0, 1, 5)]
     assert sorted(map(tuple, found.bottom.tolist())) == [(0, 0, 3), (0, 1, 3)]
-    assert len(found.boxes) == 4
-    g = BrickGeometry()
-    tops = found.boxes[found.boxes[:, 1, 2] > 19.2]
-    assert np.allclose(tops[:, 0, 2], 19.2 - connectors.TOP_BAND_MM)
-    assert np.all(tops[:, 1, 2] > 19.2 + g.stud_height)
+
+
+def test_a_wide_contact_gets_a_connector_at_every_stud():
+    filled = np.ones((4, 2, 9), dtype=bool)
+    grid = Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled)
+    lay = Layout(grid, [Brick(n, "3001", (4, 2, 3), (0, 0, 3 * n)) for n in range(3)])
+    found = connectors.find(lay, [[1]])
+    assert len(found.top) == 8 and len(found.bottom) == 8
 
 
 def test_bricks_of_one_part_need_no_connector_between_them():
     found = connectors.find(_stack(), [[0, 1, 2]])
     assert len(found.top) == 0 and len(found.bottom) == 0
-    assert connectors.with_connectors(printed.ModelSolid(manifold=m3.Manifold.cube([1, 1, 1])),
-                                      found).manifold.volume() == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize("kind", ["step", "stl"])
-def test_thin_printed_region_clamps_with_connectors(wall_files, kind):
+def test_thin_printed_region_clamps_with_studs_and_sockets(wall_files, kind):
     fab = pipeline.run(wall_files[kind], high_res=[REGION], slice_parts=False)
     assert fab.stability.components == 1
     assert len(fab.printed) == 1
     part = fab.printed[0]
-    assert part.complete_studs, "the studs under the LEGO above must be complete"
-    assert not any(part.bottom_ok.get(tuple(c), True) is False for c in fab.connectors.bottom.tolist())
-    assert part.mesh.is_watertight
+    assert part.mesh.is_watertight and part.mesh.body_count == 1
     doc = pipeline.report(fab)["printed_parts"][0]
-    assert doc["connectors"]["studs_kept"] == len(fab.connectors.top) > 0
-    assert doc["connectors"]["sockets_kept"] == len(fab.connectors.bottom) > 0
-    # The part leaves the model only inside the connector boxes.
+    cells = {tuple(c) for c in fab.connectors.top.tolist()}
+    assert doc["engaged"]["studs"] == len(cells) > 2
+    assert doc["engaged"]["sockets"] == len(fab.connectors.bottom) > 2
+    assert doc["engaged"]["clamps"] is True
+    # The wall is printed whole above the socket band and below the skin.
     model = m3.Manifold.cube(list(WALL)).translate([-WALL[0] / 2, -WALL[1] / 2, 0.0])
-    boxes = [m3.Manifold.cube(list(hi - lo)).translate(list(lo)) for lo, hi in fab.connectors.boxes]
-    allowed = m3.Manifold.batch_boolean([model, *boxes], m3.OpType.Add)
     solid = _manifold(part.mesh)
-    assert (solid - allowed).volume() < 1e-3 * solid.volume()
+    lo = fab.grid.origin + np.min([b.cell for b in fab.layout.bricks if b.kind == "printed"], axis=0) * fab.grid.cell
+    hi = fab.grid.origin + np.max([np.add(b.cell, b.size) for b in fab.layout.bricks
+                                   if b.kind == "printed"], axis=0) * fab.grid.cell
+    middle = m3.Manifold.cube(list(hi - lo - [0.2, 0, 2 * 3.2])).translate(list(lo + [0.1, 0, 3.2]))
+    inside = model ^ middle
+    assert (inside - solid).volume() < 1e-6 * inside.volume()
     assert (solid - model).volume() > 0.0
-    # Inside its connector boxes the part is the brick itself (what mark_grip relies on).
-    (brick,) = [b for b in fab.layout.bricks if b.kind == "printed"]
-    origin = fab.grid.origin + np.array(brick.cell) * fab.grid.cell
-    whole = _manifold(to_trimesh(brick_solid(*brick.size, BrickGeometry(), tuple(origin)).shape))
-    for box in boxes:
-        assert (solid ^ box).volume() == pytest.approx((whole ^ box).volume(), rel=2e-3)
 
 
 def _manifold(mesh) -> m3.Manifold:
-    return m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
-                               tri_verts=np.asarray(mesh.faces, np.uint32)))
+    return m3.Manifold(m3.Mesh64(vert_properties=np.asarray(mesh.vertices, np.float64),
+                                 tri_verts=np.asarray(mesh.faces, np.uint64)))
 
 
 def test_without_connectors_the_thin_part_hangs_loose(wall_files):
     fab = pipeline.run(wall_files["step"], high_res=[REGION], slice_parts=False, connectors=False)
     part = fab.printed[0]
-    assert not part.complete_studs
+    assert not part.complete_studs and part.incomplete_studs
+    assert part.engaged["clamps"] is False and "--no-connectors" in part.engaged["why"]
     assert fab.stability.components > 1
-    (split,) = fab.stability.unconnectable
-    assert "P1" in split["reason"] and "cuts their studs" in split["reason"]
 
 
 def test_part_edits_split_and_merge_printed_bricks(wall_files):
