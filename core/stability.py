@@ -232,7 +232,7 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
 def _joined_without_clamp(layout: Layout, lab: np.ndarray, clamp, brick_region: np.ndarray,
                           per_region: np.ndarray) -> dict[int, str]:
     """Per region that complete studs would hold together: why it falls apart
-    (printed parts meet their neighbours only through cut studs or undersides)."""
+    (printed parts meet their neighbours without studs or sockets)."""
     if clamp is None:
         return {}
     graph = _graph_of_labels(lab, len(layout.bricks), None, _rigid_pairs(layout))
@@ -244,8 +244,8 @@ def _joined_without_clamp(layout: Layout, lab: np.ndarray, clamp, brick_region: 
         parts = sorted({b.printed_part for b, reg in zip(layout.bricks, brick_region)
                         if reg == r and b.printed_part is not None})
         out[int(r)] = (f"printed part(s) {', '.join(parts)} meet the bricks above or below them "
-                       "only where the model cuts their studs or undersides, so they cannot "
-                       "clamp there; keep connectors on or mark a larger region")
+                       "without studs or sockets there (connectors switched off), so they cannot "
+                       "clamp; keep connectors on or mark a larger region")
     return out
 
 
