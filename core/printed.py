@@ -42,6 +42,7 @@ from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fus
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+from OCP.ShapeFix import ShapeFix_Shape
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
@@ -74,8 +75,6 @@ SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 BAR_MM = 2.0
 #: Segments of a stud's circle in a mesh part (the B-rep part has a true cylinder).
 STUD_SEGMENTS = 96
-#: Nearest point pairs tried for a bar that joins two loose pieces inside the bricks.
-JOIN_TRIES = 400
 #: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
 CRUMB_MM3 = 1e-3
 
@@ -106,7 +105,8 @@ class PrintedPart:
     ``bottom_ok`` map those grid cells (i, j, k) to the same, for the
     stability check.  ``kept_mm3`` is the model's volume inside the
     envelope (before studs and sockets), ``envelope_mm3`` the part's cells'
-    volume; ``joins`` the bars that join loose pieces.  ``engraved`` says
+    volume; ``joins`` the bars that join loose pieces; ``method`` which
+    Booleans made it.  ``engraved`` says
     whether the id is cut into a side; ``engraving`` is then a dict saying
     where (brick, side, centre, outward normal, text size, font size,
     depth), else the reason why not.  ``stl``, ``step``, ``pose`` and
@@ -127,6 +127,7 @@ class PrintedPart:
     kept_mm3: float = 0.0
     envelope_mm3: float = 0.0
     joins: list = field(default_factory=list)
+    method: str = ""
     engraved: bool = False
     engraving: dict | str = "not engraved: engraving switched off"
     stl: str | None = None
@@ -164,7 +165,7 @@ class PrintedPart:
             "id": self.id, "bricks": list(self.bricks), "cells": self.cells,
             "volume_mm3": round(self.volume_mm3, 3), "pieces": self.pieces,
             "kept_mm3": round(self.kept_mm3, 3), "envelope_mm3": round(self.envelope_mm3, 3),
-            "joins": list(self.joins),
+            "joins": list(self.joins), "method": self.method,
             "stl": self.stl, "step": self.step,
             "print_s": None if self.print_s is None else round(self.print_s, 1),
             "engaged": self.engaged,
@@ -310,7 +311,6 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
         links = connectors_stage.find(layout, [sorted(ids)])
     top = np.array([c for c in links.top.tolist() if mine[tuple(c)]], dtype=int).reshape(-1, 3)
     bottom = np.array([c for c in links.bottom.tolist() if mine[tuple(c)]], dtype=int).reshape(-1, 3)
-    engine = _Brep(source.brep) if source.kind == "brep" else _Mesh(source.manifold)
     lo_all = grid.origin + np.min([b.cell for b in bricks], axis=0) * grid.cell
     hi_all = grid.origin + np.max([np.add(b.cell, b.size) for b in bricks], axis=0) * grid.cell
     near = source.manifold ^ _cube(lo_all - 1.0, hi_all + 1.0)
@@ -319,25 +319,27 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
                                   top if connectors else np.zeros((0, 3), int),
                                   bottom if connectors else np.zeros((0, 3), int),
                                   lambda lo, hi: _extent(near, lo, hi), fit)
-    envelope = engine.cut(engine.union([engine.box(lo, hi) for lo, hi in layout_plan.envelope]),
-                          [engine.box(lo, hi) for lo, hi in layout_plan.play])
-    kept = engine.common(envelope, lo_all - 1.0, hi_all + 1.0)
-    kept_mm3 = engine.volume(kept)
-    if kept_mm3 <= CRUMB_MM3:
-        raise InputError(f"printed part {part_id}: the model does not reach into its bricks")
-    kept, joins = _joined(part_id, engine, kept, envelope)
-    shape = engine.union([kept]
-                         + [engine.box(lo, hi) for lo, hi in layout_plan.fills]
-                         + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
-                            for x, y, z0, z1 in layout_plan.studs])
-    shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
-    shape = engine.only_solid(shape, part_id)
+    method = "OpenCascade (exact B-rep)" if source.kind == "brep" else "manifold3d (mesh)"
+    engine = _Brep(source.brep) if source.kind == "brep" else _Mesh(source.manifold)
+    try:
+        shape, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all, grid,
+                                                mine, fit)
+    except _InvalidSolid as why:
+        if isinstance(engine, _Mesh):
+            raise RuntimeError(f"printed part {part_id} came out as {why}") from None
+        method = f"manifold3d on the model's mesh (the B-rep result was {why})"
+        engine = _Mesh(source.manifold)
+        try:
+            shape, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all,
+                                                    grid, mine, fit)
+        except _InvalidSolid as again:
+            raise RuntimeError(f"printed part {part_id} came out as {again}") from None
     names = {tuple(c): ",".join(map(str, c)) for c in np.concatenate([top, bottom]).tolist()}
     studs = {names[tuple(c)]: connectors for c in top.tolist()}
     sockets = {names[tuple(c)]: connectors for c in bottom.tolist()}
     part = PrintedPart(id=part_id, bricks=sorted(ids),
                        cells=int(sum(np.prod(b.size) for b in bricks)),
-                       solid=shape if source.kind == "brep" else None,
+                       solid=shape if isinstance(engine, _Brep) else None, method=method,
                        mesh=engine.mesh(shape), volume_mm3=engine.volume(shape),
                        studs=studs, sockets=sockets,
                        top_ok={tuple(c): connectors for c in top.tolist()},
@@ -347,6 +349,28 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
     if engrave:
         _engrave(part, bricks, grid, mine, other, fit, engine)
     return part
+
+
+class _InvalidSolid(Exception):
+    """The B-rep Booleans gave a shape that is not one valid solid; the message says how."""
+
+
+def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit):
+    """The part's solid from its :class:`core.interfaces.Plan` with ``engine``:
+    (solid, envelope, model volume kept in the envelope, joins)."""
+    envelope = engine.cut(engine.union([engine.box(lo, hi) for lo, hi in layout_plan.envelope]),
+                          [engine.box(lo, hi) for lo, hi in layout_plan.play])
+    kept = engine.common(envelope, lo_all - 1.0, hi_all + 1.0)
+    kept_mm3 = engine.volume(kept)
+    if kept_mm3 <= CRUMB_MM3:
+        raise InputError(f"printed part {part_id}: the model does not reach into its bricks")
+    kept, joins = _joined(part_id, engine, kept, envelope, grid, mine)
+    shape = engine.union([kept]
+                         + [engine.box(lo, hi) for lo, hi in layout_plan.fills]
+                         + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
+                            for x, y, z0, z1 in layout_plan.studs])
+    shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
+    return engine.only_solid(shape, part_id), envelope, kept_mm3, joins
 
 
 def _extent(model: m3.Manifold, lo, hi) -> tuple[float, float] | None:
@@ -363,14 +387,15 @@ def _cube(lo, hi) -> m3.Manifold:
     return m3.Manifold.cube(list(hi - lo)).translate(list(lo))
 
 
-def _joined(part_id: str, engine, kept, envelope):
-    """``kept`` with every loose piece joined to the largest by a straight bar of
-    :data:`BAR_MM` that lies inside ``envelope``; the bars as JSON.
+def _joined(part_id: str, engine, kept, envelope, grid, mine: np.ndarray):
+    """``kept`` with every loose piece joined to the largest by :data:`BAR_MM` bars
+    clipped to ``envelope``; the bars as JSON.
 
     Joins the pieces one at a time, the piece nearest to the growing whole
-    first, by the shortest bar between a point of it and a point of the
-    whole that lies inside the envelope (of the :data:`JOIN_TRIES` nearest
-    pairs).  Raises InputError when no such bar is found."""
+    first: by the straight bar between their nearest points when that joins
+    them inside the envelope, else by a bar from the piece through the
+    centres of the part's cells (``mine``, face-adjacent, fewest cells) to
+    the whole.  Raises InputError when neither joins them."""
     pieces = engine.pieces(kept)
     if len(pieces) <= 1:
         return kept, []
@@ -379,24 +404,65 @@ def _joined(part_id: str, engine, kept, envelope):
     while rest:
         target = _surface_points(engine.mesh(whole))
         tree = cKDTree(target)
-        found = []
+        best = None
         for n, piece in enumerate(rest):
             points = _surface_points(engine.mesh(piece))
             dist, idx = tree.query(points)
-            found += [(float(d), n, p, target[i]) for d, p, i in zip(dist, points, idx)]
-        found.sort(key=lambda f: f[0])
-        for gap, n, a, b in found[:JOIN_TRIES]:
-            bar = engine.bar(a, b, BAR_MM)
-            if engine.volume(engine.cut(bar, [envelope])) <= 1e-6 * engine.volume(bar):
+            m = int(np.argmin(dist))
+            if best is None or dist[m] < best[0]:
+                best = (float(dist[m]), n, points[m], target[idx[m]])
+        gap, n, a, b = best
+        piece = rest.pop(n)
+        joined = None
+        for route in ([a, b], _cell_route(a, b, grid, mine)):
+            if route is None:
+                continue
+            bars = engine.union([engine.bar(p, q, BAR_MM) for p, q in zip(route[:-1], route[1:])])
+            candidate = engine.union([whole, piece, engine.intersect(bars, envelope)])
+            if len(engine.pieces(candidate)) == 1:
+                joined = (candidate, route)
                 break
-        else:
+        if joined is None:
             raise InputError(f"printed part {part_id}: the model inside its bricks is "
                              f"{len(pieces)} loose pieces that cannot be joined inside them; "
                              f"mark a region that holds them together, or split the part")
-        whole = engine.union([whole, rest.pop(n), bar])
-        joins.append({"from_mm": [round(float(v), 3) for v in a], "to_mm": [round(float(v), 3) for v in b],
-                      "length_mm": round(gap, 3), "bar_mm": BAR_MM})
+        whole, route = joined
+        joins.append({"path_mm": [[round(float(v), 3) for v in p] for p in route],
+                      "length_mm": round(float(sum(np.linalg.norm(np.subtract(q, p))
+                                                   for p, q in zip(route[:-1], route[1:]))), 3),
+                      "bar_mm": BAR_MM})
     return whole, joins
+
+
+def _cell_route(a, b, grid, mine: np.ndarray) -> list | None:
+    """Points from ``a`` through the centres of the fewest face-adjacent cells of
+    ``mine`` to ``b``, or None when their cells are not connected in ``mine``."""
+    import networkx as nx
+    cell = np.asarray(grid.cell, float)
+    origin = np.asarray(grid.origin, float)
+
+    def cell_of(point):
+        c = np.floor((np.asarray(point) - origin) / cell).astype(int)
+        return tuple(np.clip(c, 0, np.array(mine.shape) - 1))
+
+    graph = nx.Graph()
+    cells = [tuple(map(int, c)) for c in np.argwhere(mine)]
+    graph.add_nodes_from(cells)
+    members = set(cells)
+    for c in cells:
+        for axis in range(3):
+            n = list(c)
+            n[axis] += 1
+            if tuple(n) in members:
+                graph.add_edge(c, tuple(n))
+    start, end = cell_of(a), cell_of(b)
+    if start not in members or end not in members:
+        return None
+    try:
+        path = nx.shortest_path(graph, start, end)
+    except nx.NetworkXNoPath:
+        return None
+    return [np.asarray(a, float)] + [origin + (np.array(c) + 0.5) * cell for c in path] + [np.asarray(b, float)]
 
 
 def _surface_points(mesh: trimesh.Trimesh, count: int = 4000) -> np.ndarray:
@@ -426,6 +492,9 @@ class _Mesh:
     def cut(self, shape, tools):
         return shape if not tools else shape - self.union(tools)
 
+    def intersect(self, a, b):
+        return a ^ b
+
     def common(self, envelope, lo, hi):
         return m3.Manifold(((self.model ^ _cube(lo, hi)) ^ envelope).to_mesh64())
 
@@ -438,7 +507,7 @@ class _Mesh:
     def only_solid(self, shape, part_id: str):
         pieces = self.pieces(shape)
         if len(pieces) != 1:
-            raise InputError(f"bug: printed part {part_id} came out as {len(pieces)} pieces")
+            raise _InvalidSolid(f"{len(pieces)} pieces")
         return m3.Manifold(pieces[0].to_mesh64())
 
     def mesh(self, shape) -> trimesh.Trimesh:
@@ -485,6 +554,9 @@ class _Brep:
     def cut(self, shape, tools):
         return shape if not tools else _unify(_run(BRepAlgoAPI_Cut(), shape, tools))
 
+    def intersect(self, a, b):
+        return _unify(_run(BRepAlgoAPI_Common(), a, [b]))
+
     def common(self, envelope, lo, hi):
         return _unify(_run(BRepAlgoAPI_Common(), self.model, [envelope]))
 
@@ -496,10 +568,19 @@ class _Brep:
 
     def only_solid(self, shape, part_id: str):
         pieces = self.pieces(shape)
-        if len(pieces) != 1 or not BRepCheck_Analyzer(pieces[0]).IsValid():
-            raise InputError(f"bug: printed part {part_id} came out as {len(pieces)} piece(s)"
-                             + ("" if len(pieces) != 1 else ", not a valid solid"))
-        return pieces[0]
+        if len(pieces) != 1:
+            raise _InvalidSolid(f"{len(pieces)} pieces")
+        solid = pieces[0]
+        if not BRepCheck_Analyzer(solid).IsValid():
+            fix = ShapeFix_Shape(solid)
+            fix.Perform()
+            solid = fix.Shape()
+            if len(_solids(solid)) != 1 or not BRepCheck_Analyzer(solid).IsValid():
+                raise _InvalidSolid("not a valid solid")
+        mesh = to_trimesh(solid)
+        if not mesh.is_watertight:
+            raise _InvalidSolid("a solid whose tessellation is not watertight")
+        return _solids(solid)[0]
 
     def mesh(self, shape) -> trimesh.Trimesh:
         return to_trimesh(shape)
@@ -567,13 +648,16 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
         if not inside(_slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, behind)):
             continue
         text = _text_solid(part.id, font, face)
-        if part.solid is not None:
-            solid = engine.only_solid(engine.cut(part.solid, [text]), part.id)
-            part.solid, part.mesh = solid, to_trimesh(solid)
-            part.volume_mm3 = engine.volume(solid)
-        else:
-            cut = engine.only_solid(_manifold(part.mesh) - _manifold(to_trimesh(text)), part.id)
-            part.mesh, part.volume_mm3 = engine.mesh(cut), float(cut.volume())
+        try:
+            if part.solid is not None:
+                solid = engine.only_solid(engine.cut(part.solid, [text]), part.id)
+                part.solid, part.mesh = solid, to_trimesh(solid)
+                part.volume_mm3 = engine.volume(solid)
+            else:
+                cut = engine.only_solid(_manifold(part.mesh) - _manifold(to_trimesh(text)), part.id)
+                part.mesh, part.volume_mm3 = engine.mesh(cut), float(cut.volume())
+        except _InvalidSolid:
+            continue
         part.engraved = True
         part.engraving = {"brick": face["brick"], "side": face["side"],
                           "centre_mm": [round(float(v), 4) for v in face["centre"]],

@@ -148,7 +148,7 @@ def test_loose_pieces_are_joined_by_a_bar_inside_the_bricks():
                                         trimesh.creation.box(bounds=[[20, 1, 0], [30, 7, 9.6]])])
     (part,) = printed.build_parts(lay, [[0]], _source("mesh", pillars), engrave=False)
     assert part.mesh.body_count == 1 and part.mesh.is_watertight
-    assert len(part.joins) == 1 and part.joins[0]["length_mm"] == pytest.approx(15.0, abs=0.05)
+    assert len(part.joins) == 1 and part.joins[0]["length_mm"] == pytest.approx(15.0, abs=1e-6)
 
 
 def test_a_model_of_several_overlapping_shells_is_their_union():
