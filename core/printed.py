@@ -144,6 +144,14 @@ class PrintedPart:
         return sorted(k for k, v in self.studs.items() if not v)
 
     @property
+    def complete_sockets(self) -> list[str]:
+        return sorted(k for k, v in self.sockets.items() if v)
+
+    @property
+    def incomplete_sockets(self) -> list[str]:
+        return sorted(k for k, v in self.sockets.items() if not v)
+
+    @property
     def engaged(self) -> dict:
         """Studs and sockets engaged with the bricks above and below, and whether
         that is enough to hold the part (two or more), with the reason when not."""
