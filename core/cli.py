@@ -79,7 +79,32 @@ def _parser() -> argparse.ArgumentParser:
                help="stop after S seconds (default: run until Ctrl-C)")
     _model_options(wat)
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    _calibration_parser(sub)
     return parser
+
+
+def _calibration_parser(sub) -> None:
+    """The ``calibration-strip`` command's options; its values default around Fit's."""
+    from core import calibration
+
+    low, high = calibration.default_range()
+    cal = sub.add_parser("calibration-strip",
+                         help="write a strip of test studs and sockets to find --stud-fit and "
+                              "--socket-fit for your printer",
+                         description="Write a printable strip (calibration_strip.stl and .3mf, "
+                                     "README.txt on how to read it) with one column per value: "
+                                     "a printed stud of 4.8 + value mm diameter on top, a square "
+                                     "socket 4.8 + value mm wide underneath, the value embossed "
+                                     "beside it. Press real LEGO onto the studs and into the "
+                                     "sockets; the first value that clamps firmly is your "
+                                     "--stud-fit or --socket-fit.")
+    cal.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    cal.add_argument("--from", dest="start", type=float, default=low, metavar="MM",
+                     help=f"first (loosest stud, tightest socket) value (default {low:+g})")
+    cal.add_argument("--to", dest="stop", type=float, default=high, metavar="MM",
+                     help=f"last value (default {high:+g})")
+    cal.add_argument("--step", type=float, default=calibration.STEP_MM, metavar="MM",
+                     help=f"step between two columns (default {calibration.STEP_MM:g})")
 
 
 def _model_options(p: argparse.ArgumentParser) -> None:
@@ -110,6 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "watch":
         return _watch(args)
+    if args.command == "calibration-strip":
+        return _calibration_strip(args)
     from core import pipeline
 
     progress = None if args.quiet else _progress_printer(sys.stderr)
@@ -161,6 +188,22 @@ def _watch(args) -> int:
         return 2
     except KeyboardInterrupt:
         sys.stderr.write(f"stopped after {runs} version(s)\n")
+    return 0
+
+
+def _calibration_strip(args) -> int:
+    """The ``calibration-strip`` command: one line per file written, or one error line
+    and exit status 2."""
+    from core import calibration
+
+    try:
+        values = calibration.column_values(args.start, args.stop, args.step)
+        written = calibration.write_strip(args.out, values)
+    except InputError as err:
+        sys.stderr.write(f"error: {err}\n")
+        return 2
+    for path in written:
+        print(path)
     return 0
 
 

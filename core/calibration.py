@@ -1,0 +1,358 @@
+"""The calibration strip: printed studs and sockets in small steps of fit.
+
+``python -m core calibration-strip --out DIR`` writes a strip to print on
+the user's own printer and test against real LEGO, to find the two fit
+settings of :class:`core.interfaces.Fit`:
+
+* ``calibration_strip.stl`` and ``calibration_strip.3mf``: one watertight
+  solid in its print pose (flat side on the bed, studs up, no supports
+  needed);
+* ``README.txt``: how to print and read it.
+
+The strip is a row of *columns*, one per value ``v`` (default -0.10 to
++0.20 mm in steps of 0.05: seven columns, under 20 minutes of printing, with
+the defaults of both settings well inside).  A column is a printed cell exactly as the pipeline builds one: a
+block of the cell's footprint (``PITCH - 2 * play``, 7.8 mm square) and
+``socket_depth + roof`` high, with
+
+* a **socket** opening downward on the strip's underside: a square hole
+  ``4.8 + v`` wide between opposite walls, ``socket_depth`` deep, under a
+  ``roof`` (printed as a short bridge, no support);
+* a **stud** on top: a cylinder of diameter ``4.8 + v`` and ``stud_height``
+  standing on that roof.
+
+So column ``v`` tests ``stud_fit = v`` with its stud and ``socket_fit = v``
+with its socket.  The columns stand :data:`GAP_MM` or more apart (a pitch
+that is no multiple of 8 mm), so that no LEGO brick clamps two of them at
+once: each value is tested alone.  A thin band along the strip joins them
+into one solid and carries each column's value, embossed beside it.
+
+Everything is in mm.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from core.errors import InputError
+from core.interfaces import LEGO_STUD_DIAMETER, PITCH, Fit
+
+#: Default step between two columns' values (mm).
+STEP_MM = 0.05
+#: How far the default range reaches below the smaller and above the larger
+#: of the two current fit settings (mm): the lowest value must be loose, the
+#: highest too tight, so that the first one that clamps is found in between.
+BELOW_MM, ABOVE_MM = 0.10, 0.15
+#: The smallest step that means something on an FDM printer (mm).
+MIN_STEP_MM = 0.01
+#: At most this many columns (about 16 cm of strip with two-decimal labels).
+MAX_COLUMNS = 13
+#: Values are rounded to this many decimals (the labels show at most these).
+DECIMALS = 3
+#: Least free space between two neighbouring columns (mm).
+GAP_MM = 2.5
+#: The band that joins the columns: its width beside them, its thickness,
+#: and how far it reaches into the columns' walls (so that the two join with
+#: volume, not along a face; the sockets stay clear of it).
+BAND_WIDTH_MM, BAND_THICKNESS_MM, BAND_OVERLAP_MM = 5.0, 1.2, 0.5
+#: The values' text: font size, height of the raised letters, free space
+#: between two labels along the strip.
+LABEL_FONT_MM, LABEL_RAISE_MM, LABEL_GAP_MM = 3.5, 0.6, 1.0
+#: The labels' font (DejaVu Sans Bold, Debian fonts-dejavu-core; else cadquery's default).
+LABEL_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
+#: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
+SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
+#: Tessellation of the written mesh: chord deviation (mm) and angle (rad).
+#: A stud's circle gets at least 2 pi / 0.065 = 97 sides, its corners on the
+#: circle and its flats 0.001 mm inside it (the pipeline's mesh studs have 96),
+#: far below the 0.05 mm steps the strip is about.
+MESH_TOLERANCE_MM, MESH_ANGLE_RAD = 0.005, 0.065
+
+STL_NAME = "calibration_strip.stl"
+THREEMF_NAME = "calibration_strip.3mf"
+README_NAME = "README.txt"
+
+
+@dataclass(frozen=True)
+class Strip:
+    """A built calibration strip.
+
+    ``values`` are the columns' values left to right (mm), ``fit`` the
+    settings its heights come from, ``pitch`` the distance between columns,
+    ``solid`` the B-rep (OCP ``TopoDS_Shape``) and ``mesh`` its watertight
+    tessellation, both in the print pose: the underside on z = 0, the first
+    column centred at x = pitch / 2, the columns' blocks at y in [0, 7.8], the band
+    with the labels beside them at y > 7.8.
+    """
+
+    values: tuple[float, ...]
+    fit: Fit
+    pitch: float
+    solid: object
+    mesh: "trimesh.Trimesh"
+
+
+def cell_mm(fit: Fit = Fit()) -> float:
+    """Side of a column's block: the cell's footprint, ``PITCH - 2 * play`` (7.8 mm)."""
+    return PITCH - 2 * fit.play
+
+
+def default_range(fit: Fit = Fit()) -> tuple[float, float]:
+    """The default (from, to) of the strip around ``fit``'s two settings: from
+    BELOW_MM under the smaller to ABOVE_MM over the larger (-0.10 .. +0.20 mm
+    for the defaults)."""
+    low, high = min(fit.stud_fit, fit.socket_fit), max(fit.stud_fit, fit.socket_fit)
+    return round(low - BELOW_MM, DECIMALS), round(high + ABOVE_MM, DECIMALS)
+
+
+def column_values(start: float | None = None, stop: float | None = None,
+                  step: float | None = None, fit: Fit = Fit()) -> tuple[float, ...]:
+    """The columns' values: ``start``, ``start + step``, ... up to ``stop`` (included),
+    rounded to DECIMALS; unset ends come from :func:`default_range`, an unset step is
+    STEP_MM.
+
+    Raises InputError (one line) when a number is not finite, the step is below
+    MIN_STEP_MM, the range is empty, it needs more than MAX_COLUMNS columns, or a
+    value is not a valid ``stud_fit``/``socket_fit`` (:meth:`Fit.check`).
+    """
+    low, high = default_range(fit)
+    start = low if start is None else start
+    stop = high if stop is None else stop
+    step = STEP_MM if step is None else step
+    for name, value in (("from", start), ("to", stop), ("step", step)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(f"--{name} {value!r} must be a finite number of mm")
+    if step <= 0:
+        raise InputError(f"--step {step:g} mm must be positive")
+    if step < MIN_STEP_MM:
+        raise InputError(f"--step {step:g} mm is finer than a printer can show "
+                         f"(at least {MIN_STEP_MM:g} mm)")
+    column_fit(fit, start)
+    column_fit(fit, stop)
+    if stop < start:
+        raise InputError(f"the range --from {start:g} --to {stop:g} mm is empty")
+    count = int(math.floor((stop - start) / step + 1e-6)) + 1
+    if count > MAX_COLUMNS:
+        raise InputError(f"--from {start:g} --to {stop:g} --step {step:g} mm makes {count} "
+                         f"columns, more than {MAX_COLUMNS}: narrow the range or take a "
+                         f"larger step")
+    values = tuple(_tidy(start + n * step) for n in range(count))
+    for value in values:
+        column_fit(fit, value)
+    return values
+
+
+def column_fit(fit: Fit, value: float) -> Fit:
+    """``fit`` with both settings at ``value``: the fit of that column (checked)."""
+    try:
+        return replace(fit, stud_fit=value, socket_fit=value).check()
+    except InputError as err:
+        raise InputError(f"calibration value {value:+g} mm: {err}") from None
+
+
+def label(value: float) -> str:
+    """The text of a column's value: '+0.05', '-0.10', '0.00' (three decimals when needed)."""
+    digits = 2 if abs(round(value, 2) - value) < 1e-9 else DECIMALS
+    return f"{0.0:.{digits}f}" if abs(value) < 1e-9 else f"{value:+.{digits}f}"
+
+
+def build_strip(values, fit: Fit = Fit()) -> Strip:
+    """The strip with one column per value in ``values`` (mm, left to right), the
+    studs' and sockets' heights from ``fit``.
+
+    Promises: one valid solid; column n's stud is a cylinder of diameter
+    ``4.8 + values[n]`` and ``fit.stud_height`` on the top face at
+    z = ``socket_depth + roof``, its socket a square hole ``4.8 + values[n]``
+    wide from z = 0 up to ``socket_depth``, both centred on the column's
+    block; its label is raised LABEL_RAISE_MM on the band beside it.  Raises
+    InputError for an empty ``values`` or a value :func:`column_fit` refuses.
+    """
+    import cadquery as cq
+
+    from core.brick_solids import to_trimesh
+
+    values = tuple(_tidy(v) for v in values)
+    if not values:
+        raise InputError("the calibration strip needs at least one value")
+    fits = [column_fit(fit, v) for v in values]
+    cell = cell_mm(fit)
+    height = fit.socket_depth + fit.roof
+    texts = [_text_solid(label(v), LABEL_RAISE_MM) for v in values]
+    pitch = _pitch(max(cell + GAP_MM, max(t.BoundingBox().xlen for t in texts) + LABEL_GAP_MM))
+    margin = (pitch - cell) / 2
+    band = _box(0.0, cell - BAND_OVERLAP_MM, 0.0, len(values) * pitch, cell + BAND_WIDTH_MM,
+                BAND_THICKNESS_MM)
+    cells, labels = [], []
+    for n, f in enumerate(fits):
+        cx, cy = margin + n * pitch + cell / 2, cell / 2
+        block = _box(cx - cell / 2, 0.0, 0.0, cx + cell / 2, cell, height)
+        w = f.socket_width
+        cells.append(block.cut(_box(cx - w / 2, cy - w / 2, -1.0, cx + w / 2, cy + w / 2,
+                                    f.socket_depth)))
+        cells.append(cq.Solid.makeCylinder(f.stud_diameter / 2, f.stud_height,
+                                           cq.Vector(cx, cy, height), cq.Vector(0, 0, 1)))
+        labels.append(_placed(texts[n], cx, cell + BAND_WIDTH_MM / 2, BAND_THICKNESS_MM))
+    # the letters stand on the band's top face: a glue fuse joins them there, fast
+    solid = band.fuse(*cells).fuse(*labels, glue=True)
+    solid = solid.clean()
+    if len(solid.Solids()) != 1 or not solid.isValid():
+        raise InputError("the calibration strip did not come out as one valid solid")
+    shape = solid.Solids()[0].wrapped
+    mesh = to_trimesh(shape, MESH_TOLERANCE_MM, MESH_ANGLE_RAD)
+    return Strip(values, fit, pitch, shape, mesh)
+
+
+def readme(strip: Strip) -> str:
+    """README.txt of ``strip``: what it is, how to print it, how to read it, where
+    the values go (``--stud-fit``, ``--socket-fit``, the FreeCAD preferences)."""
+    f, values, d = strip.fit, strip.values, LEGO_STUD_DIAMETER
+    listing = ", ".join(label(v) for v in values)
+    tight = label(values[-1])
+    loose = label(values[0])
+    step = label(values[1] - values[0]).lstrip("+") if len(values) > 1 else None
+    size = strip.mesh.bounds[1] - strip.mesh.bounds[0]
+    steps = f" in steps of {step} mm" if step else ""
+    return f"""Fabrickator calibration strip: stud and socket fit for your printer
+=====================================================================
+
+{STL_NAME} (or {THREEMF_NAME}, the same strip) is {len(values)} columns of
+printed LEGO interface, one per value from {loose} to {tight} mm{steps}.
+Left to right, as the numbers read: {listing}.
+Each column is a printed cell exactly as Fabrickator builds one:
+
+  * on top, a stud of {d:g} + value mm diameter, {f.stud_height:g} mm high;
+  * underneath, a square socket {d:g} + value mm between opposite walls,
+    {f.socket_depth:g} mm deep under a {f.roof:g} mm roof.
+
+The strip is {size[0]:.0f} x {size[1]:.0f} x {size[2]:.1f} mm.
+
+Printing
+--------
+Print it as it lies (flat side on the bed, studs up, no supports), with the
+printer, nozzle, filament and layer height you print your parts with: the
+fit it finds is the fit of that set-up.
+
+Reading it
+----------
+You need a real LEGO 1x1 plate (3024), or a 1x2 plate (3023).
+
+Studs, --stud-fit: press the plate onto each stud, starting at {loose} (the
+thinnest stud) and going up.  Hold a 1x2 plate across the strip, its empty
+half over the strip's edge.  Take the FIRST value at which the plate clamps
+firmly: it holds when you turn the strip upside down, comes off with a
+pull, and nothing cracks or whitens.
+
+Sockets, --socket-fit: press the stud of the plate into each socket from
+below, starting at {tight} (the widest socket) and going down: a smaller
+value is a tighter socket.  A 1x2 plate's other stud points away from the
+strip, past the edge without the numbers.  Take the FIRST value at which
+the stud clamps firmly (holds the strip upside down, comes off with a pull)
+without cracking the walls.
+
+If even the last column is loose, or the first one is already tight, print
+another strip further along, e.g.
+  python -m core calibration-strip --from 0.20 --to 0.50 --out DIR
+
+Using the values
+----------------
+  python -m core fabricate MODEL --stud-fit STUD --socket-fit SOCKET --out DIR
+
+In FreeCAD: Edit > Preferences > Fabrickator, "Stud fit" and "Socket fit"
+(for new Fabrications); an existing Fabrication has its own StudFit and
+SocketFit properties (also in the "Lay out" dialog).  Defaults: stud fit
+{label(Fit.stud_fit)}, socket fit {label(Fit.socket_fit)} mm.
+"""
+
+
+def write_strip(out, values=None, fit: Fit = Fit()) -> list[Path]:
+    """Build the strip (:func:`build_strip`; ``values`` default to :func:`column_values`
+    around ``fit``) and write STL_NAME, THREEMF_NAME and README_NAME into the folder
+    ``out`` (made when missing); returns the three paths.
+
+    The values are checked before anything is made or built.  Each file is written
+    under a temporary name and then renamed, README last, so a folder with
+    README.txt is complete.  Raises InputError when ``out`` cannot be made or
+    written, or for values :func:`build_strip` refuses.
+    """
+    import trimesh
+
+    values = column_values(fit=fit) if values is None else tuple(values)
+    for value in values:
+        column_fit(fit, value)
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot make the output folder {folder}: {err.strerror or err}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write into the output folder {folder}")
+    strip = build_strip(values, fit)
+    contents = ((STL_NAME, trimesh.exchange.stl.export_stl(strip.mesh)),
+                (THREEMF_NAME, trimesh.exchange.threemf.export_3MF(strip.mesh)),
+                (README_NAME, readme(strip).encode("utf-8")))
+    written = []
+    for name, data in contents:
+        written.append(_write(folder / name, data))
+    return written
+
+
+def _write(path: Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in its folder; the path."""
+    try:
+        handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(data)
+        os.replace(tmp, path)
+    except OSError as err:
+        raise InputError(f"cannot write {path}: {err.strerror or err}") from None
+    return path
+
+
+def _pitch(least: float) -> float:
+    """The distance between columns: ``least``, or more where that is within GAP_MM of a
+    multiple of LEGO's 8 mm pitch (a brick could then clamp two columns at once)."""
+    nearest = PITCH * round(least / PITCH)
+    return nearest + GAP_MM if abs(least - nearest) < GAP_MM else least
+
+
+def _tidy(value: float) -> float:
+    """``value`` rounded to DECIMALS, without a negative zero."""
+    return round(float(value), DECIMALS) + 0.0
+
+
+def _box(x0, y0, z0, x1, y1, z1) -> "cq.Solid":
+    """The box between the corners (x0, y0, z0) and (x1, y1, z1)."""
+    import cadquery as cq
+
+    return cq.Solid.makeBox(x1 - x0, y1 - y0, z1 - z0, cq.Vector(x0, y0, z0))
+
+
+def _use_system_fontconfig() -> None:
+    """Point OpenCascade's bundled fontconfig at the system's ``fonts.conf`` unless the
+    user set one (the wheel's built-in path does not exist here, and fontconfig would
+    complain on stderr at the first text shape).  Changes nothing when FONTCONFIG_FILE
+    or FONTCONFIG_PATH is set or the system has no SYSTEM_FONTS_CONF."""
+    if not {"FONTCONFIG_FILE", "FONTCONFIG_PATH"} & set(os.environ) and os.path.exists(SYSTEM_FONTS_CONF):
+        os.environ["FONTCONFIG_FILE"] = SYSTEM_FONTS_CONF
+
+
+def _text_solid(text: str, height: float) -> cq.Shape:
+    """``text`` at LABEL_FONT_MM, bold, centred on the origin, extruded ``height`` up."""
+    import cadquery as cq
+
+    _use_system_fontconfig()
+    kwargs = {"fontPath": LABEL_FONT} if os.path.exists(LABEL_FONT) else {}
+    return cq.Workplane("XY").text(text, LABEL_FONT_MM, height, combine=False, halign="center",
+                                   valign="center", kind="bold", **kwargs).val()
+
+
+def _placed(shape: cq.Shape, cx: float, cy: float, z: float) -> cq.Shape:
+    """``shape`` moved so that its bounding box is centred on (cx, cy) and starts at z."""
+    import cadquery as cq
+
+    box = shape.BoundingBox()
+    return shape.translate(cq.Vector(cx - box.center.x, cy - box.center.y, z - box.zmin))
