@@ -50,7 +50,7 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Shape
 from scipy.spatial import cKDTree
 
-from core import connectors as connectors_stage, high_res, interfaces
+from core import connectors as connectors_stage, high_res, interfaces, thickness
 from core.brick_solids import SIDE_TAGS, BooleanFailed, run_boolean, to_trimesh
 from core.errors import InputError
 from core.interfaces import Fit
@@ -75,6 +75,8 @@ SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 BAR_MM = 2.0
 #: Segments of a stud's circle in a mesh part (the B-rep part has a true cylinder).
 STUD_SEGMENTS = 96
+#: Thickness (mm) of the weld that fills an edge where a part touches itself.
+WELD_MM = 0.4
 #: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
 CRUMB_MM3 = 1e-3
 
@@ -106,7 +108,8 @@ class PrintedPart:
     stability check.  ``kept_mm3`` is the model's volume inside the
     envelope (before studs and sockets), ``envelope_mm3`` the part's cells'
     volume; ``joins`` the bars that join loose pieces; ``method`` which
-    Booleans made it.  ``engraved`` says
+    Booleans made it; ``thin`` where the printed part is thinner than a
+    0.4 mm nozzle prints (:func:`core.thickness.thin_features`).  ``engraved`` says
     whether the id is cut into a side; ``engraving`` is then a dict saying
     where (brick, side, centre, outward normal, text size, font size,
     depth), else the reason why not.  ``stl``, ``step``, ``pose`` and
@@ -128,6 +131,7 @@ class PrintedPart:
     envelope_mm3: float = 0.0
     joins: list = field(default_factory=list)
     method: str = ""
+    thin: dict = field(default_factory=dict)
     engraved: bool = False
     engraving: dict | str = "not engraved: engraving switched off"
     stl: str | None = None
@@ -174,6 +178,7 @@ class PrintedPart:
             "volume_mm3": round(self.volume_mm3, 3), "pieces": self.pieces,
             "kept_mm3": round(self.kept_mm3, 3), "envelope_mm3": round(self.envelope_mm3, 3),
             "joins": list(self.joins), "method": self.method,
+            "thin_features": dict(self.thin),
             "stl": self.stl, "step": self.step,
             "print_s": None if self.print_s is None else round(self.print_s, 1),
             "engaged": self.engaged,
@@ -356,6 +361,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
                        envelope_mm3=engine.volume(envelope), joins=joins)
     if engrave:
         _engrave(part, bricks, grid, mine, other, fit, engine)
+    part.thin = thickness.thin_features(part.mesh)
     return part
 
 
@@ -378,7 +384,23 @@ def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit
                          + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
                             for x, y, z0, z1 in layout_plan.studs])
     shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
-    return engine.only_solid(shape, part_id), envelope, kept_mm3, joins
+    return engine.only_solid(_without_touching_edges(engine, shape), part_id), envelope, kept_mm3, joins
+
+
+def _without_touching_edges(engine, shape, rounds: int = 3):
+    """``shape`` with every edge where it touches itself (four faces on one edge, as
+    where a model edge meets a socket's corner exactly) filled by a box
+    :data:`WELD_MM` thick round the edge, so that its STL is a 2-manifold."""
+    for _ in range(rounds):
+        mesh = engine.mesh(shape)
+        edges, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+        touching = edges[counts > 2]
+        if len(touching) == 0:
+            return shape
+        ends = mesh.vertices[touching]
+        welds = [engine.box(e.min(axis=0) - WELD_MM / 2, e.max(axis=0) + WELD_MM / 2) for e in ends]
+        shape = engine.union([shape] + welds)
+    return shape
 
 
 def _extent(model: m3.Manifold, lo, hi) -> tuple[float, float] | None:
