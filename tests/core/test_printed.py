@@ -137,8 +137,21 @@ def test_a_2mm_plate_is_kept_whole_and_gets_studs_and_sockets(kind):
     assert lo[2] == pytest.approx(9.6, abs=1e-6) and hi[2] == pytest.approx(41.6 + fit.stud_height, abs=1e-6)
     middle = m3.Manifold.cube([48, 8, 32 - 2 * 3.2]).translate([0, 0, 9.6 + 3.2])
     assert (added ^ middle).volume() == pytest.approx(0.0, abs=1e-6)
-    # The sockets' walls and the skin are at least min_wall thick: 8 - 4.8 leaves 1.6 per side.
+    # The sockets' walls and the skin are at least min_wall thick: 8 - 4.8 leaves 1.6 per side,
+    # and nothing of the part is thinner than a 0.4 mm nozzle prints.
     assert (8 - fit.socket_width) / 2 >= fit.min_wall
+    assert part.thin["area_mm2"] == 0.0 and part.thin["thinnest_mm"] >= 1.0
+
+
+def test_a_fin_thinner_than_a_nozzle_is_named():
+    lay = _layout([Brick(0, "3001", (4, 2, 3), (0, 0, 0))], (4, 2, 3))
+    body = trimesh.creation.box(bounds=[[0, 0, 0], [20, 16, 9.6]])
+    fin = trimesh.creation.box(bounds=[[20, 5, 0], [30, 5.3, 9.6]])
+    (part,) = printed.build_parts(lay, [[0]], _source("mesh", trimesh.util.concatenate([body, fin])),
+                                  engrave=False)
+    assert part.thin["thinnest_mm"] == pytest.approx(0.3, abs=0.01)
+    assert part.thin["area_mm2"] == pytest.approx(2 * 10 * 9.6, rel=0.15)
+    assert part.to_json()["thin_features"]["spots"]
 
 
 def test_loose_pieces_are_joined_by_a_bar_inside_the_bricks():
