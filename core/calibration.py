@@ -61,7 +61,7 @@ GAP_MM = 2.5
 BAND_WIDTH_MM, BAND_THICKNESS_MM, BAND_OVERLAP_MM = 5.0, 1.2, 0.5
 #: The values' text: font size, height of the raised letters, free space
 #: between two labels along the strip.
-LABEL_FONT_MM, LABEL_RAISE_MM, LABEL_GAP_MM = 3.5, 0.6, 1.0
+LABEL_FONT_MM, LABEL_RAISE_MM, LABEL_GAP_MM = 3.5, 0.6, 2.0
 #: The labels' font (DejaVu Sans Bold, Debian fonts-dejavu-core; else cadquery's default).
 LABEL_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
 #: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
@@ -268,10 +268,10 @@ SocketFit properties (also in the "Lay out" dialog).  Defaults: stud fit
 """
 
 
-def write_strip(out, values=None, fit: Fit = Fit()) -> list[Path]:
+def write_strip(out, values=None, fit: Fit = Fit()) -> tuple[Strip, list[Path]]:
     """Build the strip (:func:`build_strip`; ``values`` default to :func:`column_values`
     around ``fit``) and write STL_NAME, THREEMF_NAME and README_NAME into the folder
-    ``out`` (made when missing); returns the three paths.
+    ``out`` (made when missing); returns the strip and the three paths.
 
     The values are checked before anything is made or built.  Each file is written
     under a temporary name and then renamed, README last, so a folder with
@@ -294,10 +294,7 @@ def write_strip(out, values=None, fit: Fit = Fit()) -> list[Path]:
     contents = ((STL_NAME, trimesh.exchange.stl.export_stl(strip.mesh)),
                 (THREEMF_NAME, trimesh.exchange.threemf.export_3MF(strip.mesh)),
                 (README_NAME, readme(strip).encode("utf-8")))
-    written = []
-    for name, data in contents:
-        written.append(_write(folder / name, data))
-    return written
+    return strip, [_write(folder / name, data) for name, data in contents]
 
 
 def _write(path: Path, data: bytes) -> Path:

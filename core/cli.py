@@ -198,7 +198,7 @@ def _calibration_strip(args) -> int:
 
     try:
         values = calibration.column_values(args.start, args.stop, args.step)
-        written = calibration.write_strip(args.out, values)
+        _, written = calibration.write_strip(args.out, values)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2
