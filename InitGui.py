@@ -43,9 +43,12 @@ class FabrickatorWorkbench(FreeCADGui.Workbench):
 
 
 FreeCADGui.addWorkbench(FabrickatorWorkbench())
-FreeCADGui.addPreferencePage(
-    os.path.join(os.path.dirname(_fabrickator_package.__file__), "resources", "ui", "preferences.ui"),
-    "Fabrickator")
+from FabrickatorWorkbench.preferences import PreferencePage as _FabrickatorPreferencePage  # noqa: E402
+
+# the preferences dialog shows the group's icon "preferences-fabrickator" from an icon path
+FreeCADGui.addIconPath(os.path.join(os.path.dirname(_fabrickator_package.__file__), "resources",
+                                    "icons"))
+FreeCADGui.addPreferencePage(_FabrickatorPreferencePage, "Fabrickator")
 _fabrickator_gui_tests = os.path.join(os.path.dirname(os.path.dirname(_fabrickator_package.__file__)),
                                       "tests", "gui")
 if os.path.isdir(_fabrickator_gui_tests):

@@ -51,12 +51,14 @@ def _require(what: str) -> None:
 
 
 def make_fabrication(source, doc=None, brick_set: str | None = None,
-                     clearance: float | None = None, seed: int = 0, scale: float = 1.0,
+                     stud_fit: float | None = None, socket_fit: float | None = None,
+                     seed: int = 0, scale: float = 1.0,
                      seconds_per_brick: float | None = None, slice_print_times: bool | None = None,
                      label: str | None = None):
     """A new Fabrication of ``source`` (an object with a solid, or a Mesh feature).
 
-    Unset parameters come from the preferences.  The result appears after
+    Unset parameters come from the preferences (``stud_fit``/``socket_fit``, mm,
+    signed: see :class:`core.interfaces.Fit`).  The result appears after
     the next ``doc.recompute()``.  Raises ValueError when ``source`` has no
     solid and no mesh.
     """
@@ -68,7 +70,8 @@ def make_fabrication(source, doc=None, brick_set: str | None = None,
     Fabrication(obj)
     obj.Source = source
     obj.BrickSet = brick_set if brick_set is not None else preferences.get("BrickSet")
-    obj.Clearance = clearance if clearance is not None else preferences.get("Clearance")
+    obj.StudFit = float(stud_fit if stud_fit is not None else preferences.get("StudFit"))
+    obj.SocketFit = float(socket_fit if socket_fit is not None else preferences.get("SocketFit"))
     obj.Seed = int(seed)
     obj.Scale = float(scale)
     obj.SecondsPerBrick = (seconds_per_brick if seconds_per_brick is not None

@@ -1,9 +1,14 @@
 """Fabrickator's user preferences, kept in FreeCAD's parameter tree.
 
 They live under ``User parameter:BaseApp/Preferences/Mod/Fabrickator`` and
-are edited on the preferences page (``resources/ui/preferences.ui``, whose
-widgets save themselves there).  New Fabrications take their defaults from
-here; each Fabrication then keeps its own values as properties.
+are edited on the preferences page (:class:`PreferencePage`, the form
+``resources/ui/preferences.ui``).  New Fabrications take their defaults
+from here; each Fabrication then keeps its own values as properties.
+
+The stud and socket fit default to :class:`core.interfaces.Fit`, the one
+table of their defaults (the CLI, these preferences and the Fabrication's
+properties all read it): an unset preference follows that table, so a
+change of the table reaches every user who has not chosen a value.
 """
 
 from __future__ import annotations
@@ -13,15 +18,25 @@ import FreeCAD as App
 #: Parameter group of the preferences.
 PATH = "User parameter:BaseApp/Preferences/Mod/Fabrickator"
 
-#: name -> (type, default).  Types follow FreeCAD's parameter kinds.
+#: name -> (type, default).  Types follow FreeCAD's parameter kinds; a default of
+#: None is the field FIT_FIELDS names of :class:`core.interfaces.Fit`.
 DEFAULTS = {
     "BrickSet": ("String", "all"),
-    "Clearance": ("Float", 0.1),
+    "StudFit": ("Float", None),
+    "SocketFit": ("Float", None),
     "SlicerPath": ("String", ""),
     "SlicerProfile": ("String", ""),
     "SecondsPerBrick": ("Float", 10.0),
     "SliceOnRecompute": ("Bool", False),
 }
+
+#: Preferences whose default is a field of :class:`core.interfaces.Fit`.
+FIT_FIELDS = {"StudFit": "stud_fit", "SocketFit": "socket_fit"}
+
+#: Widget (object name in preferences.ui) of each preference on the page.
+WIDGETS = {"BrickSet": "brickSet", "StudFit": "studFit", "SocketFit": "socketFit",
+           "SecondsPerBrick": "secondsPerBrick", "SlicerPath": "slicerPath",
+           "SlicerProfile": "slicerProfile", "SliceOnRecompute": "sliceOnRecompute"}
 
 
 def group():
@@ -29,10 +44,40 @@ def group():
     return App.ParamGet(PATH)
 
 
+def _fit_class():
+    """:class:`core.interfaces.Fit` from this repository's ``core`` (raises ImportError
+    when it cannot be loaded)."""
+    from FabrickatorWorkbench import deps
+
+    deps.load_core()
+    from core.interfaces import Fit
+
+    return Fit
+
+
+def fit_default(field: str) -> float:
+    """The default of ``field`` ("stud_fit", "socket_fit", ...) in :class:`core.interfaces.Fit`."""
+    return float(getattr(_fit_class()(), field))
+
+
+def default(name: str):
+    """The default of preference ``name``: DEFAULTS' value, or Fit's for FIT_FIELDS."""
+    _, value = DEFAULTS[name]
+    return fit_default(FIT_FIELDS[name]) if name in FIT_FIELDS else value
+
+
+def is_set(name: str) -> bool:
+    """Whether the user has stored a value for ``name`` (else :func:`default` applies)."""
+    kind, _ = DEFAULTS[name]
+    return name in getattr(group(), f"Get{kind}s")()
+
+
 def get(name: str):
     """The value of preference ``name`` (its default when unset)."""
-    kind, default = DEFAULTS[name]
-    return getattr(group(), f"Get{kind}")(name, default)
+    kind, _ = DEFAULTS[name]
+    if not is_set(name):
+        return default(name)
+    return getattr(group(), f"Get{kind}")(name)
 
 
 def set(name: str, value) -> None:  # noqa: A001 - the natural name next to get()
@@ -41,6 +86,85 @@ def set(name: str, value) -> None:  # noqa: A001 - the natural name next to get(
     getattr(group(), f"Set{kind}")(name, value)
 
 
+def reset(name: str) -> None:
+    """Forget the stored value of ``name``: :func:`get` gives its default again."""
+    kind, _ = DEFAULTS[name]
+    getattr(group(), f"Rem{kind}")(name)
+
+
 def values() -> dict:
     """All preferences as a dict."""
     return {name: get(name) for name in DEFAULTS}
+
+
+def fit():
+    """The :class:`core.interfaces.Fit` of the preferences: their stud and socket fit,
+    everything else Fit's defaults (not checked: :meth:`Fit.check` says what is wrong)."""
+    return _fit_class()(stud_fit=float(get("StudFit")), socket_fit=float(get("SocketFit")))
+
+
+class PreferencePage:
+    """The Fabrickator page of FreeCAD's preferences dialog (GUI only).
+
+    FreeCAD calls :meth:`loadSettings` when the page opens and
+    :meth:`saveSettings` on OK/Apply.  Each widget of WIDGETS shows
+    :func:`get` (so an unset fit shows Fit's default) and is stored with
+    :func:`set` only when it differs from what :func:`get` gave, so an unset
+    preference keeps following its default.
+    """
+
+    def __init__(self, parent=None):
+        import os
+
+        import FreeCADGui as Gui
+
+        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "resources", "ui",
+                            "preferences.ui")
+        self.form = Gui.PySideUic.loadUi(path)
+        self.shown: dict = {}
+
+    def widget(self, name: str):
+        """The page's widget of preference ``name``."""
+        from PySide import QtGui
+
+        return self.form.findChild(QtGui.QWidget, WIDGETS[name])
+
+    def loadSettings(self):
+        for name in WIDGETS:
+            value = get(name)
+            self.shown[name] = value
+            _set_widget(self.widget(name), value)
+
+    def saveSettings(self):
+        for name in WIDGETS:
+            value = _widget_value(self.widget(name), DEFAULTS[name][0])
+            if value != self.shown.get(name):
+                set(name, value)
+                self.shown[name] = value
+
+
+def _set_widget(widget, value) -> None:
+    """Show ``value`` in a QLineEdit, QDoubleSpinBox, QCheckBox or Gui::FileChooser."""
+    from PySide import QtGui
+
+    if isinstance(widget, QtGui.QCheckBox):
+        widget.setChecked(bool(value))
+    elif isinstance(widget, QtGui.QDoubleSpinBox):
+        widget.setValue(float(value))
+    elif isinstance(widget, QtGui.QLineEdit):
+        widget.setText(str(value))
+    else:
+        widget.setProperty("fileName", str(value))
+
+
+def _widget_value(widget, kind: str):
+    """The value ``widget`` shows, as a preference of FreeCAD parameter kind ``kind``."""
+    from PySide import QtGui
+
+    if isinstance(widget, QtGui.QCheckBox):
+        return bool(widget.isChecked())
+    if isinstance(widget, QtGui.QDoubleSpinBox):
+        return float(widget.value())
+    if isinstance(widget, QtGui.QLineEdit):
+        return widget.text().strip()
+    return str(widget.property("fileName") or "")

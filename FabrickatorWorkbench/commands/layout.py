@@ -1,4 +1,4 @@
-"""Layout: lay the selected Fabrication out again with another brick set, seed or clearance."""
+"""Layout: lay the selected Fabrication out again with another brick set, seed, fit or scale."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ class Layout(Command):
     ICON = "Layout"
     MENU = "Lay &out"
     TIP = ("Lay the selected Fabrication out again: brick set, seed (another arrangement), "
-           "clearance, scale")
+           "stud and socket fit, scale")
 
     def IsActive(self):
         return selected_fabrication(computed=False) is not None
@@ -55,19 +55,19 @@ class LayoutDialog:
         self.seed = QtGui.QSpinBox()
         self.seed.setRange(0, 2 ** 31 - 1)
         self.seed.setValue(int(fab.Seed))
-        self.clearance = QtGui.QDoubleSpinBox()
-        self.clearance.setRange(0.0, 1.0)
-        self.clearance.setDecimals(3)
-        self.clearance.setSingleStep(0.01)
-        self.clearance.setSuffix(" mm")
-        self.clearance.setValue(float(fab.Clearance.Value))
+        self.stud_fit = fit_box(float(fab.StudFit.Value), "studFit",
+                                "Printed studs are 4.8 mm + this across: larger clamps tighter")
+        self.socket_fit = fit_box(float(fab.SocketFit.Value), "socketFit",
+                                  "Printed sockets are 4.8 mm + this between opposite walls: "
+                                  "smaller clamps tighter")
         self.scale = QtGui.QDoubleSpinBox()
         self.scale.setRange(0.001, 1000.0)
         self.scale.setDecimals(3)
         self.scale.setValue(float(fab.Scale))
         form.addRow("Brick set", self.brick_set)
         form.addRow("Seed", self.seed)
-        form.addRow("Clearance", self.clearance)
+        form.addRow("Stud fit", self.stud_fit)
+        form.addRow("Socket fit", self.socket_fit)
         form.addRow("Scale", self.scale)
         buttons = QtGui.QDialogButtonBox(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
         buttons.accepted.connect(self.dialog.accept)
@@ -80,4 +80,20 @@ class LayoutDialog:
     def values(self) -> dict:
         """The dialog's values as Fabrication property values."""
         return {"BrickSet": self.brick_set.text().strip(), "Seed": self.seed.value(),
-                "Clearance": self.clearance.value(), "Scale": self.scale.value()}
+                "StudFit": self.stud_fit.value(), "SocketFit": self.socket_fit.value(),
+                "Scale": self.scale.value()}
+
+
+def fit_box(value: float, name: str, tip: str):
+    """A signed mm spin box for a stud or socket fit (the range Fit.check allows)."""
+    from PySide import QtGui
+
+    box = QtGui.QDoubleSpinBox()
+    box.setObjectName(name)
+    box.setRange(-0.8, 0.8)
+    box.setDecimals(3)
+    box.setSingleStep(0.01)
+    box.setSuffix(" mm")
+    box.setValue(value)
+    box.setToolTip(tip + "; find your printer's value with the Calibration strip")
+    return box

@@ -52,6 +52,14 @@ def cell_size() -> App.Vector:
     return App.Vector(*CELL_MM)
 
 
+def fit(obj):
+    """The :class:`core.interfaces.Fit` of Fabrication ``obj``: its StudFit and SocketFit,
+    the rest Fit's defaults; raises InputError naming a setting out of range."""
+    from core.interfaces import Fit
+
+    return Fit(stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value)).check()
+
+
 def parameters(obj) -> dict:
     """The user-editable parameters of a Fabrication as plain values."""
     out = {}
@@ -159,13 +167,14 @@ def run_core(obj) -> Result:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, scale)
         fab, changes = None, None
+        fitting = fit(obj)
         marks = _last_inputs(obj) == inputs
         if obj.KeepLayout and obj.IterationState and marks:
-            fab, changes = _iterate(obj, path, boxes, solids, work, progress)
+            fab, changes = _iterate(obj, path, boxes, solids, work, progress, fitting)
         if fab is None:
             kwargs = dict(scale=scale, seed=int(obj.Seed), parts=obj.BrickSet.strip() or None,
                           high_res=boxes, high_res_solids=solids,
-                          clearance=float(obj.Clearance.Value),
+                          stud_fit=fitting.stud_fit, socket_fit=fitting.socket_fit,
                           seconds_per_brick=float(obj.SecondsPerBrick), slice_parts=True,
                           progress=progress, fit_grid=bool(obj.FitGrid))
             kwargs["part_edits"] = [{"op": e["op"],
@@ -181,7 +190,7 @@ def run_core(obj) -> Result:
         if changes is not None:
             report["changes"] = changes
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
-        snapshot = _snapshot(fab, float(obj.Clearance.Value))
+        snapshot = _snapshot(fab, fitting)
     return Result(fab, order, report, inputs, snapshot, marks)
 
 
@@ -206,9 +215,10 @@ def _last_inputs(obj) -> dict | None:
         return None
 
 
-def _iterate(obj, path: str, boxes, solids, work: str, progress):
-    """The new Source as an iteration on the stored snapshot: (core Fabrication, changes),
-    or (None, None) when the iteration does not apply (then the caller lays out anew)."""
+def _iterate(obj, path: str, boxes, solids, work: str, progress, fitting):
+    """The new Source as an iteration on the stored snapshot, with the stud and socket
+    fit ``fitting`` (a :class:`core.interfaces.Fit`): (core Fabrication, changes), or
+    (None, None) when the iteration does not apply (then the caller lays out anew)."""
     import numpy as np
 
     from core import catalog, iterate, mesh_io, pipeline
@@ -220,7 +230,7 @@ def _iterate(obj, path: str, boxes, solids, work: str, progress):
         model = mesh_io.load_model(path, scale=float(obj.Scale))
         result = iterate.iterate(previous, model, parts=catalog.select(obj.BrickSet.strip() or None),
                                  seed=int(obj.Seed), high_res=boxes, high_res_solids=solids,
-                                 scale=float(obj.Scale), clearance=float(obj.Clearance.Value),
+                                 scale=float(obj.Scale), fit=fitting,
                                  progress=progress)
     except Cancelled:
         raise
@@ -238,15 +248,16 @@ def _iterate(obj, path: str, boxes, solids, work: str, progress):
     return fab, result.changes
 
 
-def _snapshot(fab, clearance: float) -> str | None:
-    """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
-    own, which the caller removes), or None when the core has no iteration support."""
+def _snapshot(fab, fitting) -> str | None:
+    """A zip of the core's iteration snapshot of ``fab`` made with the Fit ``fitting`` (in
+    a temporary folder of its own, which the caller removes), or None when the core has
+    no iteration support."""
     try:
         from core import iterate
     except ImportError:
         return None
     with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
-        iterate.snapshot(fab, folder, clearance=clearance)
+        iterate.snapshot(fab, folder, fit=fitting)
         holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
         return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)
 

@@ -2,7 +2,7 @@
 
 An ``App::FeaturePython`` whose proxy is :class:`Fabrication`.
 Its inputs are the Source (any solid or a mesh feature), the brick set,
-clearance, seed, scale, the high-res regions and the merge/split edits;
+stud and socket fit, seed, scale, the high-res regions and the merge/split edits;
 its recompute runs the core pipeline (:mod:`.fabricate`) and keeps the
 result in the document: the layout, report and steps as JSON properties,
 one tree object per brick grouped by layer, and PrintedPart objects.  So a
@@ -16,9 +16,13 @@ groups) show under it in the tree through its view provider.
 
 from __future__ import annotations
 
+from functools import partial
+
 import FreeCAD as App
 
+from FabrickatorWorkbench import log
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
+from FabrickatorWorkbench.preferences import fit_default
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -27,7 +31,7 @@ ROLE = "Fabrication"
 
 #: Inputs the user edits; the last values that recomputed fine are kept in
 #: ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "Clearance", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
               "FitGrid")
 
 PROPERTIES = (
@@ -38,8 +42,14 @@ PROPERTIES = (
     Prop("App::PropertyString", "BrickSet", "Fabrication",
          QT("App::Property", "Bricks to use: all, plates, bricks, design numbers (3001,3024) "
                              "or names like plate2x4; must contain the 1x1 plate 3024"), "all"),
-    Prop("App::PropertyLength", "Clearance", "Fabrication",
-         QT("App::Property", "FDM clearance of printed studs and tubes (a diameter)"), 0.1),
+    Prop("App::PropertyDistance", "StudFit", "Fabrication",
+         QT("App::Property", "Printed studs are 4.8 mm + this across (signed; larger clamps "
+                             "tighter); find your printer's value with the Calibration strip"),
+         partial(fit_default, "stud_fit")),
+    Prop("App::PropertyDistance", "SocketFit", "Fabrication",
+         QT("App::Property", "Printed sockets are 4.8 mm + this between the walls a real stud "
+                             "touches (signed; smaller clamps tighter); see the Calibration strip"),
+         partial(fit_default, "socket_fit")),
     Prop("App::PropertyInteger", "Seed", "Fabrication",
          QT("App::Property", "Seed of the layout: the same seed gives the same layout"), 0),
     Prop("App::PropertyFloat", "Scale", "Fabrication",
@@ -124,6 +134,7 @@ class Fabrication(FeatureProxy):
 
     def onDocumentRestored(self, obj):
         super().onDocumentRestored(obj)
+        retire_clearance(obj)
         if App.GuiUp:
             from FabrickatorWorkbench.objects import prototype, tree
             from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
@@ -135,6 +146,27 @@ class Fabrication(FeatureProxy):
     def execute(self, obj):
         from FabrickatorWorkbench.objects import fabricate
         fabricate.recompute(obj)
+
+
+#: The property older versions had instead of StudFit and SocketFit: one FDM clearance,
+#: a diameter taken off studs and added to holes.
+OLD_CLEARANCE = "Clearance"
+
+
+def retire_clearance(obj) -> bool:
+    """Remove an older document's ``Clearance`` property from Fabrication ``obj`` (its
+    StudFit and SocketFit, added on restore, take over with their defaults) and say so
+    in the Report view; True when there was one.  Idempotent."""
+    if OLD_CLEARANCE not in obj.PropertiesList:
+        return False
+    old = getattr(obj, OLD_CLEARANCE)
+    old = float(getattr(old, "Value", old))
+    obj.removeProperty(OLD_CLEARANCE)
+    log.message(f"{obj.Label}: the old Clearance ({old:g} mm) is replaced by StudFit "
+                f"({float(obj.StudFit.Value):+.2f} mm) and SocketFit "
+                f"({float(obj.SocketFit.Value):+.2f} mm); the next recompute uses them (the "
+                f"Calibration strip finds your printer's)")
+    return True
 
 
 def is_fabrication(obj) -> bool:

@@ -16,7 +16,11 @@ NORMAL, READ_ONLY, HIDDEN = 0, 1, 2
 
 @dataclass(frozen=True)
 class Prop:
-    """One property: FreeCAD type, name, group, tool tip, default, editor mode."""
+    """One property: FreeCAD type, name, group, tool tip, default, editor mode.
+
+    ``default`` may be a function of no arguments, called when the property is
+    added (a default that lives in another table, read only then).
+    """
 
     type: str
     name: str
@@ -34,8 +38,9 @@ def ensure(obj, props) -> list[str]:
     for p in props:
         if p.name not in existing:
             obj.addProperty(p.type, p.name, p.group, p.doc)
-            if p.default is not None:
-                setattr(obj, p.name, p.default)
+            default = p.default() if callable(p.default) else p.default
+            if default is not None:
+                setattr(obj, p.name, default)
             added.append(p.name)
         if p.mode != NORMAL:
             obj.setEditorMode(p.name, p.mode)

@@ -685,6 +685,127 @@ class TestDocument(FabrickatorTestCase):
         self.assertEqual(left, [])
 
 
+def stud_diameters(shape) -> list[float]:
+    """Diameters of the vertical cylindrical faces of ``shape`` (its studs), sorted."""
+    return sorted(round(2 * f.Surface.Radius, 6) for f in shape.Faces
+                  if type(f.Surface).__name__ == "Cylinder" and abs(f.Surface.Axis.z) > 0.999)
+
+
+def socket_widths(shape, z: float) -> list[tuple[float, float]]:
+    """(x, y) widths of the inner loops (socket holes) of ``shape``'s section at height ``z``."""
+    wires = shape.slice(App.Vector(0, 0, 1), z)
+    outer = max(wires, key=lambda w: w.BoundBox.DiagonalLength)
+    return sorted((round(w.BoundBox.XLength, 6), round(w.BoundBox.YLength, 6))
+                  for w in wires if w is not outer and w.BoundBox.XLength < 6)
+
+
+class TestFit(FabrickatorTestCase):
+    """StudFit and SocketFit: defaults from core.interfaces.Fit, preferences, the printed
+    parts, old documents with a Clearance."""
+
+    def setUp(self):
+        super().setUp()
+        from FabrickatorWorkbench import preferences
+
+        self.preferences = preferences
+        for name in ("StudFit", "SocketFit"):
+            preferences.reset(name)
+
+    def tearDown(self):
+        for name in ("StudFit", "SocketFit"):
+            self.preferences.reset(name)
+        super().tearDown()
+
+    def test_defaults_come_from_the_one_table(self):
+        from core.interfaces import Fit
+
+        self.assertEqual(self.preferences.get("StudFit"), Fit.stud_fit)
+        self.assertEqual(self.preferences.get("SocketFit"), Fit.socket_fit)
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.assertAlmostEqual(f.StudFit.Value, Fit.stud_fit)
+        self.assertAlmostEqual(f.SocketFit.Value, Fit.socket_fit)
+        self.assertNotIn("Clearance", f.PropertiesList)
+        self.preferences.set("StudFit", 0.12)
+        self.preferences.set("SocketFit", -0.04)
+        g = fab().make_fabrication(body)
+        self.assertAlmostEqual(g.StudFit.Value, 0.12)
+        self.assertAlmostEqual(g.SocketFit.Value, -0.04)
+        self.assertAlmostEqual(f.StudFit.Value, Fit.stud_fit)  # each keeps its own
+        h = fab().make_fabrication(body, stud_fit=0.2, socket_fit=0.1)
+        self.assertEqual((h.StudFit.Value, h.SocketFit.Value), (0.2, 0.1))
+
+    def test_the_fits_make_the_printed_studs_and_sockets(self):
+        # a 24 x 24 x 9.6 block, its middle cell of the middle layer printed: LEGO above
+        # and below, so the part has one stud on top and one socket underneath
+        source = self.doc.addObject("Part::Box", "Block")
+        source.Length = source.Width = 24.0
+        source.Height = 9.6
+        self.doc.recompute()
+        f = fab().make_fabrication(source, stud_fit=0.15, socket_fit=-0.05)
+        fab().mark_high_res(f, box=(8.5, 8.5, 3.5, 15.5, 15.5, 6.0))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        part = fab().printed_parts(f)[0]
+        z0 = part.Shape.BoundBox.ZMin
+        self.assertEqual(stud_diameters(part.Shape), [4.95])
+        self.assertEqual(socket_widths(part.Shape, z0 + 1.0), [(4.75, 4.75)])
+        f.StudFit, f.SocketFit = 0.0, 0.1
+        self.doc.recompute()
+        part = fab().printed_parts(f)[0]
+        self.assertEqual(stud_diameters(part.Shape), [4.8])
+        self.assertEqual(socket_widths(part.Shape, z0 + 1.0), [(4.9, 4.9)])
+
+    def test_a_fit_out_of_range_fails_and_is_put_back(self):
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.doc.recompute()
+        layout = f.LayoutJson
+        f.StudFit = 0.95
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("failed"), f.Status)
+        self.assertIn("stud-fit", f.Status)
+        self.assertAlmostEqual(f.StudFit.Value, 0.05)
+        self.assertEqual(f.LayoutJson, layout)
+
+    def test_an_old_document_with_a_clearance_opens_and_recomputes(self):
+        from core.interfaces import Fit
+
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        fab().mark_high_res(f, box=(0, 0, 12.8, 8, 8, 19.2))
+        self.doc.recompute()
+        # what an older version saved: a Clearance (a diameter), no StudFit/SocketFit,
+        # and its parameters with the Clearance in LastGood
+        for name in ("StudFit", "SocketFit"):
+            f.removeProperty(name)
+        f.addProperty("App::PropertyLength", "Clearance", "Fabrication", "FDM clearance")
+        f.Clearance = 0.1
+        last = json.loads(f.LastGood)
+        last["parameters"] = {k: v for k, v in last["parameters"].items()
+                              if k not in ("StudFit", "SocketFit")} | {"Clearance": 0.1}
+        f.LastGood = json.dumps(last)
+        layout = f.LayoutJson
+        path = self.path("old.FCStd")
+        self.doc.saveAs(path)
+        App.closeDocument(self.doc.Name)
+        self.doc = App.openDocument(path)
+        f = fab().fabrications(self.doc)[0]
+        self.assertNotIn("Clearance", f.PropertiesList)
+        self.assertAlmostEqual(f.StudFit.Value, Fit.stud_fit)
+        self.assertAlmostEqual(f.SocketFit.Value, Fit.socket_fit)
+        self.assertEqual(f.LayoutJson, layout)
+        f.Proxy.onDocumentRestored(f)  # idempotent
+        self.assertEqual(f.PropertiesList.count("StudFit"), 1)
+        f.BrickSet = "3001"  # fails: the parameters go back, the Clearance entry is ignored
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("failed"), f.Status)
+        self.assertEqual(f.BrickSet, "all")
+        self.assertTrue(fab().recompute(f), f.Status)
+        self.assertEqual(len(fab().printed_parts(f)), 1)
+        self.assertNotIn("Clearance", json.loads(f.LastGood)["parameters"])
+
+
 class TestExamples(FabrickatorTestCase):
     """The bundled HMD example and a model from the shared set, end to end."""
 

@@ -151,9 +151,10 @@ class GuiTestCase(unittest.TestCase):
     def setUp(self):
         from FabrickatorWorkbench import preferences
 
-        self.preferences = preferences.values()
-        for name, (_, default) in preferences.DEFAULTS.items():
-            preferences.set(name, default)
+        self.preferences = {name: preferences.get(name) for name in preferences.DEFAULTS
+                            if preferences.is_set(name)}
+        for name in preferences.DEFAULTS:
+            preferences.reset(name)
         Gui.activateWorkbench("FabrickatorWorkbench")
         self.doc = App.newDocument("FabrickatorGui")
         self.doc.UndoMode = 1
@@ -163,6 +164,8 @@ class GuiTestCase(unittest.TestCase):
     def tearDown(self):
         from FabrickatorWorkbench import preferences
 
+        for name in preferences.DEFAULTS:
+            preferences.reset(name)
         for name, value in self.preferences.items():
             preferences.set(name, value)
         if Gui.Control.activeDialog():
@@ -263,6 +266,36 @@ class TestExampleAndPreferences(GuiTestCase):
         finally:
             preferences.set("BrickSet", "all")
 
+    def test_preferences_page_shows_the_fit_defaults_and_saves_a_changed_fit(self):
+        from core.interfaces import Fit
+        from FabrickatorWorkbench import preferences
+
+        shown = {}
+
+        def handler(dialog):
+            stud = dialog.findChild(QtGui.QDoubleSpinBox, "studFit")
+            socket = dialog.findChild(QtGui.QDoubleSpinBox, "socketFit")
+            shown.update(stud=stud.value(), socket=socket.value(), fileName=dialog.findChild(
+                QtGui.QWidget, "slicerPath").property("fileName"))
+            ARTIFACTS.mkdir(parents=True, exist_ok=True)
+            dialog.grab().save(str(ARTIFACTS / "preferences.png"))
+            stud.setValue(0.15)
+            dialog.accept()
+
+        answer_modal(handler, "Gui__Dialog__DlgPreferences")
+        Gui.showPreferences("Fabrickator", 0)
+        settle()
+        self.assertEqual(shown["stud"], Fit.stud_fit)
+        self.assertEqual(shown["socket"], Fit.socket_fit)
+        self.assertEqual(shown["fileName"], "")
+        self.assertEqual(preferences.get("StudFit"), 0.15)
+        self.assertFalse(preferences.is_set("SocketFit"))   # unchanged: still follows Fit
+        self.assertFalse(preferences.is_set("BrickSet"))
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.assertAlmostEqual(f.StudFit.Value, 0.15)
+        self.assertAlmostEqual(f.SocketFit.Value, Fit.socket_fit)
+
 
 class TestCommands(GuiTestCase):
     def test_legofy_selection_is_one_undo_step(self):
@@ -311,6 +344,31 @@ class TestCommands(GuiTestCase):
         self.doc.undo()
         self.assertEqual(f.Seed, 0)
         self.assertEqual(f.BrickSet, "all")
+
+    def test_layout_dialog_sets_the_stud_and_socket_fit(self):
+        f = self.fabrication(high_res=(8, 8, 6.4, 16, 16, 9.6))
+        part = fab().printed_parts(f)[0].Shape
+
+        def handler(dialog):
+            dialog.findChild(QtGui.QDoubleSpinBox, "studFit").setValue(0.2)
+            dialog.findChild(QtGui.QDoubleSpinBox, "socketFit").setValue(0.1)
+            dialog.accept()
+
+        answer_modal(handler, "FabrickatorLayoutDialog")
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_Layout")
+        settle()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertAlmostEqual(f.StudFit.Value, 0.2)
+        self.assertAlmostEqual(f.SocketFit.Value, 0.1)
+        studs = [2 * c.Surface.Radius for c in fab().printed_parts(f)[0].Shape.Faces
+                 if type(c.Surface).__name__ == "Cylinder"]
+        self.assertTrue(studs)
+        self.assertTrue(all(abs(d - 5.0) < 1e-6 for d in studs), studs)
+        self.assertNotEqual(fab().printed_parts(f)[0].Shape.Volume, part.Volume)
+        self.doc.undo()
+        self.assertAlmostEqual(f.StudFit.Value, 0.05)
+        self.assertAlmostEqual(f.SocketFit.Value, 0.0)
 
     def test_layout_dialog_with_a_bad_brick_set_changes_nothing(self):
         f = self.fabrication()
