@@ -16,7 +16,7 @@ _API = ("make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "
         "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
         "report", "steps", "layout", "core_printed_parts", "export", "remove_owned",
         "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",
-        "feed_file", "model_name")
+        "feed_file", "model_name", "make_calibration_strip")
 
 
 def __getattr__(name):

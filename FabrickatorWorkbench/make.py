@@ -458,6 +458,52 @@ def legofy_file(path, doc=None, **parameters):
     return source, make_fabrication(source, **parameters)
 
 
+#: Value of the ``FabrickatorRole`` property of a calibration strip object.
+CALIBRATION_ROLE = "CalibrationStrip"
+
+
+def make_calibration_strip(folder, doc=None, values=None):
+    """Write the calibration strip (:func:`core.calibration.write_strip`) into ``folder``
+    and show it in ``doc`` (the active document, or a new one); returns the new object.
+
+    The strip is made around the preferences' stud and socket fit
+    (:func:`core.calibration.column_values`) unless ``values`` (mm) are given.
+    The object is a Part feature with the strip's exact solid, its ``Values``
+    and the file to print (``PrintFile``); the Report view says which file to
+    print and where the instructions are.  Raises
+    :class:`core.errors.InputError` (the files are not written, nothing is
+    added) for a folder that cannot be written or values out of range.
+    """
+    _require("the calibration strip")
+    from core import calibration
+
+    fit = preferences.fit()
+    if values is None:
+        values = calibration.column_values(fit=fit)
+    strip, written = calibration.write_strip(folder, values, fit)
+    doc = doc or App.ActiveDocument or App.newDocument("CalibrationStrip")
+    obj = doc.addObject("Part::Feature", "CalibrationStrip")
+    obj.Shape = bridge.occ_to_part(strip.solid)
+    obj.Label = "Calibration strip"
+    for kind, name, tip in (
+            ("App::PropertyString", "FabrickatorRole", "Fabrickator object role"),
+            ("App::PropertyFloatList", "Values", "The columns' values left to right, mm: "
+                                                 "stud 4.8 + value across, socket 4.8 + value wide"),
+            ("App::PropertyFile", "PrintFile", "The STL to print (README.txt beside it says how "
+                                               "to read the strip)")):
+        obj.addProperty(kind, name, "Calibration", tip)
+    obj.FabrickatorRole = CALIBRATION_ROLE
+    obj.Values = [float(v) for v in values]
+    obj.PrintFile = str(written[0])
+    for name in ("FabrickatorRole", "Values", "PrintFile"):
+        obj.setEditorMode(name, 2 if name == "FabrickatorRole" else 1)
+    first, last = calibration.label(values[0]), calibration.label(values[-1])
+    log.message(f"calibration strip of {len(values)} columns ({first} .. {last} mm): print "
+                f"{written[0]} (or {written[1].name}) as it lies, no supports; {written[2]} "
+                f"says how to read it (then set Stud fit and Socket fit in the preferences)")
+    return obj
+
+
 def recompute(fab) -> bool:
     """Recompute the document of ``fab``; True when ``fab`` computed without error."""
     fab.touch()
@@ -469,4 +515,4 @@ __all__ = ["make_fabrication", "fabrications", "fabrication_of", "mark_high_res"
            "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
            "report", "steps", "layout", "core_printed_parts", "export", "remove_owned",
            "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",
-           "feed_file", "model_name"]
+           "feed_file", "model_name", "make_calibration_strip"]

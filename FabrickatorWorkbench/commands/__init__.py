@@ -14,12 +14,12 @@ def register() -> list[str]:
     """Add every command to FreeCADGui; the names in toolbar order."""
     import FreeCADGui as Gui
 
-    from FabrickatorWorkbench.commands import (assembly, brushes, export, layout, legofy, report,
-                                               watch)
+    from FabrickatorWorkbench.commands import (assembly, brushes, calibration, export, layout,
+                                               legofy, report, watch)
 
     commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), brushes.MergeBrush(),
                 brushes.SplitBrush(), export.Export(), assembly.Assembly(), report.Report(),
-                watch.WatchFolder()]
+                watch.WatchFolder(), calibration.CalibrationStrip()]
     for command in commands:
         Gui.addCommand(command.NAME, command)
     return [c.NAME for c in commands]

@@ -194,7 +194,7 @@ class TestPackage(unittest.TestCase):
         self.assertLessEqual({"numpy", "cadquery", "trimesh", "scipy", "manifold3d"}, depends)
         icons = ROOT / "FabrickatorWorkbench" / "resources" / "icons"
         for name in ("Legofy", "Layout", "HighResBrush", "MergeBrush", "SplitBrush", "Export",
-                     "Assembly", "Report", "WatchFolder"):
+                     "Assembly", "Report", "WatchFolder", "CalibrationStrip"):
             self.assertTrue((icons / f"{name}.svg").is_file(), name)
 
 
@@ -701,7 +701,7 @@ def socket_widths(shape, z: float) -> list[tuple[float, float]]:
 
 class TestFit(FabrickatorTestCase):
     """StudFit and SocketFit: defaults from core.interfaces.Fit, preferences, the printed
-    parts, old documents with a Clearance."""
+    parts, old documents with a Clearance, and the calibration strip."""
 
     def setUp(self):
         super().setUp()
@@ -804,6 +804,36 @@ class TestFit(FabrickatorTestCase):
         self.assertTrue(fab().recompute(f), f.Status)
         self.assertEqual(len(fab().printed_parts(f)), 1)
         self.assertNotIn("Clearance", json.loads(f.LastGood)["parameters"])
+
+    def test_calibration_strip_around_the_preferences(self):
+        import trimesh
+
+        self.preferences.set("StudFit", 0.2)
+        out = Path(self.path("strip"))
+        strip = fab().make_calibration_strip(out, self.doc)
+        # 0.10 under the smaller fit (0.0) to 0.15 over the larger (0.2), steps of 0.05
+        expected = [-0.10, -0.05, 0.0, 0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.35]
+        self.assertEqual([round(v, 6) for v in strip.Values], expected)
+        self.assertEqual(strip.PrintFile, str(out / "calibration_strip.stl"))
+        for name in ("calibration_strip.stl", "calibration_strip.3mf", "README.txt"):
+            self.assertGreater((out / name).stat().st_size, 0)
+        self.assertTrue(strip.Shape.isValid())
+        self.assertEqual(len(strip.Shape.Solids), 1)
+        self.assertEqual(stud_diameters(strip.Shape), [round(4.8 + v, 6) for v in expected])
+        widths = socket_widths(strip.Shape, 1.0)
+        self.assertEqual(widths, [(round(4.8 + v, 6),) * 2 for v in expected])
+        mesh = trimesh.load(out / "calibration_strip.stl", force="mesh")
+        self.assertAlmostEqual(mesh.volume, strip.Shape.Volume, delta=1e-3 * strip.Shape.Volume)
+        self.assertIn(strip, self.doc.Objects)
+
+    def test_calibration_strip_into_a_file_adds_nothing(self):
+        from core.errors import InputError
+
+        blocker = Path(self.path("a_file"))
+        blocker.write_text("")
+        with self.assertRaises(InputError):
+            fab().make_calibration_strip(blocker, self.doc)
+        self.assertEqual(self.doc.Objects, [])
 
 
 class TestExamples(FabrickatorTestCase):

@@ -30,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "tests" / "gui" / "artifacts"
 COMMANDS = ["Fabrickator_Legofy", "Fabrickator_Layout", "Fabrickator_HighResBrush",
             "Fabrickator_MergeBrush", "Fabrickator_SplitBrush", "Fabrickator_Export",
-            "Fabrickator_Assembly", "Fabrickator_Report", "Fabrickator_WatchFolder"]
+            "Fabrickator_Assembly", "Fabrickator_Report", "Fabrickator_WatchFolder",
+            "Fabrickator_CalibrationStrip"]
 
 sys.path.insert(0, str(ROOT / "tests" / "app"))
 from TestFabrickatorApp import padded_body  # noqa: E402
@@ -396,6 +397,40 @@ class TestCommands(GuiTestCase):
         settle()
         for name in ("P1.stl", "P1.step", "plate.3mf", "instructions.html", "report.json"):
             self.assertTrue((out / name).is_file(), name)
+
+    def test_calibration_strip_command_writes_and_shows_the_strip(self):
+        from FabrickatorWorkbench import preferences
+
+        preferences.set("SocketFit", 0.1)
+        out = self.tmp / "strip"
+        out.mkdir()
+        answer_modal(choose_path(out), "FabrickatorChooseFolder")
+        Gui.runCommand("Fabrickator_CalibrationStrip")
+        settle()
+        for name in ("calibration_strip.stl", "calibration_strip.3mf", "README.txt"):
+            self.assertTrue((out / name).is_file(), name)
+        strips = [o for o in self.doc.Objects if getattr(o, "FabrickatorRole", "") == "CalibrationStrip"]
+        self.assertEqual(len(strips), 1)
+        strip = strips[0]
+        # 0.10 under the smaller fit (stud 0.05) to 0.15 over the larger (socket 0.1)
+        self.assertEqual([round(v, 6) for v in strip.Values],
+                         [-0.05, 0.0, 0.05, 0.1, 0.15, 0.2, 0.25])
+        self.assertTrue(strip.ViewObject.Visibility)
+        self.assertEqual(Gui.Selection.getSelection(), [strip])
+        Gui.Selection.clearSelection()
+        screenshot("calibration_strip")
+        self.doc.undo()
+        self.assertEqual([o for o in self.doc.Objects
+                          if getattr(o, "FabrickatorRole", "") == "CalibrationStrip"], [])
+
+    def test_calibration_strip_command_into_a_file_says_why_and_adds_nothing(self):
+        blocker = self.tmp / "a_file"
+        blocker.write_text("")
+        from FabrickatorWorkbench.commands.calibration import CalibrationStrip
+
+        CalibrationStrip().run(str(blocker))
+        settle()
+        self.assertEqual(self.doc.Objects, [])
 
     def test_report_command_shows_the_numbers(self):
         f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
