@@ -7,9 +7,12 @@ STEP text (:func:`write_faceted_step`).  Both stay in model coordinates,
 where the part belongs in the assembly.
 
 The plate ``parts/plate.3mf`` holds every part in its print pose
-(:func:`print_pose`: studs up unless another resting pose saves supports,
-never studs down), each on the bed (min z = 0), packed in rows within the
-printer's bed (:func:`plates`) without overlap, ready to slice.  Parts
+(:func:`print_pose`: the pose PrusaSlicer prints fastest with the supports
+it needs, never studs down, never the engraved ID facing down), each on
+the bed (min z = 0), packed in rows within the printer's bed
+(:func:`plates`) without overlap, with the settings to print it (supports
+on when a part needs them) as its PrusaSlicer project config: opening it
+in PrusaSlicer gives the print and the time the report states.  Parts
 that do not all fit one bed go on further plates, ``plate-2.3mf``,
 ``plate-3.3mf``, ...
 """
@@ -20,7 +23,6 @@ import io
 import math
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,232 +33,79 @@ from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
 
 from core import print_time
 from core.errors import InputError
+from core.print_time import Pose
 from core.printed import PrintedPart
 
 #: Gap (mm) between parts on a plate, and between the parts and the bed's edge.
 SPACING_MM = 5.0
 
-#: Most probable stable resting poses (trimesh.poses.compute_stable_poses)
-#: tried besides upright and the four sideways poses.
-STABLE_POSES = 4
-
-#: A downward face needs support when it slopes less than this many degrees
-#: from horizontal (PrusaSlicer's support_material_threshold, 50).
-OVERHANG_DEG = 50.0
-
-#: Faces lower than this (mm) above the bed rest on it.
-BED_EPS_MM = 0.05
-
-#: A horizontal downward face region anchored on walls going down and no
-#: wider than this (mm, the short side of its box) is bridged, not supported
-#: (a brick's cavity ceiling: 13.3 mm under a 2-wide brick).
-BRIDGE_MM = 15.0
-
-#: Print time of supports: seconds per mm^2 of supported surface and per
-#: layer up to the highest supported face, fitted (non-negative least
-#: squares on relative error) to prusa-slicer 2.5 with automatic supports
-#: minus without, on T shapes and shelves with 200..600 mm^2 supported at
-#: 10..40 mm: relative error within 8 %.
-SUPPORT_S_PER_MM2 = 0.355
-SUPPORT_S_PER_LAYER = 6.43
-
-#: Seconds charged per mm^2 of supported surface for taking the support
-#: off and the rough surface it leaves (a judgement, not a measurement).
-SUPPORT_REMOVAL_S_PER_MM2 = 1.0
-
-#: Extra cost (fraction of the pose's cost) of printing a part with studs
-#: or tubes in any pose but upright: its clamping features then print with
-#: their layers along the stud axis, less round and less precise.
+#: Extra cost (fraction of the pose's print time) of printing a part with
+#: studs or sockets in any pose but upright: its clamping features then print
+#: with their layers along the stud axis, less round and less precise.
 SIDEWAYS_PENALTY = 0.15
 
 #: Studs count as pointing down when their axis has a z component below this.
 STUDS_DOWN_Z = -1e-6
 
-#: Least area (mm^2) of flat face a pose must rest on the bed with (a 1x1
-#: plate's rim is 30 mm^2); a part balancing on an edge or a point gets
-#: no first layer (PrusaSlicer refuses it without supports or a raft).
-MIN_BED_CONTACT_MM2 = 20.0
+#: An engraved face counts as facing down (onto the bed or onto supports,
+#: where the letters fill or smear) when its normal has a z component below this.
+ENGRAVING_DOWN_Z = -0.5
 
 
-@dataclass
-class Pose:
-    """A print orientation of one part.
-
-    ``matrix`` (4x4) maps model mm to the bed: rotation, then the shift
-    that puts the part's min corner at the origin.  ``name`` is
-    ``"upright"``, ``"on side +x"`` (the model's +x face down; studs
-    sideways) ..., or ``"resting pose <n>"``.  ``print_s`` is the
-    calibrated time estimate without supports, ``support_mm2`` /
-    ``support_mm3`` the supported area and support volume it needs,
-    ``cost`` what :func:`print_pose` minimised, ``studs_up`` the z
-    component of the stud axis in this pose (1 upright, 0 sideways),
-    ``bed_mm2`` the flat area it rests on (:func:`bed_contact`).
-    """
-
-    name: str
-    matrix: np.ndarray
-    print_s: float
-    support_mm3: float
-    support_mm2: float
-    cost: float
-    studs_up: float
-    bed_mm2: float
-
-    def to_json(self) -> dict:
-        return {"name": self.name, "matrix": np.round(self.matrix, 9).tolist(),
-                "estimate_s": round(self.print_s, 1), "support_mm3": round(self.support_mm3, 1),
-                "support_mm2": round(self.support_mm2, 1), "bed_contact_mm2": round(self.bed_mm2, 1),
-                "studs_up": round(self.studs_up, 6)}
-
-
-def _rotation(axis, degrees: float) -> np.ndarray:
-    return trimesh.transformations.rotation_matrix(math.radians(degrees), axis)
-
-
-#: Upright and the four sideways poses: (name, 4x4 rotation).  "on side +x"
-#: puts the model's +x side on the bed.
-AXIS_POSES = (
-    ("upright", np.eye(4)),
-    ("on side +x", _rotation([0, 1, 0], 90)),
-    ("on side -x", _rotation([0, 1, 0], -90)),
-    ("on side +y", _rotation([1, 0, 0], -90)),
-    ("on side -y", _rotation([1, 0, 0], 90)),
-)
-
-
-def support_need(mesh: trimesh.Trimesh) -> tuple[float, float, float]:
-    """Supported area (mm^2), support height (mm) and support volume (mm^3) of
-    ``mesh`` as it stands on z = min z.
-
-    A downward face needs support when it slopes less than OVERHANG_DEG
-    from horizontal and is above the bed, unless it belongs to a bridge: a
-    connected region of horizontal downward faces whose every outer edge
-    meets a face reaching lower (walls it spans between, as a brick's
-    cavity ceiling) and whose box is at most BRIDGE_MM wide.  The height is
-    that of the highest supported face; the volume is each supported face's
-    area projected on the bed times its height (the column a slicer fills,
-    ignoring that it may land on the part itself).
-    """
-    normals, areas = mesh.face_normals, mesh.area_faces
-    z = mesh.triangles_center[:, 2] - mesh.bounds[0][2]
-    down = (normals[:, 2] < -math.cos(math.radians(OVERHANG_DEG))) & (z > BED_EPS_MM)
-    flat = down & (normals[:, 2] < -1 + 1e-6)
-    if flat.any():
-        pairs = mesh.face_adjacency
-        low = mesh.vertices[mesh.faces][:, :, 2].min(axis=1)
-        inside = flat[pairs[:, 0]] & flat[pairs[:, 1]]
-        regions = trimesh.graph.connected_components(pairs[inside], nodes=np.flatnonzero(flat))
-        edge = flat[pairs[:, 0]] != flat[pairs[:, 1]]
-        face, other = np.where(flat[pairs[edge, 0]], pairs[edge, 0], pairs[edge, 1]), \
-            np.where(flat[pairs[edge, 0]], pairs[edge, 1], pairs[edge, 0])
-        loose = np.zeros(len(mesh.faces), bool)
-        loose[face[low[other] >= mesh.triangles_center[face, 2] - BED_EPS_MM]] = True
-        corners = mesh.triangles[:, :, :2]
-        for region in regions:
-            extent = np.ptp(corners[region].reshape(-1, 2), axis=0)
-            if not loose[region].any() and extent.min() <= BRIDGE_MM:
-                down[region] = False
-    if not down.any():
-        return 0.0, 0.0, 0.0
-    projected = areas[down] * -normals[down, 2]
-    return float(areas[down].sum()), float(z[down].max()), float(np.dot(projected, z[down]))
-
-
-def support_seconds(area_mm2: float, height_mm: float) -> float:
-    """Print time (s) of supports under ``area_mm2`` of surface reaching ``height_mm``."""
-    if area_mm2 <= 0:
-        return 0.0
-    return SUPPORT_S_PER_MM2 * area_mm2 + SUPPORT_S_PER_LAYER * height_mm / print_time.ESTIMATE_LAYER_MM
-
-
-def print_pose(mesh: trimesh.Trimesh, studs: bool = True, clamping: bool = True) -> Pose:
+def print_pose(mesh: trimesh.Trimesh, studs: bool = True, clamping: bool = True,
+               engraving_normal=None, profile: str | os.PathLike | None = None,
+               slicer: str | None = "auto", workdir: str | os.PathLike | None = None) -> Pose:
     """The print orientation of a part (its mesh in model mm, studs along +z).
 
-    The rule: candidates are upright (as the brick stands: studs up, its
-    underside on the bed), the four sideways poses (a side on the bed,
-    studs pointing sideways) and the STABLE_POSES most probable resting
-    poses of the part (``trimesh.poses.compute_stable_poses``).  When the
-    part has studs (``studs``) every pose that would point them down, onto
-    the bed, is dropped: studs printed facing down need support and lose
-    their precision.  Each remaining pose costs its estimated print time
-    (:func:`core.print_time.estimate_seconds`, which in a pose changes with
-    the height) plus its supports (:func:`support_need`): their print time
-    (:func:`support_seconds`) and SUPPORT_REMOVAL_S_PER_MM2 per mm^2 of
-    supported surface for removing them.  When the part has complete
-    studs or tubes (``clamping``), any pose but upright costs
-    SIDEWAYS_PENALTY more: printed upright, the clamping sides lie in the
-    layers and come out round.  The cheapest pose wins, upright on a tie,
-    among the poses resting on at least MIN_BED_CONTACT_MM2 of flat face
-    (:func:`bed_contact`; among all when none does).
+    The pose that prints fastest with the supports it needs
+    (:func:`core.print_time.fastest_pose`: upright, upside down, the four
+    sideways poses and the most probable resting poses, the best by
+    estimate sliced with PrusaSlicer, each with supports exactly when it
+    needs them; by the estimate alone without a slicer, ``slicer`` as
+    there), under these rules: when the part has studs (``studs``) no
+    pose points them down (z below STUDS_DOWN_Z): printed facing down they
+    need support and lose their precision; when ``engraving_normal`` (the
+    engraved face's outward normal, model frame) is given, no pose turns
+    it down (z below ENGRAVING_DOWN_Z), onto the bed or the supports.
+    When the part has studs or sockets (``clamping``), any pose but
+    upright costs SIDEWAYS_PENALTY more: printed upright, the clamping
+    sides lie in the layers and come out round.  ``profile`` (default:
+    the bundled one) is sliced with; slices go under ``workdir`` (a
+    temporary folder when None).
     """
-    candidates = list(AXIS_POSES)
-    stable, _ = trimesh.poses.compute_stable_poses(mesh)
-    for n, matrix in enumerate(stable[:STABLE_POSES]):
-        rotation = np.eye(4)
-        rotation[:3, :3] = matrix[:3, :3]
-        candidates.append((f"resting pose {n + 1}", _square_to_axes(mesh, rotation)))
-    poses, seen = [], []
-    for name, rotation in candidates:
-        up = rotation[2, :3]
-        if any(np.allclose(up, other, atol=1e-6) for other in seen):
-            continue
-        seen.append(up)
-        studs_up = float(rotation[2, 2])
-        if studs and studs_up < STUDS_DOWN_Z:
-            continue
-        posed = mesh.copy()
-        posed.apply_transform(rotation)
-        shift = np.eye(4)
-        shift[:3, 3] = -posed.bounds[0]
-        posed.apply_transform(shift)
-        seconds = print_time.estimate_seconds([posed])
-        area, height, volume = support_need(posed)
-        cost = seconds + support_seconds(area, height) + SUPPORT_REMOVAL_S_PER_MM2 * area
-        if clamping and name != "upright":
-            cost *= 1 + SIDEWAYS_PENALTY
-        poses.append(Pose(name, shift @ rotation, seconds, volume, area, cost, studs_up, bed_contact(posed)))
-    resting = [p for p in poses if p.bed_mm2 >= MIN_BED_CONTACT_MM2] or poses
-    return min(resting, key=lambda p: p.cost)
+    keep_up = ([((0.0, 0.0, 1.0), STUDS_DOWN_Z)] if studs else []) + \
+        ([(tuple(engraving_normal), ENGRAVING_DOWN_Z)] if engraving_normal is not None else [])
+    return print_time.fastest_pose(mesh, workdir, profile or print_time.DEFAULT_PROFILE, slicer,
+                                   keep_up=keep_up, prefer_upright=SIDEWAYS_PENALTY if clamping else 0.0)
 
 
-def bed_contact(mesh: trimesh.Trimesh) -> float:
-    """Area (mm^2) of the downward flat faces of ``mesh`` lying on its lowest plane, the bed."""
-    low = mesh.triangles_center[:, 2] - mesh.bounds[0][2] < BED_EPS_MM
-    return float(mesh.area_faces[low & (mesh.face_normals[:, 2] < -1 + 1e-6)].sum())
-
-
-def _square_to_axes(mesh: trimesh.Trimesh, rotation: np.ndarray) -> np.ndarray:
-    """``rotation`` followed by the turn about z that makes the part's footprint
-    box (minimum-area rectangle of its convex hull seen from above) axis-aligned."""
-    points = trimesh.transform_points(mesh.convex_hull.vertices, rotation)[:, :2]
-    turn_2d, _ = trimesh.bounds.oriented_bounds_2D(points)
-    turn = np.eye(4)
-    turn[:2, :2] = turn_2d[:2, :2]
-    return turn @ rotation
-
-
-def lay_flat(part: PrintedPart | trimesh.Trimesh) -> tuple[trimesh.Trimesh, Pose]:
+def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | None = None,
+             slicer: str | None = "auto") -> tuple[trimesh.Trimesh, Pose]:
     """A copy of the part's mesh in its :func:`print_pose`, min corner at the origin, and the pose.
 
-    For a PrintedPart the studs rule applies when it has any studs and the
-    clamping penalty when any stud or tube is complete; a bare mesh is
-    treated as a part with complete studs.
+    For a PrintedPart the studs rule applies when it has studs, the
+    clamping penalty when it has studs or sockets (they clamp the bricks
+    above and below) and the engraving rule when its id is engraved; a
+    bare mesh is treated as a part with studs and no engraving.  The copy is marked posed
+    (:func:`core.print_time.posed`), so :func:`core.print_time.print_time`
+    slices it as it stands, with the supports its pose needs.
     """
     if isinstance(part, PrintedPart):
-        mesh, studs = part.mesh, bool(part.studs)
-        clamping = bool(part.complete_studs or part.complete_tubes)
+        mesh, studs = part.mesh, bool(part.complete_studs)
+        clamping = bool(part.complete_studs or part.complete_sockets)
+        normal = part.engraving["normal"] if part.engraved and isinstance(part.engraving, dict) else None
     else:
-        mesh, studs, clamping = part, True, True
-    pose = print_pose(mesh, studs, clamping)
-    out = mesh.copy()
-    out.apply_transform(pose.matrix)
-    return out, pose
+        mesh, studs, clamping, normal = part, True, True, None
+    pose = print_pose(mesh, studs, clamping, normal, profile=profile, slicer=slicer)
+    return print_time.posed(mesh, pose), pose
 
 
-def plates(parts: list, bed=None) -> list[list[tuple[int, trimesh.Trimesh, Pose]]]:
-    """The parts laid flat (:func:`lay_flat`) and packed on as few beds as this simple rule gives.
+def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
+           slicer: str | None = "auto") -> list[list[tuple[int, trimesh.Trimesh, Pose]]]:
+    """The parts laid flat (:func:`lay_flat`, ``profile`` and ``slicer`` as there) and
+    packed on as few beds as this simple rule gives.
 
-    ``bed`` is the printable (x, y) in mm (default: the slicer profile's,
+    ``bed`` is the printable (x, y) in mm (default: the profile's,
     :func:`core.print_time.build_volume`).  Shelf packing: each part is
     turned about z so its longer side runs along the bed's longer side
     when that fits, the parts are taken tallest footprint (y) first and
@@ -265,13 +114,15 @@ def plates(parts: list, bed=None) -> list[list[tuple[int, trimesh.Trimesh, Pose]
     not fit the bed starts a new plate.  A part larger than the bed gets a
     plate of its own (the slicer will refuse it).  Returns per plate the
     (index into ``parts``, mesh in bed coordinates, pose) of its parts;
-    every mesh has min z = 0 and the footprints do not overlap.
+    every mesh has min z = 0, is marked posed, and the footprints do not
+    overlap.
     """
     size = np.asarray(bed if bed is not None else
-                      print_time.build_volume(print_time.load_profile())[:2], dtype=float)
+                      print_time.build_volume(print_time.load_profile(profile or print_time.DEFAULT_PROFILE))[:2],
+                      dtype=float)
     laid = []
     for index, part in enumerate(parts):
-        mesh, pose = lay_flat(part)
+        mesh, pose = lay_flat(part, profile, slicer)
         extent = mesh.extents[:2]
         if (extent[0] < extent[1]) == (size[0] > size[1]) and np.all(extent[::-1] <= size - 2 * SPACING_MM):
             turn = trimesh.transformations.rotation_matrix(math.pi / 2, [0, 0, 1])
@@ -396,14 +247,21 @@ def _rows(fmt: str, ids, values) -> str:
     return out.getvalue()
 
 
-def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None) -> list[str]:
+def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
+                 profile: str | os.PathLike | None = None, slicer: str | None = "auto") -> list[str]:
     """Write ``<id>.stl``, ``<id>.step`` per part and the 3MF plate(s) into ``folder``.
 
     Sets ``stl`` and ``step`` of each part to the paths relative to the
     folder's parent (``parts/P1.stl``) and ``pose`` to its print pose
     (:meth:`Pose.to_json` plus the plate file it is on); returns the names
-    written.  The plates come from :func:`plates` (``bed`` as there):
-    ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.
+    written.  The plates come from :func:`plates` (``bed``, ``profile`` and
+    ``slicer`` as there): ``plate.3mf``, then ``plate-2.3mf`` ... when the
+    parts need more beds.  Each plate carries the settings it is to be
+    printed with as PrusaSlicer's project config
+    (:func:`core.print_time.plate_3mf`): the
+    profile's, with :data:`core.print_time.SUPPORT_SETTINGS` when a part on
+    it is posed with supports, so PrusaSlicer opening it prints what
+    :func:`core.print_time.print_time` timed.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -417,13 +275,13 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None) 
             write_faceted_step(p.mesh, step, name=p.id)
         p.stl, p.step = f"{folder.name}/{stl.name}", f"{folder.name}/{step.name}"
         written += [stl.name, step.name]
-    for number, items in enumerate(plates(parts, bed) if parts else [], start=1):
+    for number, items in enumerate(plates(parts, bed, profile, slicer) if parts else [], start=1):
         name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
-        scene = trimesh.Scene()
-        for index, mesh, pose in items:
-            part = parts[index]
-            scene.add_geometry(mesh, node_name=part.id, geom_name=part.id)
-            part.pose = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
-        (folder / name).write_bytes(trimesh.exchange.threemf.export_3MF(scene))
+        for index, _, pose in items:
+            parts[index].pose = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
+        config = print_time.plate_config(profile or print_time.DEFAULT_PROFILE,
+                                         supports=any(pose.supports for _, _, pose in items))
+        (folder / name).write_bytes(print_time.plate_3mf([mesh for _, mesh, _ in items], config,
+                                                         names=[parts[index].id for index, _, _ in items]))
         written.append(name)
     return written

@@ -1,9 +1,9 @@
 """Export of printed parts and the CLI's --high-res contract."""
 
 import json
-import math
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import cadquery as cq
@@ -68,7 +68,9 @@ def test_cli_high_res_box_on_the_demo_makes_parts(tmp_path):
     part = doc["printed_parts"][0]
     assert part["id"] == "P1" and part["stl"] == "parts/P1.stl" and part["volume_mm3"] > 0
     assert doc["bricks"]["printed"] == len(part["bricks"]) > 0
-    assert doc["print_time_s"]["method"].startswith("estimate")
+    method = doc["print_time_s"]["method"]
+    assert method.startswith("full model: estimate") and "printed parts: estimate" in method
+    assert "posed" in method and "FABRICKATOR_SLICER=none" in method
     assert doc["speedup"] > 0 and doc["assembly_s"] > 0
     split, pt = doc["assembly_split_s"], doc["print_time_s"]
     assert split["lego"] + split["insert_printed_parts"] == pytest.approx(doc["assembly_s"], abs=0.1)
@@ -86,15 +88,15 @@ def _box_source(bounds):
     return printed.model_solid(LoadedModel(mesh=box, path="b.stl", format="stl", triangles=12, watertight=True))
 
 
-def _parts(specs, shape=(8, 4, 9)):
-    """Printed parts (engraving off), one per brick list, each cut from a box covering its
-    bricks in a layout of its own."""
+def _parts(specs, shape=(8, 4, 9), above=(), engrave=False):
+    """Printed parts, one per brick list, each cut from a box covering its bricks in a
+    layout of its own; the bricks of ``above`` (LEGO, in every layout) give them studs."""
     g = Grid(origin=np.zeros(3), cell=np.array([8.0, 8.0, 3.2]), filled=np.ones(shape, bool))
     out = []
     for n, spec in enumerate(specs):
-        lay = Layout(g, [Brick(i, part, size, cell) for i, (part, size, cell) in enumerate(spec)])
+        lay = Layout(g, [Brick(i, part, size, cell) for i, (part, size, cell) in enumerate([*spec, *above])])
         (part,) = printed.build_parts(lay, [list(range(len(spec)))], _box_source([[-1, -1, -1], [80, 40, 40]]),
-                                      engrave=False)
+                                      engrave=engrave)
         part.id = f"P{n + 1}"
         out.append(part)
     return out
@@ -139,16 +141,21 @@ def test_parts_that_fill_a_bed_go_on_more_plates(tmp_path):
     assert on == {f"parts/{n}" for n in names if n.endswith(".3mf")}
 
 
+needs_slicer = pytest.mark.skipif(print_time.slicer_path() is None,
+                                  reason="prusa-slicer not installed (apt-get install prusa-slicer) "
+                                         "or disabled by FABRICKATOR_SLICER")
+
+
 def test_overhanging_part_gets_a_flatter_pose_than_upright():
     (arm,) = _parts([ARM])
     mesh, pose = export.lay_flat(arm)
-    area, height, volume = export.support_need(arm.mesh)
+    area, height, volume = print_time.support_need(arm.mesh)
     assert area > 100 and height > 18
     assert pose.name != "upright" and pose.support_mm3 < volume
     assert mesh.extents[2] < arm.mesh.extents[2]
-    assert pose.studs_up == pytest.approx(0.0, abs=1e-9)  # sideways, never down
+    assert pose.studs_up == pytest.approx(0.0, abs=1e-9)
     assert mesh.bounds[0] == pytest.approx([0, 0, 0], abs=1e-9)
-    assert pose.cost < export.print_time.estimate_seconds([arm.mesh]) + export.support_seconds(area, height)
+    assert mesh.metadata[print_time.POSE_KEY] == {"name": pose.name, "supports": pose.supports}
 
 
 def test_studs_never_point_down_onto_the_bed():
@@ -158,45 +165,89 @@ def test_studs_never_point_down_onto_the_bed():
     cap = trimesh.creation.box((40, 40, 6)).apply_translation((0, 0, 23))
     mushroom = trimesh.boolean.union([stem, cap], engine="manifold")
     free = export.print_pose(mushroom, studs=False, clamping=False)
-    assert free.studs_up == pytest.approx(-1.0) and free.support_mm2 == 0
+    assert free.studs_up == pytest.approx(-1.0) and free.support_mm2 == 0 and not free.supports
     ruled = export.print_pose(mushroom, studs=True, clamping=False)
     assert ruled.studs_up >= 0 and ruled.cost > free.cost
-    (cap,) = _parts([CAP])
-    assert export.lay_flat(cap)[1].studs_up >= 0
+    # A 2x4 plate on a post with a LEGO plate above: it has studs, which keep it off its back.
+    (post,) = _parts([CAP], above=[("3020", (2, 4, 1), (0, 0, 4))])
+    assert post.complete_studs
+    assert export.print_pose(post.mesh, studs=False, clamping=False).studs_up < 0
+    assert export.lay_flat(post)[1].studs_up >= 0
+
+
+def test_a_box_prints_upright_without_supports():
     plain = export.print_pose(_parts([[("3001", (2, 4, 3), (0, 0, 0))]])[0].mesh)
-    assert plain.name == "upright" and plain.support_mm2 == 0
+    assert plain.name == "upright" and plain.support_mm2 == 0 and not plain.supports
 
 
+@pytest.mark.parametrize("side", [+1, -1])
+def test_the_engraved_face_never_faces_down(side):
+    # The arm prints fastest lying on one of its long sides (they are mirror images, so
+    # both are equally fast); the engraved one must not be the one on the bed.
+    (arm,) = _parts([ARM])
+    normal = (0.0, float(side), 0.0)
+    pose = export.print_pose(arm.mesh, studs=False, clamping=False, engraving_normal=normal)
+    assert pose.name in ("on side +y", "on side -y")
+    assert float(pose.matrix[2, :3] @ normal) >= export.ENGRAVING_DOWN_Z
+    assert pose.name == ("on side -y" if side > 0 else "on side +y")
+
+
+def test_an_engraved_part_is_laid_with_its_id_up_or_sideways():
+    (part,) = _parts([ARM], above=[("3460", (8, 1, 1), (0, 0, 7))], engrave=True)
+    assert part.engraved and part.complete_studs
+    mesh, pose = export.lay_flat(part)
+    turned = pose.matrix[:3, :3] @ np.asarray(part.engraving["normal"])
+    assert turned[2] >= export.ENGRAVING_DOWN_Z
+    assert pose.studs_up >= 0
+
+
+def _overhanging_and_plain_parts():
+    """An arm that needs supports in every allowed pose (its studs stick out sideways
+    when it lies down) and a plain 2x2 brick that needs none."""
+    return _parts([ARM, [("3003", (2, 2, 3), (0, 0, 0))]], above=[("3460", (8, 1, 1), (0, 0, 7))])
+
+
+def test_plate_config_switches_supports_on_when_a_part_needs_them(tmp_path):
+    arm, brick = _overhanging_and_plain_parts()
+    export.export_parts([brick], tmp_path / "plain", slicer="none")
+    export.export_parts([arm, brick], tmp_path / "mixed", slicer="none")
+    assert not brick.pose["supports"] and arm.pose["supports"]
+    configs = {}
+    for name in ("plain", "mixed"):
+        with zipfile.ZipFile(tmp_path / name / "plate.3mf") as archive:
+            text = archive.read(print_time.SLIC3R_CONFIG).decode()
+        configs[name] = dict(line[2:].split(" = ", 1) for line in text.splitlines() if " = " in line)
+    assert configs["plain"]["support_material"] == "0"
+    assert configs["mixed"]["support_material"] == "1" and configs["mixed"]["support_material_auto"] == "1"
+    assert configs["mixed"]["layer_height"] == print_time.load_profile()["layer_height"]
+
+
+@needs_slicer
+def test_the_plate_prints_in_prusaslicer_as_timed(tmp_path):
+    parts = list(_overhanging_and_plain_parts())
+    export.export_parts(parts, tmp_path / "parts")
+    (items,) = export.plates(parts)
+    timed = print_time.print_time([mesh for _, mesh, _ in items], tmp_path / "work")
+    assert timed.supports and timed.method.endswith("; with supports)") and timed.pose is None
+    # Open the written plate as a user would: its own settings, nothing loaded besides.
+    gcode = tmp_path / "opened.gcode"
+    run = subprocess.run([print_time.slicer_path(), "--export-gcode", "--output", str(gcode),
+                          str(tmp_path / "parts" / "plate.3mf")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-500:]
+    assert "; support_material = 1" in gcode.read_text(errors="replace")
+    # The same plate, the same settings: the same time (to PrusaSlicer's own run-to-run jitter).
+    assert print_time.gcode_seconds(gcode) == pytest.approx(timed.seconds, rel=0.002)
+
+
+@needs_slicer
 def test_support_need_agrees_with_the_slicer(tmp_path):
-    if print_time.slicer_path() is None:
-        pytest.skip("prusa-slicer not installed (apt-get install prusa-slicer)")
     # A T: a 10 x 10 x 20 stem carrying a 30 x 10 x 4 bar, 200 mm^2 overhanging 20 mm high.
     stem = trimesh.creation.box((10, 10, 20)).apply_translation((0, 0, 10))
     bar = trimesh.creation.box((30, 10, 4)).apply_translation((0, 0, 22))
     tee = trimesh.boolean.union([stem, bar], engine="manifold")
-    area, height, _ = export.support_need(tee)
+    area, height, _ = print_time.support_need(tee)
     assert area == pytest.approx(200, rel=1e-6) and height == pytest.approx(20, abs=1e-6)
-    plain = print_time.slice_plate([tee], tmp_path)
-    settings = print_time.RETRY_SETTINGS[1][1]
-    tee.export(tmp_path / "tee.stl")
-    run = subprocess.run([print_time.slicer_path(), "--load", str(print_time.DEFAULT_PROFILE), *settings,
-                          "--export-gcode", "--output", str(tmp_path / "tee.gcode"), str(tmp_path / "tee.stl")],
-                         capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr[-500:]
-    supported = print_time.gcode_seconds(tmp_path / "tee.gcode")
-    assert export.support_seconds(area, height) == pytest.approx(supported - plain.seconds, rel=0.25)
-
-
-@pytest.mark.parametrize("slope_deg, supported", [(30, True), (45, True), (60, False), (75, False)])
-def test_overhang_slopes_under_the_threshold_need_support(slope_deg, supported):
-    # A block 10 mm wide standing on a 10 mm foot, its right side an overhang of slope_deg from
-    # horizontal reaching out 10 mm: its underside faces down at that slope.
-    rise = 10 * math.tan(math.radians(slope_deg))
-    profile = np.array([(0, 0), (10, 0), (20, rise), (20, rise + 5), (0, rise + 5)])  # convex, in x-z
-    points = [(x, y, z) for x, z in profile for y in (0.0, 10.0)]
-    block = trimesh.convex.convex_hull(points)
-    area, height, _ = export.support_need(block)
-    assert (area > 0) == supported
-    if supported:
-        assert area == pytest.approx(10 * 10 / math.cos(math.radians(slope_deg)), rel=1e-6)
-        assert 0 < height < rise
+    plain = print_time.slice_plate([tee], tmp_path, supports=False)
+    supported = print_time.slice_plate([tee], tmp_path, supports=True)
+    assert supported.supports and not plain.supports
+    assert print_time.support_seconds(area, height) == pytest.approx(supported.seconds - plain.seconds, rel=0.25)
