@@ -227,6 +227,15 @@ def _summary(doc: dict, out) -> None:
               f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
               f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
               f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
+    for part in doc["printed_parts"]:
+        if not part["engaged"]["clamps"]:
+            sys.stderr.write(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}\n")
+        thin = part.get("thin_features") or {}
+        if thin.get("area_mm2"):
+            spot = thin["spots"][0]
+            sys.stderr.write(f"warning: printed part {part['id']} has {thin['area_mm2']:.1f} mm² thinner than "
+                             f"{thin['limit_mm']:g} mm (a nozzle cannot print it), thinnest {thin['thinnest_mm']:g} mm "
+                             f"near {', '.join(f'{v:g}' for v in spot['centre_mm'])}\n")
     ch = doc.get("changes")
     if ch:
         t = ch["transform"]

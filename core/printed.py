@@ -75,6 +75,10 @@ SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 BAR_MM = 2.0
 #: Segments of a stud's circle in a mesh part (the B-rep part has a true cylinder).
 STUD_SEGMENTS = 96
+#: Tessellation of a B-rep part's STL: linear (mm) and angular (rad) deflection, fine
+#: enough that a stud's flats are within 0.01 mm of its diameter.
+MESH_TOL_MM = 0.01
+MESH_ANGLE_RAD = 0.1
 #: Thickness (mm) of the weld that fills an edge where a part touches itself.
 WELD_MM = 0.4
 #: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
@@ -607,13 +611,13 @@ class _Brep:
             solid = fix.Shape()
             if len(_solids(solid)) != 1 or not BRepCheck_Analyzer(solid).IsValid():
                 raise _InvalidSolid("not a valid solid")
-        mesh = to_trimesh(solid)
+        mesh = self.mesh(solid)
         if not mesh.is_watertight:
             raise _InvalidSolid("a solid whose tessellation is not watertight")
         return _solids(solid)[0]
 
     def mesh(self, shape) -> trimesh.Trimesh:
-        return to_trimesh(shape)
+        return to_trimesh(shape, MESH_TOL_MM, MESH_ANGLE_RAD)
 
 
 def _solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
@@ -681,7 +685,7 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
         try:
             if part.solid is not None:
                 solid = engine.only_solid(engine.cut(part.solid, [text]), part.id)
-                part.solid, part.mesh = solid, to_trimesh(solid)
+                part.solid, part.mesh = solid, engine.mesh(solid)
                 part.volume_mm3 = engine.volume(solid)
             else:
                 cut = engine.only_solid(_manifold(part.mesh) - _manifold(to_trimesh(text)), part.id)

@@ -1,8 +1,9 @@
 """The PrintedPart object: one printed part of a Fabrication.
 
 A ``Part::FeaturePython`` whose Shape is the exact printed solid (the
-marked LEGO bricks intersected with the Source, ID engraved), with its ID,
-bricks, stud and tube completeness and print time.  Its Fabrication writes
+Source inside the marked bricks, with studs and sockets where it meets
+LEGO, ID engraved), with its ID, bricks, studs and sockets engaged and
+print time.  Its Fabrication writes
 it; it has nothing to compute itself.
 """
 
@@ -28,11 +29,16 @@ PROPERTIES = (
     Prop("App::PropertyFloat", "VolumeMm3", "Printed part",
          QT("App::Property", "Volume of the printed solid, mm^3"), 0.0, READ_ONLY),
     Prop("App::PropertyInteger", "CompleteStuds", "Printed part",
-         QT("App::Property", "Exposed studs left whole: they clamp"), 0, READ_ONLY),
+         QT("App::Property", "Studs on the part under the LEGO bricks above it: they clamp"), 0, READ_ONLY),
     Prop("App::PropertyStringList", "IncompleteStuds", "Printed part",
-         QT("App::Property", "Exposed studs the intersection cut: they cannot clamp"), None, READ_ONLY),
-    Prop("App::PropertyStringList", "IncompleteTubes", "Printed part",
-         QT("App::Property", "Tubes, pins and cavities the intersection cut"), None, READ_ONLY),
+         QT("App::Property", "Cells (i,j,k) that meet a brick above without a stud"), None, READ_ONLY),
+    Prop("App::PropertyInteger", "Sockets", "Printed part",
+         QT("App::Property", "Sockets in the part over the LEGO studs below it: they clamp"), 0, READ_ONLY),
+    Prop("App::PropertyStringList", "IncompleteSockets", "Printed part",
+         QT("App::Property", "Cells (i,j,k) that stand on a brick without a socket"), None, READ_ONLY),
+    Prop("App::PropertyString", "Clamping", "Printed part",
+         QT("App::Property", "Whether two or more studs and sockets hold the part, and why not"), "",
+         READ_ONLY),
     Prop("App::PropertyBool", "Engraved", "Printed part",
          QT("App::Property", "Whether the ID is engraved on a side"), False, READ_ONLY),
     Prop("App::PropertyFloat", "PrintTime", "Printed part",

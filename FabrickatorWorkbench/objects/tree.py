@@ -430,7 +430,10 @@ def _sync_printed(fab, group, result, made: list) -> list:
         obj.VolumeMm3 = float(part.volume_mm3)
         obj.CompleteStuds = len(part.complete_studs)
         obj.IncompleteStuds = list(part.incomplete_studs)
-        obj.IncompleteTubes = list(part.incomplete_tubes)
+        obj.Sockets = len(part.complete_sockets)
+        obj.IncompleteSockets = list(part.incomplete_sockets)
+        engaged = part.engaged
+        obj.Clamping = "yes" if engaged["clamps"] else engaged["why"]
         obj.Engraved = bool(part.engraved)
         obj.PrintTime = float(part.print_s or 0.0)
         obj.PrintTimeMethod = method
