@@ -130,6 +130,10 @@ class Plan:
     * ``play`` (m, 2, 3): slabs :attr:`Fit.play` thick on the sides that face
       a brick of another part in the same layer;
     * ``fills`` (f, 2, 3): the solid bands under studs and around sockets;
+    * ``tapers`` (t, 4, 3): under a stud's skin that overhangs the model, a
+      45° taper from the skin's footprint (rows 0, 1: min and max corner of
+      a flat rectangle) down to the model's extent below it (rows 2, 3), so
+      that an upright print needs no support under the skin;
     * ``studs`` (s, 4): centre x, y, bottom z and top z of each stud
       cylinder, diameter :attr:`Fit.stud_diameter`;
     * ``holes`` (t, 2, 3): the socket holes;
@@ -140,6 +144,7 @@ class Plan:
     envelope: np.ndarray
     play: np.ndarray
     fills: np.ndarray
+    tapers: np.ndarray
     studs: np.ndarray
     holes: np.ndarray
     stud_cells: np.ndarray
@@ -159,8 +164,8 @@ def plan(origin, cell, mine: np.ndarray, other: np.ndarray, bricks, top_cells, b
     other brick (LEGO or another printed part); ``bricks``: ((i, j, k), (sx,
     sy, sz)) of the part's bricks; ``top_cells`` / ``bottom_cells``: (n, 3)
     cells of the part that get a stud / a socket (:func:`core.connectors.find`);
-    ``model_extent(lo, hi)``: the (zmin, zmax) of the model inside the box
-    (lo, hi), or None where the model is absent.
+    ``model_extent(lo, hi)``: the (min corner, max corner) of the model's
+    bounding box inside the box (lo, hi), or None where the model is absent.
 
     Promises: every box and stud of the plan lies in the part's cells
     (studs excepted, which stand :attr:`Fit.stud_height` above its top);
@@ -195,7 +200,7 @@ def plan(origin, cell, mine: np.ndarray, other: np.ndarray, bricks, top_cells, b
                     hi[axis] = lo[axis] + fit.play
                     lo[axis] -= fit.overlap
                 play.append((lo, hi))
-    fills, studs, holes = [], [], []
+    fills, tapers, studs, holes = [], [], [], []
     top_cells = np.asarray(top_cells, dtype=int).reshape(-1, 3)
     bottom_cells = np.asarray(bottom_cells, dtype=int).reshape(-1, 3)
     for i, j, k in top_cells:
@@ -207,8 +212,14 @@ def plan(origin, cell, mine: np.ndarray, other: np.ndarray, bricks, top_cells, b
         z_bottom = origin[2] + k0 * cell[2]
         extent = model_extent(np.r_[lo, z_bottom], np.r_[hi, z_top])
         z_lo = z_top - fit.skin
-        z_lo = z_bottom if extent is None else max(z_bottom, min(z_lo, extent[1] - fit.overlap))
+        z_lo = z_bottom if extent is None else max(z_bottom, min(z_lo, extent[1][2] - fit.overlap))
         fills.append((np.r_[lo, z_lo], np.r_[hi, z_top]))
+        below = model_extent(np.r_[lo, max(z_bottom, z_lo - fit.overlap)], np.r_[hi, z_lo + fit.overlap]) \
+            if z_lo > z_bottom else None
+        if below is not None:
+            taper = _taper(lo, hi, below[0][:2], below[1][:2], z_lo, z_bottom, fit)
+            if taper is not None:
+                tapers.append(taper)
         centre = origin[:2] + (np.array([i, j]) + 0.5) * cell[:2]
         studs.append((*centre, z_top - min(fit.skin, fit.overlap) / 2, z_top + fit.stud_height))
     for i, j, k in bottom_cells:
@@ -220,13 +231,29 @@ def plan(origin, cell, mine: np.ndarray, other: np.ndarray, bricks, top_cells, b
         z_column = origin[2] + (k1 + 1) * cell[2]
         extent = model_extent(np.r_[lo, z0], np.r_[hi, z_column])
         z_hi = z0 + fit.socket_depth + fit.roof
-        z_hi = z_column if extent is None else min(z_column, max(z_hi, extent[0] + fit.overlap))
+        z_hi = z_column if extent is None else min(z_column, max(z_hi, extent[0][2] + fit.overlap))
         fills.append((np.r_[lo, z0], np.r_[hi, z_hi]))
         centre = origin[:2] + (np.array([i, j]) + 0.5) * cell[:2]
         half = fit.socket_width / 2
         holes.append((np.r_[centre - half, z0 - fit.overlap], np.r_[centre + half, z0 + fit.socket_depth]))
     return Plan(_boxes(envelope), _boxes(play), _boxes(fills),
+                np.asarray(tapers, dtype=float).reshape(-1, 4, 3),
                 np.asarray(studs, dtype=float).reshape(-1, 4), _boxes(holes), top_cells, bottom_cells)
+
+
+def _taper(lo, hi, support_lo, support_hi, z_top: float, z_floor: float, fit: Fit):
+    """The 45° taper under a skin of footprint (lo, hi) at ``z_top`` down to the
+    model's footprint (support_lo, support_hi), cut off at ``z_floor``; None when
+    the skin overhangs the model by less than :attr:`Fit.min_wall`."""
+    s_lo = np.clip(support_lo, lo, hi)
+    s_hi = np.clip(support_hi, lo, hi)
+    reach = float(max(np.max(s_lo - lo), np.max(hi - s_hi)))
+    if reach < fit.min_wall or np.any(s_hi <= s_lo):
+        return None
+    depth = min(reach, z_top - z_floor)
+    t = depth / reach
+    b_lo, b_hi = lo + (s_lo - lo) * t, hi + (s_hi - hi) * t
+    return (np.r_[lo, z_top], np.r_[hi, z_top], np.r_[b_lo, z_top - depth], np.r_[b_hi, z_top - depth])
 
 
 def _footprint(origin, cell, other, i, j, k0, k1, fit: Fit) -> tuple[np.ndarray, np.ndarray]:

@@ -39,7 +39,9 @@ import manifold3d as m3
 import numpy as np
 import trimesh
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+from OCP.BRepBuilderAPI import BRepBuilderAPI_MakePolygon
 from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepOffsetAPI import BRepOffsetAPI_ThruSections
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.ShapeFix import ShapeFix_Shape
@@ -385,6 +387,7 @@ def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit
     kept, joins = _joined(part_id, engine, kept, envelope, grid, mine)
     shape = engine.union([kept]
                          + [engine.box(lo, hi) for lo, hi in layout_plan.fills]
+                         + [engine.taper(t) for t in layout_plan.tapers]
                          + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
                             for x, y, z0, z1 in layout_plan.studs])
     shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
@@ -407,13 +410,14 @@ def _without_touching_edges(engine, shape, rounds: int = 3):
     return shape
 
 
-def _extent(model: m3.Manifold, lo, hi) -> tuple[float, float] | None:
-    """(zmin, zmax) of ``model`` inside the box (lo, hi), None where it has no volume there."""
+def _extent(model: m3.Manifold, lo, hi) -> tuple[np.ndarray, np.ndarray] | None:
+    """The bounding box (min, max corner) of ``model`` inside the box (lo, hi), None
+    where it has no volume there."""
     inside = model ^ _cube(lo, hi)
     if inside.is_empty() or inside.volume() <= CRUMB_MM3:
         return None
-    box = inside.bounding_box()
-    return float(box[2]), float(box[5])
+    box = np.asarray(inside.bounding_box(), dtype=float)
+    return box[:3], box[3:]
 
 
 def _cube(lo, hi) -> m3.Manifold:
@@ -520,6 +524,9 @@ class _Mesh:
     def bar(self, a, b, side) -> m3.Manifold:
         return _bar_hull(np.asarray(a), np.asarray(b), side)
 
+    def taper(self, rects) -> m3.Manifold:
+        return m3.Manifold.hull_points(_rect_corners(rects).reshape(-1, 3).tolist())
+
     def union(self, shapes):
         return shapes[0] if len(shapes) == 1 else m3.Manifold.batch_boolean(shapes, m3.OpType.Add)
 
@@ -558,6 +565,15 @@ def _bar_hull(a: np.ndarray, b: np.ndarray, side: float) -> m3.Manifold:
     return m3.Manifold.hull_points(np.concatenate([a + corners, b + corners]).tolist())
 
 
+def _rect_corners(rects: np.ndarray) -> np.ndarray:
+    """(2, 4, 3): the corners, in order round, of the two flat rectangles of a taper."""
+    out = []
+    for lo, hi in (rects[:2], rects[2:]):
+        z = lo[2]
+        out.append([[lo[0], lo[1], z], [hi[0], lo[1], z], [hi[0], hi[1], z], [lo[0], hi[1], z]])
+    return np.asarray(out, dtype=float)
+
+
 class _Brep:
     """The part's Booleans on OpenCascade shapes (B-rep models)."""
 
@@ -581,6 +597,13 @@ class _Brep:
         corner = a - direction * side / 2 - (x + y) * side / 2
         return BRepPrimAPI_MakeBox(gp_Ax2(gp_Pnt(*corner), gp_Dir(*direction), gp_Dir(*x)),
                                    side, side, length + side).Shape()
+
+    def taper(self, rects) -> TopoDS_Shape:
+        loft = BRepOffsetAPI_ThruSections(True, True)
+        for corners in _rect_corners(rects):
+            loft.AddWire(BRepBuilderAPI_MakePolygon(*[gp_Pnt(*map(float, c)) for c in corners], True).Wire())
+        loft.Build()
+        return loft.Shape()
 
     def union(self, shapes):
         return shapes[0] if len(shapes) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:]))

@@ -136,7 +136,13 @@ def test_a_2mm_plate_is_kept_whole_and_gets_studs_and_sockets(kind):
     hi = np.array(added.bounding_box()[3:])
     assert lo[2] == pytest.approx(9.6, abs=1e-6) and hi[2] == pytest.approx(41.6 + fit.stud_height, abs=1e-6)
     middle = m3.Manifold.cube([48, 8, 32 - 2 * 3.2]).translate([0, 0, 9.6 + 3.2])
-    assert (added ^ middle).volume() == pytest.approx(0.0, abs=1e-6)
+    # Below the skin (z 40.6) a 45° taper narrows from the cell's 8 mm to the plate's 2 mm over
+    # 3 mm, so its lowest 0.8 mm reach into the middle layers: 48 x (3.6 + 2) / 2 x 0.8 less the plate.
+    assert (added ^ middle).volume() == pytest.approx(48 * ((3.6 + 2) / 2 * 0.8 - 2 * 0.8), rel=1e-5)
+    # Printed upright, nothing hangs over air but the socket holes' 4.8 mm bridges.
+    down = part.mesh.face_normals[:, 2] < -np.cos(np.radians(45)) - 1e-6
+    high = part.mesh.triangles_center[:, 2] > 9.6 + fit.socket_depth + 1e-6
+    assert part.mesh.area_faces[down & high].sum() == pytest.approx(0.0, abs=1e-6)
     # The sockets' walls and the skin are at least min_wall thick: 8 - 4.8 leaves 1.6 per side,
     # and nothing of the part is thinner than a 0.4 mm nozzle prints.
     assert (8 - fit.socket_width) / 2 >= fit.min_wall
