@@ -574,7 +574,8 @@ def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None
     the pose with the least slicer time (times the upright preference)
     wins; ``slicer_s`` and ``sliced`` hold its slice.  Without a slicer,
     or when every slice fails, the cheapest estimate wins and
-    ``chosen_by`` says why.  Ties go to the earlier candidate (upright
+    ``chosen_by`` says why.  Ties go to the pose the estimate ranks first,
+    and among poses the estimate ties, to the earlier candidate (upright
     first).  Raises InputError for an unreadable profile.
     """
     config = load_profile(profile)
