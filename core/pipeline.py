@@ -223,29 +223,29 @@ def print_times(fab: Fabrication) -> None:
     to print (:func:`core.export.plates`: one plate unless they do not fit the
     bed), the slicer runs two at a time; the parts' time is the plates' sum.
 
-    A part's own ``print_s`` is its plate's time shared out in proportion to
-    the parts' calibrated estimates (:func:`core.print_time.estimate_seconds`),
-    so the parts' times add up to the plates'.
+    The whole model is posed and timed first (its pose search already
+    slices two poses at a time), then the plates, two at a time.  A part's
+    own ``print_s`` is its plate's time shared out in proportion to the
+    parts' own sliced times in their poses (their calibrated estimates
+    without a slicer), so the parts' times add up to the plates'.
     """
     from concurrent.futures import ThreadPoolExecutor
 
     from core.export import plates
     printing = fab.to_print
-    beds = plates(printing)
-    with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work, \
-            ThreadPoolExecutor(max_workers=2) as pool:
-        profile = {} if fab.profile is None else {"profile": fab.profile}
-        full = pool.submit(print_time_stage.print_time, [fab.model.mesh], work, **profile)
-        sliced = [pool.submit(print_time_stage.print_time, [m for _, m, _ in items], work, **profile)
-                  for items in beds]
-        fab.print_full = full.result()
-        results = [f.result() for f in sliced]
+    beds = plates(printing, profile=fab.profile)
+    profile = {} if fab.profile is None else {"profile": fab.profile}
+    with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work:
+        fab.print_full = print_time_stage.print_time([fab.model.mesh], work, **profile)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            results = list(pool.map(lambda items: print_time_stage.print_time(
+                [m for _, m, _ in items], work, **profile), beds))
     methods = sorted({r.method for r in results})
     fab.print_parts = print_time_stage.PrintEstimate(
         sum(r.seconds for r in results),
         "; ".join(methods) if methods else "nothing to print: no printed part changed", None)
     for items, result in zip(beds, results):
-        weights = [print_time_stage.estimate_seconds([m]) for _, m, _ in items]
+        weights = [pose.slicer_s or print_time_stage.estimate_seconds([m]) for _, m, pose in items]
         total = sum(weights) or 1.0
         for (index, _, _), w in zip(items, weights):
             printing[index].print_s = result.seconds * w / total
@@ -366,6 +366,7 @@ def report(fab: Fabrication) -> dict:
         "print_time_s": None if full is None else {
             "full_model": round(full.seconds, 1),
             "printed_parts": round(plate.seconds, 1),
+            "full_model_pose": full.pose, "full_model_supports": bool(full.supports),
             "method": full.method if full.method == plate.method
             else f"full model: {full.method}; printed parts: {plate.method}",
         },
@@ -415,7 +416,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
         if fab.printed:
             from core import export
             progress(0.9, "export")
-            export.export_parts(fab.printed, tmp / "parts")
+            export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
+                                slicer="none" if fab.print_full is None else "auto")
         progress(0.92, "instructions")
         from core import instructions
         assembly = instructions.write_assembly(
