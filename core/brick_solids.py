@@ -820,7 +820,7 @@ def _sew(bricks: list[BrickSolid], tagged: list) -> tuple[TopoDS_Shape, list, in
         if sewing.NbFreeEdges() or sewing.NbMultipleEdges():
             raise _MergeFailed(f"sewing left {sewing.NbFreeEdges()} free and "
                                f"{sewing.NbMultipleEdges()} multiple edges")
-        shells = _sub_shapes(sewing.SewedShape(), TopAbs_SHELL)
+        shells = sub_shapes(sewing.SewedShape(), TopAbs_SHELL)
         if len(shells) != 1 or not BRep_Tool.IsClosed_s(shells[0]):
             raise _MergeFailed(f"sewing gave {len(shells)} shell(s), not one closed shell")
         solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell_s(shells[0])).Solid()
@@ -830,7 +830,7 @@ def _sew(bricks: list[BrickSolid], tagged: list) -> tuple[TopoDS_Shape, list, in
         shape, carried = _unified(solid, carried)
     except Standard_Failure as exc:
         raise _MergeFailed(f"OpenCascade: {exc}") from None
-    solids = _sub_shapes(shape, TopAbs_SOLID)
+    solids = sub_shapes(shape, TopAbs_SOLID)
     if len(solids) != 1 or not BRepCheck_Analyzer(solids[0]).IsValid():
         raise _MergeFailed("the sewn solid is not valid")
     return TopoDS.Solid_s(solids[0]), carried, drop.Extent()
@@ -859,7 +859,8 @@ def _unified(shape: TopoDS_Shape, tagged: list) -> tuple[TopoDS_Shape, list]:
     return unify.Shape(), carried
 
 
-def _sub_shapes(shape: TopoDS_Shape, kind) -> list:
+def sub_shapes(shape: TopoDS_Shape, kind) -> list:
+    """The sub-shapes of ``shape`` of the OCC type ``kind`` (TopAbs_SOLID, ...), in explorer order."""
     out = []
     explorer = TopExp_Explorer(shape, kind)
     while explorer.More():

@@ -48,12 +48,11 @@ from OCP.ShapeFix import ShapeFix_Shape
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
-from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Shape
 from scipy.spatial import cKDTree
 
 from core import connectors as connectors_stage, high_res, interfaces, thickness
-from core.brick_solids import SIDE_TAGS, BooleanFailed, run_boolean, to_trimesh
+from core.brick_solids import SIDE_TAGS, BooleanFailed, run_boolean, sub_shapes, to_trimesh
 from core.errors import InputError
 from core.interfaces import Fit
 from core.mesh_io import LoadedModel
@@ -644,12 +643,7 @@ class _Brep:
 
 
 def _solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
-    out = []
-    explorer = TopExp_Explorer(shape, TopAbs_SOLID)
-    while explorer.More():
-        out.append(explorer.Current())
-        explorer.Next()
-    return out
+    return sub_shapes(shape, TopAbs_SOLID)
 
 
 def _run(op, argument, tools):

@@ -1,8 +1,6 @@
 """Printed parts of models made of several solids or shells, end to end through the pipeline."""
 
 import cadquery as cq
-import numpy as np
-import pytest
 import trimesh
 
 from core import pipeline
