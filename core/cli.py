@@ -16,6 +16,11 @@ from core.interfaces import Fit
 from core.mesh_io import UNITS
 
 
+#: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
+#: (a sharp corner of the engraved letters, say) stay in report.json's thin_features.
+THIN_WARNING_MM2 = 1.0
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse that reports a usage mistake as one line and exit status 2."""
 
@@ -231,7 +236,7 @@ def _summary(doc: dict, out) -> None:
         if not part["engaged"]["clamps"]:
             sys.stderr.write(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}\n")
         thin = part.get("thin_features") or {}
-        if thin.get("area_mm2"):
+        if thin.get("area_mm2", 0.0) >= THIN_WARNING_MM2:
             spot = thin["spots"][0]
             sys.stderr.write(f"warning: printed part {part['id']} has {thin['area_mm2']:.1f} mm² thinner than "
                              f"{thin['limit_mm']:g} mm (a nozzle cannot print it), thinnest {thin['thinnest_mm']:g} mm "

@@ -68,6 +68,8 @@ ENGRAVE_MARGIN_MM = 0.4
 ENGRAVE_FONT_SIZES = (5.0, 4.0, 3.0, 2.5)
 #: How far (mm) the cutting text starts outside the face (no coplanar Boolean faces).
 ENGRAVE_OVERSHOOT_MM = 0.2
+#: Free space (mm) the engraved side must have in front of it (else the side is covered).
+ENGRAVE_CLEAR_MM = 1.0
 #: The font of the id (DejaVu Sans Bold, Debian fonts-dejavu-core).
 ENGRAVE_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
 #: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
@@ -672,8 +674,9 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
     the biggest of ENGRAVE_FONT_SIZES whose text (plus ENGRAVE_MARGIN_MM)
     fits the side is placed centred on it, and the side is taken only when
     the slab behind the text, ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM deep, lies
-    wholly inside the part: then the part has a flat side there and at
-    least ENGRAVE_KEEP_MM of wall stays behind the letters.  The side is
+    wholly inside the part and the slab ENGRAVE_CLEAR_MM in front of it
+    holds nothing of the part: then the part has a flat, uncovered side
+    there and at least ENGRAVE_KEEP_MM of wall stays behind the letters.  The side is
     vertical, so in an upright print it faces sideways.  Sets ``engraved``,
     ``engraving`` (where, or why not) and updates the part's solid, mesh and
     volume.
@@ -693,10 +696,14 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
                                    b.id, SIDE_TAGS.index(side), face, max(fits)))
     candidates.sort(key=lambda c: c[:5])
     inside = _inside_test(part)
+    body = _manifold(part.mesh)
     for *_, face, font in candidates:
         width, height = sizes[font]
         behind = ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM
         if not inside(_slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, behind)):
+            continue
+        front = _slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, -ENGRAVE_CLEAR_MM)
+        if (body ^ _cube(*front)).volume() > 1e-6 * np.prod(front[1] - front[0]):
             continue
         text = _text_solid(part.id, font, face)
         try:
