@@ -243,3 +243,21 @@ def test_engraving_prints_no_fontconfig_error():
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == "True"
     assert "fontconfig" not in run.stderr.lower(), run.stderr
+
+
+def test_the_id_goes_on_an_uncovered_side():
+    # A 1x1 brick of the same part stands against the middle of the 2x4's -x side.
+    lay = _layout([Brick(0, "3001", (2, 4, 3), (1, 0, 0)), Brick(1, "3005", (1, 1, 3), (0, 1, 0))], (3, 4, 3))
+    model = trimesh.util.concatenate([trimesh.creation.box(bounds=[[8, 0, 0], [24, 32, 9.6]]),
+                                      trimesh.creation.box(bounds=[[0, 8, 0], [8, 16, 9.6]])])
+    (part,) = printed.build_parts(lay, [[0, 1]], _source("mesh", model))
+    assert part.engraved
+    where = part.engraving
+    normal, centre = np.array(where["normal"]), np.array(where["centre_mm"])
+    width, height = where["text_mm"]
+    across = np.abs(np.cross([0, 0, 1], normal))
+    half = across * width / 2 + np.array([0, 0, height / 2])
+    front = np.stack([centre - half, centre + half + normal * 1.0])
+    front = np.sort(front, axis=0)
+    box = m3.Manifold.cube(list(front[1] - front[0])).translate(list(front[0]))
+    assert (_manifold(part.mesh) ^ box).volume() == pytest.approx(0.0, abs=1e-6)
