@@ -82,6 +82,8 @@ STUD_SEGMENTS = 96
 #: enough that a stud's flats are within 0.01 mm of its diameter.
 MESH_TOL_MM = 0.01
 MESH_ANGLE_RAD = 0.1
+#: Fuzzy tolerance (mm) of the part's OpenCascade Booleans.
+FUZZY_MM = 1e-5
 #: Thickness (mm) of the weld that fills an edge where a part touches itself.
 WELD_MM = 0.4
 #: A piece of a part smaller than this (mm³) is a Boolean crumb, dropped.
@@ -607,16 +609,16 @@ class _Brep:
         return loft.Shape()
 
     def union(self, shapes):
-        return shapes[0] if len(shapes) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:]))
+        return shapes[0] if len(shapes) == 1 else _unify(_occ(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:]))
 
     def cut(self, shape, tools):
-        return shape if not tools else _unify(_run(BRepAlgoAPI_Cut(), shape, tools))
+        return shape if not tools else _unify(_occ(BRepAlgoAPI_Cut(), shape, tools))
 
     def intersect(self, a, b):
-        return _unify(_run(BRepAlgoAPI_Common(), a, [b]))
+        return _unify(_occ(BRepAlgoAPI_Common(), a, [b]))
 
     def common(self, envelope, lo, hi):
-        return _unify(_run(BRepAlgoAPI_Common(), self.model, [envelope]))
+        return _unify(_occ(BRepAlgoAPI_Common(), self.model, [envelope]))
 
     def volume(self, shape) -> float:
         return float(cq.Shape.cast(shape).Volume()) if _solids(shape) else 0.0
@@ -654,6 +656,18 @@ def _run(op, argument, tools):
         return run_boolean(op, argument, list(tools), None, True)
     except BooleanFailed:
         raise InputError("OpenCascade could not compute a printed part (Boolean failed)") from None
+
+
+def _occ(op, argument, tools):
+    """:func:`core.brick_solids.run_boolean` inside a part's construction: a failure
+    makes the part on the mesh instead (:class:`_InvalidSolid`).  Faces closer than
+    :data:`FUZZY_MM` count as one (a model aligned onto an earlier version lies a
+    rounding error off the cell planes)."""
+    op.SetFuzzyValue(FUZZY_MM)
+    try:
+        return run_boolean(op, argument, list(tools), None, True)
+    except BooleanFailed:
+        raise _InvalidSolid("an OpenCascade Boolean that failed") from None
 
 
 def _unify(shape: TopoDS_Shape) -> TopoDS_Shape:
