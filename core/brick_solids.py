@@ -1,11 +1,13 @@
 """Exact parametric LEGO brick solids whose faces carry tags.
 
-A printed brick is the LEGO brick solid intersected with the user's part
-(paper, "Converting Lego bricks into 3D printable bricks").  Merging
-neighbouring printed bricks removes the faces where they touch, found by
-tag, and sews the rest into one solid (:func:`merged_solid`; "Merging and
-splitting"), and a stud or tube is complete when none of its tagged faces
-was cut away ("Detecting the completeness of knobs and tubes").  This
+These are real LEGO bricks (studs, hollow underside, tubes, pins) as the
+workbench shows them and as the paper's merge works on them: merging
+neighbouring bricks removes the faces where they touch, found by tag, and
+sews the rest into one solid (:func:`merged_solid`; "Merging and
+splitting").  Printed parts are not made from these solids any more: they
+keep the model whole and get studs and sockets only where they meet LEGO
+(:mod:`core.printed`, :mod:`core.interfaces`).  This
+This
 module builds the brick solid with OpenCascade (through cadquery's OCP)
 and tags every face from the construction history of the Boolean
 operations, never by guessing from positions afterwards.
@@ -23,23 +25,11 @@ operation that rebuilds the shape (a Boolean, a fillet, re-import as STEP).
 
 Clearance
 ---------
-``BrickGeometry.clearance`` is the FDM clearance, a diameter.  Every surface
-of the printed brick that can touch real LEGO moves away from it by half the
-clearance; nothing else changes:
-
-* stud diameter ``stud_diameter - clearance`` (a printed stud enters the
-  underside of a real brick);
-* tube outer diameter ``tube_outer - clearance`` and pin diameter
-  ``pin_diameter - clearance`` (real studs enter between tube or pin and
-  their neighbours);
-* tube inner diameter ``tube_inner + clearance`` (a real stud enters the
-  tube);
-* the cavity is widened: the side walls are ``wall - clearance / 2`` thick.
-
-The outer size stays ``n * pitch - 2 * play`` and the heights stay as set.
-The default 0.1 mm suits a well-tuned FDM printer; a printer that needs a
-printed stud hole of r 2.63 mm for a 2.4 mm stud (a known working value)
-needs ``clearance=0.46``.
+``BrickGeometry.clearance`` (a diameter, default 0: real LEGO) shrinks
+the stud, the tube's outside and the pin by it, widens the tube's inside by
+it and thins the cavity's walls by half of it; the outer size stays
+``n * pitch - 2 * play``.  Printed parts do not use it: their fit is
+:class:`core.interfaces.Fit`.
 """
 
 from __future__ import annotations
@@ -109,7 +99,7 @@ class BrickGeometry:
     tube_outer: float = 6.51
     tube_inner: float = 4.8
     pin_diameter: float = 3.2
-    clearance: float = 0.1
+    clearance: float = 0.0
 
     @property
     def printed_stud_diameter(self) -> float:
