@@ -355,8 +355,8 @@ def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, .
 
     clock = time.perf_counter()
     progress(0.6, "printed parts")
-    made, reprint_info, links = _printed(previous, layout, plan, aligned, changed, fit,
-                                         connectors)
+    made, reprint_info, links, layout = _printed(previous, layout, plan, aligned, changed, fit,
+                                                 connectors)
     timings["printed_parts"] = _lap(clock)
 
     clock = time.perf_counter()
@@ -594,7 +594,8 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
              changed: np.ndarray, fit: Fit, connectors: bool):
     """Printed parts of the new layout: kept, rebuilt or new (step 5).
 
-    Returns (parts, one reprint record per part, connectors of all parts).
+    Returns (parts, one reprint record per part, connectors of all parts, the layout with
+    their bricks marked printed: a new one, ``layout`` is not changed).
     """
     index = {b.id: b for b in layout.bricks}
     kept_groups = {pid: sorted(i for i in plan.kept if plan.shifted[i].printed_part == pid)
@@ -604,7 +605,7 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
     named = _name_groups(previous, new_groups, index, plan.offset, set(kept_groups))
     all_groups = list(kept_groups.values()) + [g for _, g in named]
     if not all_groups:
-        return [], [], None
+        return [], [], None, layout
     links = connectors_stage.find(layout, all_groups if connectors else [])
     rebuild: list[tuple[str, list[int], str | None]] = []
     made: dict[str, printed_stage.PrintedPart] = {}
@@ -637,9 +638,9 @@ def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.Loa
                                             links=None, connectors=connectors)
             made[pid] = part
             records[pid] = _compare(previous.parts.get(pid), part, why)
-    printed_stage.apply(layout, list(made.values()))
     order = sorted(made, key=_id_key)
-    return [made[p] for p in order], [records[p] for p in order], links
+    return ([made[p] for p in order], [records[p] for p in order], links,
+            printed_stage.apply(layout, list(made.values())))
 
 
 def _connector_cells(layout: Layout, group: list[int],

@@ -171,7 +171,7 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
             links = connectors_stage.find(layout, groups if connectors else [])
             made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
                          source, interface, connectors)
-            printed_stage.apply(layout, made)
+            layout = printed_stage.apply(layout, made)
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,

@@ -31,6 +31,7 @@ of the same part the model is kept exactly.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 
@@ -284,12 +285,12 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit
             for n, g in enumerate(groups)]
 
 
-def apply(layout: Layout, parts: list[PrintedPart]) -> None:
-    """Mark the bricks of ``parts`` in ``layout`` as printed (kind and printed_part)."""
+def apply(layout: Layout, parts: list[PrintedPart]) -> Layout:
+    """A new layout: ``layout`` with the bricks of ``parts`` marked printed (kind and
+    printed_part); ``layout`` itself is not changed."""
     owner = {b: p.id for p in parts for b in p.bricks}
-    for b in layout.bricks:
-        if b.id in owner:
-            b.kind, b.printed_part = "printed", owner[b.id]
+    return Layout(layout.grid, [dataclasses.replace(b, kind="printed", printed_part=owner[b.id])
+                                if b.id in owner else b for b in layout.bricks])
 
 
 def clamp_masks(layout: Layout, parts: list[PrintedPart]) -> tuple[np.ndarray, np.ndarray]:

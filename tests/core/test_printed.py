@@ -261,3 +261,13 @@ def test_the_id_goes_on_an_uncovered_side():
     front = np.sort(front, axis=0)
     box = m3.Manifold.cube(list(front[1] - front[0])).translate(list(front[0]))
     assert (_manifold(part.mesh) ^ box).volume() == pytest.approx(0.0, abs=1e-6)
+
+
+def test_apply_returns_a_new_layout_and_leaves_its_input_alone():
+    lay, block = _sandwich()
+    before = [b.to_json() for b in lay.bricks]
+    parts = printed.build_parts(lay, [[1]], _source("mesh", block), engrave=False)
+    marked = printed.apply(lay, parts)
+    assert [b.to_json() for b in lay.bricks] == before
+    assert [(b.kind, b.printed_part) for b in marked.bricks] == [("lego", None), ("printed", "P1"),
+                                                                  ("lego", None)]
