@@ -62,10 +62,6 @@ BAND_WIDTH_MM, BAND_THICKNESS_MM, BAND_OVERLAP_MM = 5.0, 1.2, 0.5
 #: The values' text: font size, height of the raised letters, free space
 #: between two labels along the strip.
 LABEL_FONT_MM, LABEL_RAISE_MM, LABEL_GAP_MM = 3.5, 0.6, 2.0
-#: The labels' font (DejaVu Sans Bold, Debian fonts-dejavu-core; else cadquery's default).
-LABEL_FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf"
-#: The system's fontconfig configuration, given to OpenCascade's bundled fontconfig.
-SYSTEM_FONTS_CONF = "/etc/fonts/fonts.conf"
 #: Tessellation of the written mesh: chord deviation (mm) and angle (rad).
 #: A stud's circle gets at least 2 pi / 0.065 = 97 sides, its corners on the
 #: circle and its flats 0.001 mm inside it (the pipeline's mesh studs have 96),
@@ -328,23 +324,14 @@ def _box(x0, y0, z0, x1, y1, z1) -> "cq.Solid":
     return cq.Solid.makeBox(x1 - x0, y1 - y0, z1 - z0, cq.Vector(x0, y0, z0))
 
 
-def _use_system_fontconfig() -> None:
-    """Point OpenCascade's bundled fontconfig at the system's ``fonts.conf`` unless the
-    user set one (the wheel's built-in path does not exist here, and fontconfig would
-    complain on stderr at the first text shape).  Changes nothing when FONTCONFIG_FILE
-    or FONTCONFIG_PATH is set or the system has no SYSTEM_FONTS_CONF."""
-    if not {"FONTCONFIG_FILE", "FONTCONFIG_PATH"} & set(os.environ) and os.path.exists(SYSTEM_FONTS_CONF):
-        os.environ["FONTCONFIG_FILE"] = SYSTEM_FONTS_CONF
-
-
 def _text_solid(text: str, height: float) -> cq.Shape:
-    """``text`` at LABEL_FONT_MM, bold, centred on the origin, extruded ``height`` up."""
+    """``text`` at LABEL_FONT_MM, bold, centred on the origin, extruded ``height`` up
+    (the font and set-up of the printed parts' engraved ids, :func:`core.printed.text_shape`)."""
     import cadquery as cq
 
-    _use_system_fontconfig()
-    kwargs = {"fontPath": LABEL_FONT} if os.path.exists(LABEL_FONT) else {}
-    return cq.Workplane("XY").text(text, LABEL_FONT_MM, height, combine=False, halign="center",
-                                   valign="center", kind="bold", **kwargs).val()
+    from core.printed import text_shape
+
+    return text_shape(text, LABEL_FONT_MM, cq.Plane.XY(), height)
 
 
 def _placed(shape: cq.Shape, cx: float, cy: float, z: float) -> cq.Shape:

@@ -798,9 +798,9 @@ def _use_system_fontconfig() -> None:
         os.environ["FONTCONFIG_FILE"] = SYSTEM_FONTS_CONF
 
 
-def _text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.Shape:
-    """``text`` at ``font`` size centred at the plane's origin, extruded ``distance``
-    along the plane's normal (negative: into the part)."""
+def text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.Shape:
+    """``text`` at ``font`` size, DejaVu Sans Bold, centred at the plane's origin,
+    extruded ``distance`` along the plane's normal (negative: into the part)."""
     _use_system_fontconfig()
     kwargs = {"fontPath": _font_path()} if _font_path() else {}
     return cq.Workplane(plane).text(text, font, distance, combine=False, halign="center",
@@ -809,7 +809,7 @@ def _text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.
 
 def _text_size(text: str, font: float) -> tuple[float, float]:
     """Width and height (mm) of ``text`` set at ``font`` size."""
-    box = _text_shape(text, font, cq.Plane.XY(), 1.0).BoundingBox()
+    box = text_shape(text, font, cq.Plane.XY(), 1.0).BoundingBox()
     return float(box.xlen), float(box.ylen)
 
 
@@ -817,7 +817,7 @@ def _text_solid(text: str, font: float, face: dict) -> TopoDS_Shape:
     """The cutting tool of the engraving: ``text`` centred on ``face``, from
     ENGRAVE_OVERSHOOT_MM outside it to ENGRAVE_DEPTH_MM into the part."""
     start = face["centre"] + ENGRAVE_OVERSHOOT_MM * face["normal"]
-    shape = _text_shape(text, font, cq.Plane(origin=tuple(start), xDir=tuple(face["right"]),
+    shape = text_shape(text, font, cq.Plane(origin=tuple(start), xDir=tuple(face["right"]),
                                              normal=tuple(face["normal"])),
                         -(ENGRAVE_DEPTH_MM + ENGRAVE_OVERSHOOT_MM))
     box = shape.BoundingBox()

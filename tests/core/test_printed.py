@@ -193,7 +193,7 @@ def test_merge_split_and_bad_groups():
 
 
 def _text_area(part_id, font):
-    return printed._text_shape(part_id, font, cq.Plane.XY(), 1.0).Volume()
+    return printed.text_shape(part_id, font, cq.Plane.XY(), 1.0).Volume()
 
 
 @pytest.mark.parametrize("kind", ["brep", "mesh"])
