@@ -248,15 +248,17 @@ def _rows(fmt: str, ids, values) -> str:
 
 
 def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
-                 profile: str | os.PathLike | None = None, slicer: str | None = "auto") -> list[str]:
+                 profile: str | os.PathLike | None = None, slicer: str | None = "auto",
+                 beds: list | None = None) -> list[str]:
     """Write ``<id>.stl``, ``<id>.step`` per part and the 3MF plate(s) into ``folder``.
 
     Sets ``stl`` and ``step`` of each part to the paths relative to the
     folder's parent (``parts/P1.stl``) and ``pose`` to its print pose
     (:meth:`Pose.to_json` plus the plate file it is on); returns the names
     written.  The plates come from :func:`plates` (``bed``, ``profile`` and
-    ``slicer`` as there): ``plate.3mf``, then ``plate-2.3mf`` ... when the
-    parts need more beds.  Each plate carries the settings it is to be
+    ``slicer`` as there), or are ``beds`` when given (what :func:`plates`
+    returned for these ``parts``, so that the poses are not searched again):
+    ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
     printed with as PrusaSlicer's project config
     (:func:`core.print_time.plate_3mf`): the
     profile's, with :data:`core.print_time.SUPPORT_SETTINGS` when a part on
@@ -275,7 +277,9 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
             write_faceted_step(p.mesh, step, name=p.id)
         p.stl, p.step = f"{folder.name}/{stl.name}", f"{folder.name}/{step.name}"
         written += [stl.name, step.name]
-    for number, items in enumerate(plates(parts, bed, profile, slicer) if parts else [], start=1):
+    if beds is None:
+        beds = plates(parts, bed, profile, slicer) if parts else []
+    for number, items in enumerate(beds, start=1):
         name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
         for index, _, pose in items:
             parts[index].pose = {**pose.to_json(), "plate": f"{folder.name}/{name}"}

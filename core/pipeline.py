@@ -59,6 +59,7 @@ class Fabrication:
     profile: str | None = None
     marks: dict = field(default_factory=dict)
     fit: grid_fit.GridFit | None = None
+    plates: list | None = None
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -168,9 +169,10 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         groups = _edited(layout, high_res_stage.groups(layout, ids), part_edits)
         if groups:
             source = timed("model_solid", 0.6, printed_stage.model_solid, model)
-            links = connectors_stage.find(layout, groups if connectors else [])
+            contacts = connectors_stage.find(layout, groups)
             made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
-                         source, interface, connectors)
+                         source, interface, connectors, links=contacts)
+            links = contacts if connectors else connectors_stage.find(layout, [])
             layout = printed_stage.apply(layout, made)
             clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
@@ -223,7 +225,8 @@ def print_times(fab: Fabrication) -> None:
     to print (:func:`core.export.plates`: one plate unless they do not fit the
     bed), the slicer runs two at a time; the parts' time is the plates' sum.
 
-    The whole model is posed and timed first (its pose search already
+    The plates are kept in ``fab.plates`` (for :func:`write_outputs`, which
+    writes them as they were timed).  The whole model is posed and timed first (its pose search already
     slices two poses at a time), then the plates, two at a time.  A part's
     own ``print_s`` is its plate's time shared out in proportion to the
     parts' own sliced times in their poses (their calibrated estimates
@@ -233,7 +236,7 @@ def print_times(fab: Fabrication) -> None:
 
     from core.export import plates
     printing = fab.to_print
-    beds = plates(printing, profile=fab.profile)
+    beds = fab.plates = plates(printing, profile=fab.profile)
     profile = {} if fab.profile is None else {"profile": fab.profile}
     with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work:
         fab.print_full = print_time_stage.print_time([fab.model.mesh], work, **profile)
@@ -417,7 +420,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
             from core import export
             progress(0.9, "export")
             export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
-                                slicer="none" if fab.print_full is None else "auto")
+                                slicer="none" if fab.print_full is None else "auto",
+                                beds=fab.plates if fab.iteration is None else None)
         progress(0.92, "instructions")
         from core import instructions
         assembly = instructions.write_assembly(

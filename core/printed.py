@@ -259,14 +259,16 @@ def split(groups: list[list[int]], brick_ids) -> list[list[int]]:
 
 
 def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit: Fit = Fit(),
-                connectors: bool = True, engrave: bool = True) -> list[PrintedPart]:
+                connectors: bool = True, engrave: bool = True,
+                links: connectors_stage.Connectors | None = None) -> list[PrintedPart]:
     """One :class:`PrintedPart` per group of brick ids, named P1, P2, ... in group order.
 
     Every group must be face-to-face connected (InputError otherwise), and
     no brick may be in two groups.  With ``connectors`` every cell where a
     part meets a brick of another group or a LEGO brick directly above or
-    below gets a stud or a socket.  Does not change ``layout``; see
-    :func:`apply`.
+    below gets a stud or a socket; ``links`` are those cells when the caller
+    already has them (:func:`core.connectors.find` of ``groups``).  Does not
+    change ``layout``; see :func:`apply`.
     """
     seen: set[int] = set()
     for g in groups:
@@ -279,7 +281,7 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit
                              "a merged printed part must be one piece")
     fit.check()
     by_id = {b.id: b for b in layout.bricks}
-    links = connectors_stage.find(layout, groups)
+    links = connectors_stage.find(layout, groups) if links is None else links
     return [build_part(f"P{n + 1}", [by_id[i] for i in sorted(g)], layout, source, fit, links,
                        connectors, engrave)
             for n, g in enumerate(groups)]
@@ -345,7 +347,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
     method = "OpenCascade (exact B-rep)" if source.kind == "brep" else "manifold3d (mesh)"
     engine = _Brep(source.brep) if source.kind == "brep" else _Mesh(source.manifold)
     try:
-        shape, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all, grid,
+        shape, mesh, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all, grid,
                                                 mine, fit)
     except _InvalidSolid as why:
         if isinstance(engine, _Mesh):
@@ -353,7 +355,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
         method = f"manifold3d on the model's mesh (the B-rep result was {why})"
         engine = _Mesh(source.manifold)
         try:
-            shape, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all,
+            shape, mesh, envelope, kept_mm3, joins = _cut(part_id, engine, layout_plan, lo_all, hi_all,
                                                     grid, mine, fit)
         except _InvalidSolid as again:
             raise RuntimeError(f"printed part {part_id} came out as {again}") from None
@@ -363,7 +365,7 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
     part = PrintedPart(id=part_id, bricks=sorted(ids),
                        cells=int(sum(np.prod(b.size) for b in bricks)),
                        solid=shape if isinstance(engine, _Brep) else None, method=method,
-                       mesh=engine.mesh(shape), volume_mm3=engine.volume(shape),
+                       mesh=mesh, volume_mm3=engine.volume(shape),
                        studs=studs, sockets=sockets,
                        top_ok={tuple(c): connectors for c in top.tolist()},
                        bottom_ok={tuple(c): connectors for c in bottom.tolist()},
@@ -381,7 +383,7 @@ class _InvalidSolid(Exception):
 
 def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit):
     """The part's solid from its :class:`core.interfaces.Plan` with ``engine``:
-    (solid, envelope, model volume kept in the envelope, joins)."""
+    (solid, its mesh, envelope, model volume kept in the envelope, joins)."""
     envelope = engine.cut(engine.union([engine.box(lo, hi) for lo, hi in layout_plan.envelope]),
                           [engine.box(lo, hi) for lo, hi in layout_plan.play])
     kept = engine.common(envelope, lo_all - 1.0, hi_all + 1.0)
@@ -395,23 +397,28 @@ def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit
                          + [engine.cylinder(x, y, z0, z1, fit.stud_diameter / 2)
                             for x, y, z0, z1 in layout_plan.studs])
     shape = engine.cut(shape, [engine.box(lo, hi) for lo, hi in layout_plan.holes])
-    return engine.only_solid(_without_touching_edges(engine, shape), part_id), envelope, kept_mm3, joins
+    return (*_finished(engine, shape, part_id), envelope, kept_mm3, joins)
 
 
-def _without_touching_edges(engine, shape, rounds: int = 3):
-    """``shape`` with every edge where it touches itself (four faces on one edge, as
-    where a model edge meets a socket's corner exactly) filled by a box
-    :data:`WELD_MM` thick round the edge, so that its STL is a 2-manifold."""
-    for _ in range(rounds):
-        mesh = engine.mesh(shape)
+def _finished(engine, shape, part_id: str, rounds: int = 3):
+    """``shape`` as one solid (:meth:`only_solid`) and its watertight mesh, tessellated
+    once per round: every edge where it touches itself (four faces on one edge, as where
+    a model edge meets a socket's corner exactly) is filled by a box :data:`WELD_MM`
+    thick round the edge, up to ``rounds`` times, so that its STL is a 2-manifold.
+    Raises :class:`_InvalidSolid` when the mesh is still not watertight."""
+    for n in range(rounds + 1):
+        solid = engine.only_solid(shape, part_id)
+        mesh = engine.mesh(solid)
         edges, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
         touching = edges[counts > 2]
-        if len(touching) == 0:
-            return shape
+        if len(touching) == 0 or n == rounds:
+            break
         ends = mesh.vertices[touching]
-        welds = [engine.box(e.min(axis=0) - WELD_MM / 2, e.max(axis=0) + WELD_MM / 2) for e in ends]
-        shape = engine.union([shape] + welds)
-    return shape
+        shape = engine.union([solid] + [engine.box(e.min(axis=0) - WELD_MM / 2, e.max(axis=0) + WELD_MM / 2)
+                                        for e in ends])
+    if not mesh.is_watertight:
+        raise _InvalidSolid("a solid whose tessellation is not watertight")
+    return solid, mesh
 
 
 def _extent(model: m3.Manifold, lo, hi) -> tuple[np.ndarray, np.ndarray] | None:
@@ -638,9 +645,6 @@ class _Brep:
             solid = fix.Shape()
             if len(_solids(solid)) != 1 or not BRepCheck_Analyzer(solid).IsValid():
                 raise _InvalidSolid("not a valid solid")
-        mesh = self.mesh(solid)
-        if not mesh.is_watertight:
-            raise _InvalidSolid("a solid whose tessellation is not watertight")
         return _solids(solid)[0]
 
     def mesh(self, shape) -> trimesh.Trimesh:
@@ -722,13 +726,12 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
             continue
         text = _text_solid(part.id, font, face)
         try:
+            body = part.solid if part.solid is not None else _manifold(part.mesh)
+            tool = text if part.solid is not None else _manifold(to_trimesh(text))
+            solid, mesh = _finished(engine, engine.cut(body, [tool]), part.id, rounds=0)
             if part.solid is not None:
-                solid = engine.only_solid(engine.cut(part.solid, [text]), part.id)
-                part.solid, part.mesh = solid, engine.mesh(solid)
-                part.volume_mm3 = engine.volume(solid)
-            else:
-                cut = engine.only_solid(_manifold(part.mesh) - _manifold(to_trimesh(text)), part.id)
-                part.mesh, part.volume_mm3 = engine.mesh(cut), float(cut.volume())
+                part.solid = solid
+            part.mesh, part.volume_mm3 = mesh, engine.volume(solid)
         except _InvalidSolid:
             continue
         part.engraved = True
