@@ -39,6 +39,26 @@ class Grid:
         """Number of filled cells (1x1 plates)."""
         return int(np.count_nonzero(self.filled))
 
+    def corner_mm(self, cell) -> np.ndarray:
+        """The min corner (mm) of cell ``(i, j, k)``: ``origin + cell * self.cell``.
+
+        Cells outside the grid's shape are fine (the grid extends the same way).
+        """
+        return np.asarray(self.origin, dtype=float) + np.asarray(cell, dtype=float) * self.cell
+
+    def box_mm(self, cell, size=(1, 1, 1)) -> tuple[np.ndarray, np.ndarray]:
+        """The box (min corner, max corner, mm) of the ``size`` cells from ``cell`` on,
+        e.g. a brick's box: ``grid.box_mm(brick.cell, brick.size)``."""
+        lo = self.corner_mm(cell)
+        return lo, lo + np.asarray(size, dtype=float) * self.cell
+
+    def nearest_cell(self, point_mm) -> tuple[int, int, int]:
+        """The cell whose min corner is nearest to ``point_mm``: the inverse of
+        :meth:`corner_mm` for a point on the grid's lattice, rounding off the floating
+        error (a corner of another grid with the same cell size lands on its cell)."""
+        at = (np.asarray(point_mm, dtype=float) - self.origin) / self.cell
+        return tuple(int(v) for v in np.rint(at))
+
 
 @dataclass
 class Brick:
@@ -88,6 +108,14 @@ class Layout:
         for n, b in enumerate(self.bricks):
             lab[b.slices()] = n
         return lab
+
+    def boxes_mm(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bricks' boxes in mm as two ``(len(bricks), 3)`` arrays, min and max
+        corners, in the order of ``bricks`` (each :meth:`Grid.box_mm` of a brick)."""
+        cells = np.array([b.cell for b in self.bricks], dtype=float).reshape(-1, 3)
+        sizes = np.array([b.size for b in self.bricks], dtype=float).reshape(-1, 3)
+        lo = np.asarray(self.grid.origin, dtype=float) + cells * self.grid.cell
+        return lo, lo + sizes * self.grid.cell
 
     def to_json(self) -> dict:
         return {

@@ -17,6 +17,25 @@ system and inside FreeCAD's Qt timer):
   ignored, so a writer that writes aside and renames is picked up at the
   rename.
 
+Which file is a version of which is one rule, :func:`model_name` and
+:func:`same_model`, for the CLI's ``watch`` and the workbench's Watch folder
+command alike: a file is a version of a model when it lies in the same
+folder and its name, without the format suffix and without a *version
+suffix*, is the model's name (letter case aside).  A version suffix is what
+modellers, exporters and file managers append to a name:
+
+* a separator (space, ``_``, ``-`` or ``.``), an optional ``v`` or ``rev``,
+  and a number, possibly dotted: ``bracket_v2``, ``bracket-3``,
+  ``bracket.001`` (Blender), ``bracket rev4``, ``bracket_v1.2``;
+* a copy number in parentheses, as file managers and browsers add:
+  ``bracket (1)``, also after a version: ``bracket_v2 (1)``.
+
+So ``bracket.stl``, ``bracket_v1.stl``, ``Bracket_V2.stl``, ``bracket (1).stl``
+and ``bracket.step`` are versions of one model, "bracket".  Digits without a
+separator belong to the name: ``bracket2.stl``, ``gear2.stl`` and ``m3.stl``
+are models of their own (a designer who writes ``gear2`` next to ``gear``
+usually means a second gear, and a renamed file is one rename away).
+
 :class:`FolderWatcher` does one scan per :meth:`~FolderWatcher.poll` (for a
 Qt timer); :func:`watch` is the blocking generator the CLI ``watch``
 command loops over.
@@ -25,6 +44,7 @@ command loops over.
 from __future__ import annotations
 
 import os
+import re
 import struct
 import time
 import zipfile
@@ -40,6 +60,35 @@ WATCHED_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".step", ".stp")
 SETTLE_S = 1.0
 #: Seconds between two scans of :func:`watch`.
 POLL_S = 0.5
+#: A version suffix at the end of a file's stem (module docstring): a separated
+#: (v|rev)number, a copy number in parentheses, or both.
+VERSION_SUFFIX = re.compile(r"(?:[ _.-](?:v|rev)?\d+(?:\.\d+)*)?(?: ?\(\d+\))?$", re.IGNORECASE)
+
+
+def model_name(path: str | os.PathLike) -> str:
+    """The name of the model the file at ``path`` is a version of: its stem without a
+    version suffix (:data:`VERSION_SUFFIX`), letter case kept.
+
+    ``bracket_v2.stl``, ``bracket-3.stl``, ``bracket (1).stl`` and ``bracket.stl``
+    are all "bracket"; ``bracket2.stl`` is "bracket2".  A stem that is nothing but
+    a version suffix (``_2.stl``) is its own name.
+    """
+    stem = Path(path).stem
+    return VERSION_SUFFIX.sub("", stem, count=1) or stem
+
+
+def model_key(path: str | os.PathLike) -> tuple[str, str]:
+    """What the versions of one model share: (the file's folder, its :func:`model_name`
+    case-folded).  A watcher keeps its last result per key (the CLI's ``watch``
+    iterates a file on the output of the last file with the same key)."""
+    p = Path(path)
+    return os.path.normcase(os.path.abspath(p.parent)), model_name(p).casefold()
+
+
+def same_model(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether the files ``a`` and ``b`` are versions of one model: the same folder
+    and the same :func:`model_name`, letter case aside (a file is a version of itself)."""
+    return model_key(a) == model_key(b)
 
 
 def is_complete(path: str | os.PathLike) -> bool:
