@@ -1,7 +1,12 @@
 """Command line of the headless core: ``python -m core fabricate MODEL --out DIR``.
 
-Bad input ends with one line on stderr naming the problem and exit status 2;
-progress goes to stderr, a short summary to stdout.
+The options are the settings of :class:`core.request.Request` (their flags,
+help and defaults come from it); the command builds a Request, runs the
+driver (:func:`core.pipeline.fabricate`) and prints the result.  Bad input
+ends with one line on stderr naming the problem and exit status 2; any
+other failure is a bug: one line saying so and naming the log file with the
+traceback (:func:`core.errors.log_bug`), exit status 1.  Progress goes to
+stderr, a short summary to stdout.
 """
 
 from __future__ import annotations
@@ -10,9 +15,8 @@ import argparse
 import sys
 import time
 
-from core import __version__
-from core.errors import InputError
-from core.interfaces import Fit
+from core import __version__, request
+from core.errors import InputError, bug_message, log_bug
 from core.mesh_io import UNITS
 
 
@@ -53,20 +57,8 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--out", required=True, metavar="DIR",
                help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
     _model_options(fab)
-    fab.add_argument("--seconds-per-brick", type=float, default=10.0, metavar="S",
-               help="assembly estimate per LEGO brick placed (default 10)")
-    fab.add_argument("--seconds-per-part", type=float, default=30.0, metavar="S",
-               help="assembly estimate per printed part inserted (default 30)")
-    fab.add_argument("--previous", default=None, metavar="DIR",
-               help="an earlier --out of the same object: align, diff, keep its layout "
-                          "where nothing changed, reprint only changed parts (changes.html)")
-    fab.add_argument("--no-connectors", action="store_true",
-               help="cut printed parts exactly, even where that cuts the studs and "
-                          "sockets they clamp with")
-    fab.add_argument("--no-grid-fit", action="store_true",
-               help="keep the grid centred on the part instead of shifting it so that the "
-                          "high-res regions print the least")
-    fab.add_argument("--no-picture", action="store_true", help="do not render layout.png")
+    request.add_options(fab, ("seconds_per_brick", "seconds_per_part", "previous", "connectors",
+                              "fit_grid", "picture"))
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
     wat = sub.add_parser("watch", help="fabricate every new version of a model saved into a folder",
                          description="Watch FOLDER for STL/OBJ/PLY/3MF/STEP files that appear or "
@@ -76,8 +68,8 @@ def _parser() -> argparse.ArgumentParser:
                                      "OUT/<name>-<n>. Ctrl-C ends it.")
     wat.add_argument("folder", metavar="FOLDER")
     wat.add_argument("--out", required=True, metavar="ROOT", help="folder for the outputs")
-    wat.add_argument("--previous", default=None, metavar="DIR",
-               help="iterate the first version on this earlier output")
+    request.add_options(wat, ("previous", "seconds_per_brick", "seconds_per_part", "connectors",
+                              "fit_grid", "picture"))
     wat.add_argument("--existing", action="store_true",
                help="also fabricate the files already in FOLDER")
     wat.add_argument("--timeout", type=float, default=None, metavar="S",
@@ -114,83 +106,57 @@ def _calibration_parser(sub) -> None:
 
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
-    p.add_argument("--units", choices=sorted(UNITS), default="mm",
-                   help="unit of the file's coordinates (default mm)")
-    p.add_argument("--scale", type=float, default=1.0, metavar="S",
-                   help="extra scale factor applied after --units")
-    p.add_argument("--seed", type=int, default=0, metavar="N",
-                   help="seed of the layout (same seed, same layout)")
-    p.add_argument("--parts", default=None, metavar="SET",
-                   help="brick set: all, plates, bricks, design numbers (3001,3024) "
-                        "or plate2x4-style names, comma-separated; must contain 3024")
-    p.add_argument("--high-res", action="append", default=[], metavar="X0,Y0,Z0,X1,Y1,Z1",
-                   help="box in model mm whose bricks become printed parts (repeatable; write --high-res=-5,... when it starts with a minus)")
-    p.add_argument("--high-res-solid", action="append", default=[], metavar="FILE",
-                   help="region solid (STL/STEP/...) whose bricks become printed (repeatable)")
-    p.add_argument("--stud-fit", type=float, default=Fit.stud_fit, metavar="MM",
-                   help=f"printed studs are 4.8 + MM across (signed; default {Fit.stud_fit:+g}, "
-                        f"Ø{Fit().stud_diameter:g}); find your printer's value with calibration-strip")
-    p.add_argument("--socket-fit", type=float, default=Fit.socket_fit, metavar="MM",
-                   help=f"printed sockets are 4.8 + MM between the walls a real stud touches "
-                        f"(signed, negative is tighter; default {Fit.socket_fit:+g})")
+    request.add_options(p, ("units", "scale", "seed", "parts", "high_res", "high_res_solids",
+                            "stud_fit", "socket_fit"), units=UNITS)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 bad input)."""
+    """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug)."""
     args = _parser().parse_args(argv)
-    if args.command == "watch":
-        return _watch(args)
-    if args.command == "calibration-strip":
-        return _calibration_strip(args)
-    from core import pipeline
-
-    progress = None if args.quiet else _progress_printer(sys.stderr)
+    command = {"watch": _watch, "calibration-strip": _calibration_strip}.get(args.command, _fabricate)
     try:
-        doc = pipeline.fabricate(args.model, args.out, units=args.units, scale=args.scale,
-                                 seed=args.seed, parts=args.parts,
-                                 picture=not args.no_picture, progress=progress,
-                                 high_res=args.high_res, high_res_solids=args.high_res_solid,
-                                 stud_fit=args.stud_fit, socket_fit=args.socket_fit,
-                                 seconds_per_brick=args.seconds_per_brick,
-                                 seconds_per_part=args.seconds_per_part,
-                                 previous=args.previous, connectors=not args.no_connectors,
-                                 fit_grid=not args.no_grid_fit)
+        return command(args)
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2
+    except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
+        sys.stderr.write(bug_message(exc, log_bug(exc, f"python -m core {args.command}")) + "\n")
+        return 1
+
+
+def _fabricate(args) -> int:
+    """The ``fabricate`` command: one Request, the driver, the summary."""
+    from core import pipeline
+
+    progress = None if args.quiet else _progress_printer(sys.stderr)
+    doc = pipeline.fabricate(request.from_options(args, args.model), args.out, progress=progress)
     _summary(doc, args.out)
     return 0
 
 
 def _watch(args) -> int:
-    """The ``watch`` command: each new version fabricated as an iteration on the last output."""
+    """The ``watch`` command: each new version fabricated as an iteration on the last output,
+    with the same settings as ``fabricate``."""
     from pathlib import Path
 
     from core import pipeline, watch
 
     progress = None if args.quiet else _progress_printer(sys.stderr)
-    root, previous, runs = Path(args.out), args.previous, 0
+    root, runs = Path(args.out), 0
+    job = request.from_options(args, "watched")
+    files = watch.watch(args.folder, include_existing=args.existing, timeout_s=args.timeout)
+    sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
     try:
-        files = watch.watch(args.folder, include_existing=args.existing, timeout_s=args.timeout)
-        sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
         for path in files:
             runs += 1
             out = root / f"{path.stem}-{runs}"
             try:
-                doc = pipeline.fabricate(path, out, units=args.units, scale=args.scale,
-                                         seed=args.seed, parts=args.parts, progress=progress,
-                                         high_res=args.high_res,
-                                         high_res_solids=args.high_res_solid,
-                                         stud_fit=args.stud_fit, socket_fit=args.socket_fit,
-                                         previous=previous)
+                doc = pipeline.fabricate(job.replace(model=str(path)), out, progress=progress)
             except InputError as err:
                 sys.stderr.write(f"error: {path.name}: {err}\n")
                 continue
             _summary(doc, out)
-            previous = out
-    except InputError as err:
-        sys.stderr.write(f"error: {err}\n")
-        return 2
+            job = job.replace(previous=str(out))
     except KeyboardInterrupt:
         sys.stderr.write(f"stopped after {runs} version(s)\n")
     return 0
@@ -201,12 +167,8 @@ def _calibration_strip(args) -> int:
     and exit status 2."""
     from core import calibration
 
-    try:
-        values = calibration.column_values(args.start, args.stop, args.step)
-        _, written = calibration.write_strip(args.out, values)
-    except InputError as err:
-        sys.stderr.write(f"error: {err}\n")
-        return 2
+    values = calibration.column_values(args.start, args.stop, args.step)
+    _, written = calibration.write_strip(args.out, values)
     for path in written:
         print(path)
     return 0
@@ -216,6 +178,8 @@ def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
     for warning in doc["model"]["warnings"]:
         sys.stderr.write(f"warning: {warning}\n")
+    for note in doc.get("notes", ()):
+        sys.stderr.write(f"note: {note}\n")
     st, br = doc["stability"], doc["bricks"]
     print(f"{doc['plates']} cells -> {br['total']} bricks "
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "

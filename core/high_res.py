@@ -16,9 +16,10 @@ boundary and a printed part is no larger than the cells the region touches.
 from __future__ import annotations
 
 import dataclasses
-import os
+from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
@@ -30,6 +31,9 @@ from core.model import Grid, Layout
 
 #: A box must overlap a cell by more than this (mm) along every axis to touch it.
 EPS_MM = 1e-6
+#: A brick marked by its id is recorded as its box shrunk by this much (mm) on every
+#: side, so that the box touches exactly the brick's own cells.
+BRICK_INSET_MM = 1e-3
 
 
 def parse_box(text: str) -> np.ndarray:
@@ -110,13 +114,77 @@ def solid_cells(grid: Grid, path, units: str = "mm",
 def marked_cells(grid: Grid, boxes=(), solids=(), units: str = "mm",
                  scale: float = 1.0) -> np.ndarray:
     """Filled cells touched by any of ``boxes`` ((2, 3) arrays or "X0,..,Z1" strings) or
-    region ``solids`` (file paths); a grid-shaped bool array."""
-    out = np.zeros(grid.shape, dtype=bool)
-    for box in boxes:
-        out |= box_cells(grid, as_box(box))
-    for path in solids:
-        out |= solid_cells(grid, path, units=units, scale=scale)
-    return out & np.asarray(grid.filled, dtype=bool)
+    region ``solids`` (file paths or loaded regions); a grid-shaped bool array."""
+    return Regions.of(boxes, [load_region(p, units=units, scale=scale) for p in solids]).cells(grid)
+
+
+@dataclass(frozen=True)
+class Regions:
+    """The high-res regions of a run in one frame (model mm): what a later iteration re-marks.
+
+    ``boxes`` are (2, 3) arrays of min and max corner, ``solids`` pairs of
+    a region mesh and whether it is closed (watertight).  Immutable: the
+    methods return new Regions.
+    """
+
+    boxes: tuple = ()
+    solids: tuple = ()
+
+    @classmethod
+    def of(cls, boxes=(), regions=()) -> "Regions":
+        """Regions of boxes (any form :func:`as_box` takes) and loaded region solids
+        (:class:`core.mesh_io.LoadedModel`); InputError for a bad box."""
+        return cls(tuple(as_box(b) for b in boxes),
+                   tuple((r.mesh, bool(r.watertight)) for r in regions))
+
+    @classmethod
+    def of_bricks(cls, layout: Layout, brick_ids) -> "Regions":
+        """The boxes of the bricks ``brick_ids`` of ``layout`` (each shrunk by
+        :data:`BRICK_INSET_MM`, so it marks exactly that brick's cells)."""
+        by_id = {b.id: b for b in layout.bricks}
+        grid = layout.grid
+        boxes = []
+        for i in brick_ids:
+            b = by_id[int(i)]
+            lo = grid.origin + np.asarray(b.cell) * grid.cell + BRICK_INSET_MM
+            hi = grid.origin + (np.asarray(b.cell) + np.asarray(b.size)) * grid.cell - BRICK_INSET_MM
+            boxes.append(np.stack([lo, hi]))
+        return cls(tuple(boxes), ())
+
+    def __add__(self, other: "Regions") -> "Regions":
+        return Regions(self.boxes + other.boxes, self.solids + other.solids)
+
+    def __bool__(self) -> bool:
+        return bool(self.boxes or self.solids)
+
+    def cells(self, grid: Grid) -> np.ndarray:
+        """Grid-shaped bool array: the filled cells of ``grid`` that a box or solid shares
+        volume with (solids legofied on the grid, :func:`core.voxelize.legofy`)."""
+        out = np.zeros(grid.shape, dtype=bool)
+        for box in self.boxes:
+            out |= box_cells(grid, box)
+        shape = np.array(grid.shape, dtype=np.int64)
+        for mesh, closed in self.solids:
+            out |= voxelize.legofy(mesh, cell=grid.cell, origin=grid.origin, shape=shape,
+                                   closed=closed).filled
+        return out & np.asarray(grid.filled, dtype=bool)
+
+    def moved(self, transform) -> "Regions":
+        """These regions moved by the 4x4 rigid ``transform``: a box stays a box when the
+        rotation maps axes onto axes, otherwise it becomes a solid."""
+        m = np.asarray(transform, dtype=np.float64)
+        rot, shift = m[:3, :3], m[:3, 3]
+        axis_aligned = np.allclose(np.abs(rot), np.round(np.abs(rot)), atol=1e-9)
+        boxes, solids = [], []
+        for box in self.boxes:
+            if axis_aligned:
+                corners = np.asarray(box) @ rot.T + shift
+                boxes.append(np.stack([corners.min(axis=0), corners.max(axis=0)]))
+            else:
+                solids.append((trimesh.creation.box(bounds=box).apply_transform(m), True))
+        for mesh, closed in self.solids:
+            solids.append((mesh.copy().apply_transform(m), closed))
+        return Regions(tuple(boxes), tuple(solids))
 
 
 def anchor(grid: Grid, cells: np.ndarray) -> np.ndarray:

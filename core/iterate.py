@@ -9,20 +9,20 @@ the part, and only what changed is rebuilt and reprinted.
   (``model.brep``, binary OpenCascade), each printed part's mesh and B-rep,
   and ``state.json`` (layout, stability, printed-part records).
 * :func:`load_previous` reads it back as a :class:`Previous`.
-* :func:`iterate` runs the iteration stage on a newly loaded model:
+* The stages of the iteration branch of the driver (:func:`core.pipeline.run`
+  runs them, in the same order as a fresh run's):
 
-  1. **Align** (:mod:`core.align`) the new version onto the previous one.
+  1. **Align** (:func:`align_to`, :mod:`core.align`) the new version onto
+     the previous one.
   2. **Legofy** it on the previous grid's lattice and **diff** the cells
-     (:mod:`core.diff`).
-  3. **High-res marks** carry over: previous printed cells that are still
-     filled, plus every connected piece of added cells that touches them
-     (a lengthened nose piece stays printed), plus new ``high_res`` boxes
-     or solids (given in the new file's coordinates).  With ``connectors``,
-     every marked region that differs from the previous printed parts and
-     touches LEGO only sideways gets *anchor tabs* as in a fresh run
-     (:func:`core.high_res.anchor`, :func:`_anchor`), so its printed part
-     clamps; regions that are a previous part unchanged get none.
-  4. **Keep** every previous brick whose cells are all still filled and
+     (:func:`legofy_on`, :mod:`core.diff`).
+  3. **High-res marks** are made as in a fresh run, from the regions: the
+     request's (moved into the previous frame) and, unless the request says
+     otherwise, the previous run's (:func:`previous_regions`).  So a marked
+     box prints what it touches in the new version, exactly as a fresh run
+     with the same regions would: cells the edit added outside every region
+     are LEGO.  Anchor tabs are added as in a fresh run.
+  4. **Keep** (:func:`lay_out`) every previous brick whose cells are all still filled and
      whose kind (LEGO / printed) still fits the marks; a printed part is
      kept whole or not at all (not when a freed marked cell touches it).
      The rest (*freed* cells: added cells and the cells of bricks not
@@ -36,7 +36,7 @@ the part, and only what changed is rebuilt and reprinted.
      again, at most :data:`MAX_RINGS` times; the best attempt (extra
      components, new weak points, new leaf-only weak points, bricks placed)
      wins.
-  5. **Printed parts**: a kept part whose surroundings changed (changed
+  5. **Printed parts** (:func:`printed_parts`): a kept part whose surroundings changed (changed
      surface near it, :func:`core.diff.changed_boxes`, or other connector
      cells) and every new group of printed bricks is cut from the aligned
      model (:func:`core.printed.build_part`).  A new group takes the id of
@@ -44,7 +44,7 @@ the part, and only what changed is rebuilt and reprinted.
      new or its symmetric difference with the previous print exceeds
      :func:`core.diff.reprint_threshold`; otherwise the old print still
      fits.
-  6. The ``changes`` document: transform, cells added/removed, bricks
+  6. The ``changes`` document (:func:`changes`): transform, cells added/removed, bricks
      kept/added/taken off, parts reprinted, and the instructions diff.
 
 * :func:`changes_page` writes the self-contained HTML page of the
@@ -63,10 +63,8 @@ import dataclasses
 import html
 import json
 import os
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import trimesh
@@ -76,18 +74,18 @@ from core import align as align_stage
 from core import connectors as connectors_stage
 from core import diff as diff_stage
 from core import high_res, layout as layout_stage, mesh_io, printed as printed_stage
-from core import stability as stability_stage, voxelize
+from core import stability as stability_stage
 from core.interfaces import Fit
-from core.catalog import BY_NUMBER, CATALOG, Part
+from core.catalog import BY_NUMBER, Part
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
-Progress = Callable[[float, str], None]
-
 #: Folder inside an output folder that holds the iteration snapshot.
 SNAPSHOT_DIR = "iteration"
-#: Version of the snapshot format.
-SNAPSHOT_VERSION = 1
+#: Version of the snapshot format (2 records the high-res regions and the settings).
+SNAPSHOT_VERSION = 2
+#: Older snapshot versions that can still be read.
+READABLE_VERSIONS = (1, 2)
 #: Rings of LEGO bricks the re-laid-out neighbourhood may grow by.
 MAX_RINGS = 4
 #: Margin (mm) around a printed part's bricks within which a changed surface
@@ -97,25 +95,23 @@ PART_MARGIN_MM = 0.5
 SAME_SURFACE_MM = diff_stage.SAME_SURFACE_MM
 
 
-def _noop(fraction: float, message: str) -> None:
-    """Progress sink that ignores everything."""
-
-
 # --------------------------------------------------------------------------- snapshot
 
 
-def snapshot(fab, folder: str | os.PathLike, fit: Fit | None = None) -> Path:
+def snapshot(fab, folder: str | os.PathLike) -> Path:
     """Write what a later iteration needs into ``folder/iteration/``; returns that folder.
 
     ``fab`` is a :class:`core.pipeline.Fabrication`.  Written: ``model.ply``
     (the repaired model mesh, mm), ``model.brep`` for B-rep input,
-    ``parts/<id>.ply`` (and ``.brep``) per printed part, and ``state.json``
-    with the layout, its stability, the brick set, seed, the stud and
-    socket ``fit`` (when given) and every printed part's record (bricks, studs, tubes,
-    clamp cells, engraving).
+    ``parts/<id>.ply`` (and ``.brep``) per printed part, ``regions/<n>.ply``
+    per high-res region solid, and ``state.json`` with the layout, its
+    stability, the brick set, seed, units and scale, the stud and socket fit,
+    the high-res region boxes and every printed part's record (bricks,
+    studs, tubes, clamp cells, engraving).  Reads ``fab`` only.
     """
     out = Path(folder) / SNAPSHOT_DIR
     (out / "parts").mkdir(parents=True, exist_ok=True)
+    (out / "regions").mkdir(exist_ok=True)
     model = fab.model
     model.mesh.export(out / "model.ply", file_type="ply")
     if model.brep is not None:
@@ -126,7 +122,10 @@ def snapshot(fab, folder: str | os.PathLike, fit: Fit | None = None) -> Path:
         if p.solid is not None:
             _write_brep(p.solid, out / "parts" / f"{p.id}.brep")
         records.append(_part_record(p))
+    for n, (mesh, _) in enumerate(fab.regions.solids):
+        mesh.export(out / "regions" / f"{n}.ply", file_type="ply")
     st = fab.stability
+    req = fab.request
     state = {
         "version": SNAPSHOT_VERSION,
         "model": {"path": str(model.path), "format": model.format,
@@ -136,7 +135,10 @@ def snapshot(fab, folder: str | os.PathLike, fit: Fit | None = None) -> Path:
                       "weak_points": list(st.weak_points)},
         "brick_set": [p.number for p in fab.parts],
         "seed": fab.seed,
-        "fit": None if fit is None else dataclasses.asdict(fit),
+        "settings": {"units": req.units, "scale": float(req.scale), "seed": int(req.seed)},
+        "fit": dataclasses.asdict(req.fit),
+        "regions": {"boxes": [np.asarray(b, dtype=float).tolist() for b in fab.regions.boxes],
+                    "solids_closed": [bool(c) for _, c in fab.regions.solids]},
         "printed": records,
     }
     (out / "state.json").write_text(json.dumps(state))
@@ -179,7 +181,9 @@ class Previous:
 
     ``grid`` and ``layout`` as that run made them; ``mesh`` / ``brep`` its
     model (mm, its frame); ``parts`` its printed parts by id (cells in its
-    grid); ``state`` the raw ``state.json``.
+    grid); ``state`` the raw ``state.json``; ``regions`` its high-res
+    regions in its frame (None for a snapshot of version 1, which did not
+    record them).
     """
 
     folder: Path
@@ -190,6 +194,7 @@ class Previous:
     watertight: bool
     parts: dict[str, printed_stage.PrintedPart]
     state: dict
+    regions: high_res.Regions | None = None
 
     @property
     def weak_points(self) -> set[int]:
@@ -216,12 +221,12 @@ def load_previous(folder: str | os.PathLike) -> Previous:
                          f"({SNAPSHOT_DIR}/state.json is missing); fabricate that version again")
     try:
         state = json.loads(state_file.read_text())
-        if state.get("version") != SNAPSHOT_VERSION:
+        if state.get("version") not in READABLE_VERSIONS:
             raise InputError(f"--previous {folder}: snapshot version {state.get('version')} "
                              f"is not {SNAPSHOT_VERSION}; fabricate that version again")
         lay = state["layout"]
         bricks = [Brick(int(b["id"]), str(b["part"]), tuple(b["size"]), tuple(b["cell"]),
-                        b["kind"], b["printed_part"], None) for b in lay["bricks"]]
+                        b["kind"], b["printed_part"], b.get("step")) for b in lay["bricks"]]
         filled = np.zeros(tuple(lay["shape"]), dtype=bool)
         for b in bricks:
             filled[b.slices()] = True
@@ -237,13 +242,25 @@ def load_previous(folder: str | os.PathLike) -> Previous:
             brep_file = snap / "parts" / f"{rec['id']}.brep"
             parts[rec["id"]] = _part_from_record(rec, part_mesh,
                                                  _read_brep(brep_file) if brep_file.exists() else None)
+        regions = _read_regions(state.get("regions"), snap)
     except InputError:
         raise
     except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
         raise InputError(f"--previous {folder}: the iteration snapshot cannot be read "
                          f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from None
     return Previous(folder, grid, Layout(grid, bricks), mesh, brep,
-                    bool(state["model"]["watertight"]), parts, state)
+                    bool(state["model"]["watertight"]), parts, state, regions)
+
+
+def _read_regions(record: dict | None, snap: Path) -> high_res.Regions | None:
+    """The regions of a snapshot's ``state["regions"]`` (None when it has none)."""
+    if record is None:
+        return None
+    boxes = tuple(np.asarray(b, dtype=np.float64).reshape(2, 3) for b in record["boxes"])
+    solids = tuple((trimesh.load(snap / "regions" / f"{n}.ply", file_type="ply", process=False,
+                                 force="mesh"), bool(closed))
+                   for n, closed in enumerate(record["solids_closed"]))
+    return high_res.Regions(boxes, solids)
 
 
 def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> printed_stage.PrintedPart:
@@ -272,189 +289,71 @@ def _shifted_part(part: printed_stage.PrintedPart, shift) -> printed_stage.Print
 # --------------------------------------------------------------------------- iterate
 
 
-@dataclass
+@dataclass(frozen=True)
 class Iteration:
-    """What :func:`iterate` produced.
+    """What the iteration branch of the driver (:func:`core.pipeline.run`) adds to a run.
 
-    ``model`` is the new version moved into the previous frame (mesh and
-    B-rep); ``grid`` its legofication on the previous lattice (``diff.offset``:
-    previous index = index + offset); ``layout`` covers ``grid`` with kept
-    and new bricks; ``printed`` are all printed parts of the new layout
-    (kept ones unchanged), ``reprinted`` the ids of those to print now;
-    ``changes`` is the report's ``changes`` document.
+    ``previous`` is the earlier result, ``alignment`` how the new version
+    was placed onto it (the run's model, grid and layout are in the
+    previous frame; ``diff.offset``: previous index = index + offset),
+    ``reprinted`` the ids of the printed parts to print now, ``changes`` the
+    report's ``changes`` document, ``rings`` how far the re-laid-out
+    neighbourhood grew.
     """
 
     previous: Previous
-    model: mesh_io.LoadedModel
     alignment: align_stage.Alignment
     diff: diff_stage.CellDiff
-    grid: Grid
-    layout: Layout
-    stability: stability_stage.Stability
-    printed: list[printed_stage.PrintedPart]
     reprinted: list[str]
-    connectors: connectors_stage.Connectors | None
     changes: dict
-    parts: tuple[Part, ...]
-    seed: int
     rings: int
-    timings_s: dict[str, float] = field(default_factory=dict)
-    marks: dict = field(default_factory=dict)
 
 
-def iterate(previous: Previous, model: mesh_io.LoadedModel, parts: tuple[Part, ...] = CATALOG,
-            seed: int = 0, high_res=(), high_res_solids=(), units: str = "mm", scale: float = 1.0,
-            fit: Fit = Fit(), connectors: bool = True,
-            progress: Progress | None = None) -> Iteration:
-    """The new version ``model`` as an iteration on ``previous`` (module docstring, steps 1-6).
+def reusable(previous: Previous, units: str, scale: float, seed: int) -> str | None:
+    """Why the run (``units``, ``scale``, ``seed``) cannot be an iteration on
+    ``previous``, or None when it can.
 
-    ``high_res`` boxes ("X0,Y0,Z0,X1,Y1,Z1" or (2, 3) arrays) and
-    ``high_res_solids`` (files in ``units``/``scale``) are in the new
-    file's coordinates and mark cells in addition to the carried-over
-    marks; unless ``connectors`` is False, marked regions that changed get
-    anchor tabs (:func:`_anchor`).  ``marks`` of the result are counted as
-    a fresh run's (``marked_cells``: cells to print before the tabs,
-    carried-over ones included; ``anchor_cells``: tab cells added).
-    Promises: the layout covers every filled cell of the new grid exactly
-    once; every kept brick has its previous id, part, size and
-    (shifted) cell; every printed part not in ``reprinted`` is either the
-    previous print itself (same bricks, surface unchanged around it) or was
-    cut again and differs from the previous print by at most
-    :func:`core.diff.reprint_threshold`.  Raises :class:`InputError` for
-    bad input.
+    A different seed asks for a different layout, different units or scale
+    for a different object; a snapshot that does not record them (an older
+    version) can always be iterated on.
     """
-    progress = progress or _noop
-    timings: dict[str, float] = {}
-    fit = fit.check()
-    allowed = {p.number for p in parts}
+    settings = previous.state.get("settings") or {}
+    for name, value in (("units", units), ("scale", float(scale)), ("seed", int(seed))):
+        if name in settings and settings[name] != value:
+            return f"the {name} changed from {settings[name]!r} to {value!r}"
+    return None
 
-    clock = time.perf_counter()
-    progress(0.0, "align")
+
+def align_to(previous: Previous, model: mesh_io.LoadedModel
+             ) -> tuple[align_stage.Alignment, mesh_io.LoadedModel]:
+    """Step 1: the alignment of ``model`` onto ``previous`` and the model moved into its frame."""
     alignment = align_stage.align(model.mesh, previous.mesh, model.brep, previous.brep,
                                   model.watertight, previous.watertight)
-    aligned = align_stage.transform_model(model, alignment.transform)
-    timings["align"] = _lap(clock)
-
-    clock = time.perf_counter()
-    progress(0.2, "legofy on the previous grid")
-    grid, offset = diff_stage.legofy_on(previous.grid, aligned.mesh, aligned.watertight)
-    cells = diff_stage.cell_diff(previous.grid, grid, offset)
-    marked = _marks(previous, cells, high_res, high_res_solids, alignment.transform, units, scale)
-    to_print = _anchor(previous, cells, marked) if connectors else marked
-    plan = _keep(previous, cells, to_print, allowed)
-    changed = np.zeros((0, 2, 3))
-    if plan.kept_parts:
-        tol = SAME_SURFACE_MM + 4.0 * min(alignment.residual_mm, 1.0)
-        changed = diff_stage.changed_boxes(previous.mesh, aligned.mesh, previous.brep, aligned.brep, tol)
-    timings["diff"] = _lap(clock)
-
-    clock = time.perf_counter()
-    progress(0.35, "layout of the changed neighbourhood")
-    layout, rings = _relayout(previous, grid, plan, to_print, parts, seed)
-    timings["layout"] = _lap(clock)
-
-    clock = time.perf_counter()
-    progress(0.6, "printed parts")
-    made, reprint_info, links, layout = _printed(previous, layout, plan, aligned, changed, fit,
-                                                 connectors)
-    timings["printed_parts"] = _lap(clock)
-
-    clock = time.perf_counter()
-    progress(0.9, "stability")
-    clamp = printed_stage.clamp_masks(layout, made) if made else None
-    st = stability_stage.analyse(layout, clamp)
-    timings["stability"] = _lap(clock)
-
-    changes = _changes(previous, alignment, cells, layout, plan, made, reprint_info, rings)
-    progress(1.0, "iteration done")
-    return Iteration(previous=previous, model=aligned, alignment=alignment, diff=cells, grid=grid,
-                     layout=layout, stability=st, printed=made,
-                     reprinted=[r["id"] for r in reprint_info if r["reprint"]],
-                     connectors=links, changes=changes, parts=tuple(parts), seed=seed,
-                     rings=rings, timings_s=timings,
-                     marks={"marked_cells": int(np.count_nonzero(marked)),
-                            "anchor_cells": int(np.count_nonzero(to_print & ~marked))})
+    return alignment, align_stage.transform_model(model, alignment.transform)
 
 
-def _lap(start: float) -> float:
-    return round(time.perf_counter() - start, 4)
+def moved(alignment: align_stage.Alignment) -> bool:
+    """Whether the alignment moves or turns the new version (more than 1e-6 mm / rad)."""
+    return not np.allclose(alignment.transform, np.eye(4), atol=1e-6)
 
 
-def _marks(previous: Previous, cells: diff_stage.CellDiff, boxes, solids, transform: np.ndarray,
-           units: str, scale: float) -> np.ndarray:
-    """Cells to print in the new grid: carried-over marks, added pieces touching them,
-    and the new boxes / solids (new-file coordinates, moved by ``transform``)."""
-    grid = cells.grid
-    filled = np.asarray(grid.filled, dtype=bool)
-    before = np.zeros(previous.grid.shape, dtype=bool)
-    for b in previous.layout.bricks:
-        if b.kind == "printed":
-            before[b.slices()] = True
-    carried = diff_stage.shift_into(before, -cells.offset, grid.shape) & filled
-    marked = carried.copy()
-    if carried.any() and cells.added.any():
-        pieces, count = ndimage.label(cells.added, structure=stability_stage.FACE_STRUCTURE)
-        near = ndimage.binary_dilation(carried, structure=stability_stage.FACE_STRUCTURE)
-        touching = np.unique(pieces[near & (pieces > 0)])
-        marked |= np.isin(pieces, touching[touching > 0])
-    shape = np.array(grid.shape, dtype=np.int64)
-    for box in boxes:
-        corners = high_res.parse_box(box) if isinstance(box, str) else np.asarray(box, np.float64)
-        solid = trimesh.creation.box(bounds=corners)
-        moved = align_stage.transform_mesh(solid, transform)
-        marked |= voxelize.legofy(moved, cell=grid.cell, origin=grid.origin, shape=shape,
-                                  closed=True).filled
-    for path in solids:
-        region = mesh_io.load_model(path, units=units, scale=scale)
-        moved = align_stage.transform_mesh(region.mesh, transform)
-        marked |= voxelize.legofy(moved, cell=grid.cell, origin=grid.origin, shape=shape,
-                                  closed=region.watertight).filled
-    return marked & filled
+def legofy_on(previous: Previous, model: mesh_io.LoadedModel) -> diff_stage.CellDiff:
+    """Step 2: the aligned ``model`` legofied on the previous lattice, diffed on the cells."""
+    grid, offset = diff_stage.legofy_on(previous.grid, model.mesh, model.watertight)
+    return diff_stage.cell_diff(previous.grid, grid, offset)
 
 
-#: In-layer neighbourhood (x and y, not z): where an anchor tab touches its region.
-_LATERAL = np.zeros((3, 3, 3), dtype=bool)
-_LATERAL[:, :, 1] = ndimage.generate_binary_structure(2, 1)
+def previous_regions(previous: Previous) -> high_res.Regions:
+    """The high-res regions of the previous run, in its frame.
 
-
-def _anchor(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray) -> np.ndarray:
-    """``marked`` plus the anchor tabs (:func:`core.high_res.anchor`) of the marked
-    regions that changed.
-
-    A region (6-connected marked cells) is unchanged when every cell of it
-    belongs to a previous printed part that is still whole (all its cells,
-    shifted into the new grid, filled and marked); such a region keeps the
-    tabs it had (or had not) and gets none now, so an iteration that marks
-    nothing new keeps every brick.  Every other region (new boxes or
-    solids, added pieces, parts that lost or gained cells) is anchored as
-    in a fresh run: tab cells next to it in one layer let a region that
-    touches LEGO only sideways reach under (or over) its LEGO neighbours.
-    Returns a new bool array.
+    A snapshot written before regions were recorded gives the boxes of its
+    printed bricks instead (what it printed, tabs included).
     """
-    grid = cells.grid
-    marked = np.asarray(marked, dtype=bool)
-    tabs = high_res.anchor(grid, marked) & ~marked
-    if not tabs.any():
-        return marked.copy()
-    shape = np.array(grid.shape)
-    members: dict[str | None, list[Brick]] = {}
-    for b in previous.layout.bricks:
-        if b.kind == "printed":
-            members.setdefault(b.printed_part, []).append(b)
-    whole = np.zeros(grid.shape, dtype=bool)
-    for bricks in members.values():
-        part = np.zeros(grid.shape, dtype=bool)
-        for b in bricks:
-            c = np.array(b.cell) - cells.offset
-            if not (np.all(c >= 0) and np.all(c + np.array(b.size) <= shape)):
-                break
-            part[tuple(slice(int(lo), int(lo + n)) for lo, n in zip(c, b.size))] = True
-        else:
-            if marked[part].all():
-                whole |= part
-    labels, _ = ndimage.label(marked, structure=stability_stage.FACE_STRUCTURE)
-    changed = np.isin(labels, np.unique(labels[marked & ~whole]))
-    return marked | (tabs & ndimage.binary_dilation(changed, structure=_LATERAL))
+    recorded = previous.regions
+    if recorded is not None:
+        return recorded
+    printed = [b.id for b in previous.layout.bricks if b.kind == "printed"]
+    return high_res.Regions.of_bricks(previous.layout, printed)
 
 
 @dataclass
@@ -522,6 +421,20 @@ def _lay_out_mask(grid: Grid, mask: np.ndarray, parts: tuple[Part, ...], seed: i
     return [dataclasses.replace(x, cell=tuple(int(v) for v in np.array(x.cell) + a)) for x in part.bricks]
 
 
+def lay_out(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray,
+            parts: tuple[Part, ...], seed: int) -> tuple[Layout, _Plan, int]:
+    """Step 4: which previous bricks stay (:func:`_keep`), then the kept bricks plus the
+    freed neighbourhood laid out anew (:func:`_relayout`), as (layout, plan, rings).
+
+    ``marked`` are the cells to print (tabs included); the layout's new
+    bricks lie wholly inside or wholly outside them and are all LEGO until
+    the printed parts are made.
+    """
+    plan = _keep(previous, cells, marked, {p.number for p in parts})
+    layout, rings = _relayout(previous, cells.grid, plan, marked, parts, seed)
+    return layout, plan, rings
+
+
 def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
               parts: tuple[Part, ...], seed: int) -> tuple[Layout, int]:
     """Kept bricks plus the freed neighbourhood laid out anew, grown ring by ring
@@ -553,9 +466,6 @@ def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
         new = _lay_out_mask(grid, free & ~marked, parts, seed) + _lay_out_mask(grid, free & marked, parts, seed)
         new = [dataclasses.replace(b, id=plan.next_id + n, kind="lego", printed_part=None, step=None)
                for n, b in enumerate(new)]
-        for b in new:
-            if marked[b.slices()].all():
-                b.kind = "printed"
         bricks = [b for b in kept if b.id not in freed] + new
         joined = Layout(grid, bricks)
         st = stability_stage.analyse(joined, clamp)
@@ -590,22 +500,32 @@ def _part_region(grid: Grid, bricks: list[Brick], fit: Fit) -> np.ndarray:
     return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
 
 
-def _printed(previous: Previous, layout: Layout, plan: _Plan, model: mesh_io.LoadedModel,
-             changed: np.ndarray, fit: Fit, connectors: bool):
-    """Printed parts of the new layout: kept, rebuilt or new (step 5).
+def printed_parts(previous: Previous, layout: Layout, plan: _Plan, groups: list[list[int]],
+                  model: mesh_io.LoadedModel, alignment: align_stage.Alignment, fit: Fit,
+                  connectors: bool):
+    """Step 5: the printed parts of the groups of printed bricks ``groups``: kept, rebuilt or new.
 
-    Returns (parts, one reprint record per part, connectors of all parts, the layout with
-    their bricks marked printed: a new one, ``layout`` is not changed).
+    A group that is exactly a kept previous part's bricks is that part:
+    its old print stands unless the model's surface changed at it, its
+    connector cells or the fit changed (then it is cut again and compared).
+    Every other group is new and takes the id of the previous part it
+    overlaps most (:func:`_name_groups`).  Returns (parts, one reprint
+    record per part, connectors of all parts, the layout with their bricks
+    marked printed: a new one, ``layout`` is not changed).
     """
     index = {b.id: b for b in layout.bricks}
-    kept_groups = {pid: sorted(i for i in plan.kept if plan.shifted[i].printed_part == pid)
-                   for pid in sorted(plan.kept_parts)}
-    new_ids = [b.id for b in layout.bricks if b.kind == "printed" and b.id >= plan.next_id]
-    new_groups = high_res.groups(layout, new_ids) if new_ids else []
+    kept_parts = {frozenset(i for i in plan.kept if plan.shifted[i].printed_part == pid): pid
+                  for pid in sorted(plan.kept_parts)}
+    kept_groups = {kept_parts[frozenset(g)]: sorted(g) for g in groups if frozenset(g) in kept_parts}
+    new_groups = [g for g in groups if frozenset(g) not in kept_parts]
     named = _name_groups(previous, new_groups, index, plan.offset, set(kept_groups))
     all_groups = list(kept_groups.values()) + [g for _, g in named]
     if not all_groups:
         return [], [], None, layout
+    changed = np.zeros((0, 2, 3))
+    if kept_groups:
+        tol = SAME_SURFACE_MM + 4.0 * min(alignment.residual_mm, 1.0)
+        changed = diff_stage.changed_boxes(previous.mesh, model.mesh, previous.brep, model.brep, tol)
     links = connectors_stage.find(layout, all_groups if connectors else [])
     rebuild: list[tuple[str, list[int], str | None]] = []
     made: dict[str, printed_stage.PrintedPart] = {}
@@ -713,10 +633,10 @@ def _brick_entry(b: Brick, offset: np.ndarray) -> dict:
             "kind": b.kind, "printed_part": b.printed_part}
 
 
-def _changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_stage.CellDiff,
+def changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_stage.CellDiff,
              layout: Layout, plan: _Plan, made: list[printed_stage.PrintedPart],
              reprint: list[dict], rings: int) -> dict:
-    """The report's ``changes`` document with the instructions diff.
+    """Step 6: the report's ``changes`` document with the instructions diff.
 
     ``take_off`` / ``add`` list every brick (LEGO or printed) that leaves or
     enters the layout, ``add`` entries with the previous bricks whose cells
@@ -770,19 +690,6 @@ def _changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_s
     }
 
 
-def to_fabrication(iteration: Iteration, seconds_per_brick: float | None = None):
-    """The iteration as a :class:`core.pipeline.Fabrication` (for ``report`` and
-    ``write_outputs``); its report gets ``changes`` from ``iteration.changes``."""
-    from core import pipeline
-    fab = pipeline.Fabrication(iteration.model, iteration.parts, iteration.grid, iteration.layout,
-                               iteration.stability, iteration.seed, dict(iteration.timings_s),
-                               list(iteration.printed), connectors=iteration.connectors,
-                               marks=dict(iteration.marks))
-    if seconds_per_brick is not None:
-        fab.seconds_per_brick = float(seconds_per_brick)
-    return fab
-
-
 # --------------------------------------------------------------------------- page
 
 
@@ -796,7 +703,8 @@ th{background:#eee}.off{color:#b00020}.on{color:#00703c}.print{color:#0050b0}
 """
 
 
-def changes_page(iteration: Iteration, path: str | os.PathLike, title: str | None = None) -> Path:
+def changes_page(iteration: Iteration, layout: Layout, path: str | os.PathLike,
+                 title: str) -> Path:
     """Write the instructions diff as one self-contained HTML file at ``path``.
 
     Sections: what changed (alignment, cells); 1. take off: LEGO bricks (by
@@ -809,7 +717,7 @@ def changes_page(iteration: Iteration, path: str | os.PathLike, title: str | Non
     """
     ch = iteration.changes
     tr = ch["transform"]
-    name = title or f"{Path(iteration.model.path).name}: changes since {iteration.previous.folder.name}"
+    name = f"{title}: changes since {iteration.previous.folder.name}"
     e = html.escape
     rows = [f"<h1>{e(name)}</h1>",
             f"<p>{e(tr['message'])}. Rotation {tr['rotation_deg']:.3g}°, translation "
@@ -852,7 +760,7 @@ def changes_page(iteration: Iteration, path: str | os.PathLike, title: str | Non
     if ch["parts_removed"]:
         rows.append(f"<p>Printed part(s) no longer used: {e(', '.join(ch['parts_removed']))}.</p>")
     rows.append("<h2>Layers that change</h2><div class='layers'>")
-    rows += _layer_views(iteration)
+    rows += _layer_views(iteration, layout)
     rows.append("</div>")
     text = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>" + e(name) + "</title><style>"
             + _PAGE_STYLE + "</style></head><body>" + "\n".join(rows) + "</body></html>\n")
@@ -880,13 +788,13 @@ def _brick_table(entries: list[dict], empty: str, replaces: bool) -> str:
     return "\n".join(out)
 
 
-def _layer_views(iteration: Iteration, px: int = 14) -> list[str]:
+def _layer_views(iteration: Iteration, layout: Layout, px: int = 14) -> list[str]:
     """One small SVG top view per changed layer, in previous-build coordinates:
     kept bricks grey, taken off red (dashed), added LEGO green, added printed blue."""
     ch = iteration.changes
     offset = np.asarray(ch["grid_offset"])
     first_new = _next_id(iteration)
-    boxes = [(np.array(b.cell) + offset, b.size, "#ccc") for b in iteration.layout.bricks
+    boxes = [(np.array(b.cell) + offset, b.size, "#ccc") for b in layout.bricks
              if b.id < first_new]
     boxes += [(b["cell_previous"], b["size"], "#d33") for b in ch["take_off"]]
     boxes += [(b["cell_previous"], b["size"], "#36c" if b["kind"] == "printed" else "#2a2")

@@ -9,6 +9,7 @@ so a failed run never leaves a folder that looks finished.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -20,18 +21,16 @@ from typing import Callable
 
 import numpy as np
 
-from core import build_order, catalog, connectors as connectors_stage, grid_fit, high_res as high_res_stage, layout as layout_stage, mesh_io, printed as printed_stage
-from core.interfaces import Fit
-from core import print_time as print_time_stage, stability as stability_stage, voxelize
+from core import build_order, catalog, connectors as connectors_stage, grid_fit
+from core import high_res as high_res_stage, iterate as iterate_stage, layout as layout_stage
+from core import mesh_io, printed as printed_stage, print_time as print_time_stage
+from core import stability as stability_stage, voxelize
 from core.errors import InputError
+from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
+from core.request import Request, request as request_of
 
 Progress = Callable[[float, str], None]
-
-#: Default assembly estimate: seconds to place one LEGO brick, and to find,
-#: turn and press on one printed part (:func:`core.build_order.assembly_seconds`).
-SECONDS_PER_BRICK = build_order.SECONDS_PER_BRICK
-SECONDS_PER_PART = build_order.SECONDS_PER_PART
 
 #: Files that mark a folder as an output of ours (and so safe to replace).
 OUTPUT_MARKERS = ("report.json", "layout.json")
@@ -39,27 +38,53 @@ OUTPUT_MARKERS = ("report.json", "layout.json")
 
 @dataclass
 class Fabrication:
-    """Everything one run produced, stage by stage."""
+    """Everything one run produced, stage by stage, and the :class:`Request` it was made for.
 
+    ``regions`` are the high-res regions in the layout's frame (what the
+    snapshot records for a later iteration); ``order`` the build order,
+    whose step numbers the layout's bricks carry; ``iteration`` what the
+    iteration branch added (None for a fresh run).
+    """
+
+    request: Request
     model: mesh_io.LoadedModel
     parts: tuple[catalog.Part, ...]
     grid: Grid
     layout: Layout
     stability: stability_stage.Stability
-    seed: int
+    order: build_order.BuildOrder
     timings_s: dict[str, float] = field(default_factory=dict)
     printed: list[printed_stage.PrintedPart] = field(default_factory=list)
-    print_full: print_time_stage.PrintEstimate | None = None
-    print_parts: print_time_stage.PrintEstimate | None = None
-    seconds_per_brick: float = SECONDS_PER_BRICK
     connectors: connectors_stage.Connectors | None = None
-    seconds_per_part: float = SECONDS_PER_PART
-    interface: Fit = field(default_factory=Fit)
-    iteration: object | None = None
-    profile: str | None = None
+    regions: high_res_stage.Regions = field(default_factory=high_res_stage.Regions)
     marks: dict = field(default_factory=dict)
     fit: grid_fit.GridFit | None = None
+    iteration: iterate_stage.Iteration | None = None
+    notes: list[str] = field(default_factory=list)
+    print_full: print_time_stage.PrintEstimate | None = None
+    print_parts: print_time_stage.PrintEstimate | None = None
     plates: list | None = None
+
+    @property
+    def seed(self) -> int:
+        return self.request.seed
+
+    @property
+    def interface(self) -> Fit:
+        """The stud and socket fit the printed parts were made with."""
+        return self.request.fit
+
+    @property
+    def seconds_per_brick(self) -> float:
+        return self.request.seconds_per_brick
+
+    @property
+    def seconds_per_part(self) -> float:
+        return self.request.seconds_per_part
+
+    @property
+    def profile(self) -> str | None:
+        return self.request.profile
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -75,52 +100,52 @@ def _noop(fraction: float, message: str) -> None:
     """Progress sink that ignores everything."""
 
 
-def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: int = 0,
-        parts: str | None = None, progress: Progress | None = None, high_res=(),
-        high_res_solids=(), high_res_bricks=(), stud_fit: float = Fit.stud_fit,
-        socket_fit: float = Fit.socket_fit,
-        seconds_per_brick: float = SECONDS_PER_BRICK, slice_parts: bool = True,
-        connectors: bool = True, seconds_per_part: float = SECONDS_PER_PART,
-        previous: str | os.PathLike | None = None, part_edits=(),
-        profile: str | os.PathLike | None = None, fit_grid: bool = True) -> Fabrication:
-    """Load, repair, legofy and lay out the model at ``path``; make the printed parts.
+def as_request(job, **settings) -> Request:
+    """``job`` as a checked :class:`Request`: a Request (``settings`` change it) or a model path."""
+    if isinstance(job, Request):
+        return job.replace(**settings).checked()
+    return request_of(job, **settings)
 
-    ``parts`` restricts the brick set (see :func:`core.catalog.select`).
-    ``high_res`` are boxes (``"X0,Y0,Z0,X1,Y1,Z1"`` strings or (2, 3)
-    arrays, model mm), ``high_res_solids`` region solid files (in ``units``),
-    ``high_res_bricks`` brick ids: every brick they touch becomes printed,
-    one printed part per connected group; boxes and solids are marked before
-    the layout, which then keeps its bricks inside or outside the marked
-    cells (:func:`core.high_res.lay_out_around`; brick ids refer to that
-    layout) (:mod:`core.high_res`,
-    :mod:`core.printed`); unless ``fit_grid`` is False the grid is first
-    shifted in x and y so that the boxes and solids mark the least of the
-    model (:func:`core.grid_fit.fit`); unless
-    ``connectors`` is False, a printed part gets a stud or a socket wherever it
-    meets another brick directly above or below (:mod:`core.connectors`,
-    :mod:`core.interfaces`; printed studs are 4.8 + ``stud_fit`` mm across,
-    sockets 4.8 + ``socket_fit`` mm between their walls) and anchor tabs
-    added to regions that would touch LEGO only sideways
-    (:func:`core.high_res.anchor`).  With
-    printed parts and ``slice_parts``, the whole model and the plate of all
-    printed parts are print-timed (:func:`core.print_time.print_time`); the
-    print times stay None without printed parts, so a plain run slices
-    nothing.  ``previous`` is an earlier output folder of the same object:
-    the model is then an iteration on it (:func:`core.iterate.iterate`:
-    aligned, diffed on the previous grid, the old layout kept where nothing
-    changed, only changed printed parts reprinted and print-timed; high-res
-    boxes in the new file's coordinates add to the earlier marks).
-    ``part_edits`` change how the printed bricks group into parts, in order:
-    each a dict ``{"op": "merge" | "split", "boxes": [...], "bricks": [...]}``
-    whose boxes (model mm) and brick ids name bricks; ``merge`` makes the
-    parts holding them one, ``split`` gives each its own part
-    (:func:`core.printed.merge`, :func:`core.printed.split`).  ``profile`` is
-    a PrusaSlicer ini to slice with instead of the bundled one.
-    Raises :class:`~core.errors.InputError` for bad input; otherwise returns
-    a :class:`Fabrication` whose layout covers every filled cell once.
+
+def run(job, progress: Progress | None = None, **settings) -> Fabrication:
+    """The driver: run every stage for ``job`` (a :class:`Request`, or a model path with
+    ``settings`` as Request fields) and return the :class:`Fabrication`.
+
+    The stages, in order (each returns new data):
+
+    1. **load** the model (:func:`core.mesh_io.load_model`); with
+       ``previous``, load that result (:func:`core.iterate.load_previous`) and
+       align the model onto it (:func:`core.iterate.align_to`).  The run is
+       then an *iteration*, unless the previous result cannot be reused
+       (:func:`core.iterate.reusable`) or the model moved and
+       ``iterate_moved`` is off: then it is a fresh run and ``notes`` say why.
+    2. **legofy**: fresh, on a grid centred on the part or shifted so that
+       the regions mark the least (:func:`core.grid_fit.fit`); iterating,
+       on the previous lattice, diffed with it (:func:`core.iterate.legofy_on`).
+    3. **high_res**: the regions mark cells (:meth:`core.high_res.Regions.cells`;
+       iterating, the previous run's regions too when ``previous_regions``),
+       and unless ``connectors`` is off, anchor tabs are added
+       (:func:`core.high_res.anchor`).
+    4. **layout**: fresh, marked and other cells laid out apart
+       (:func:`core.high_res.lay_out_around`); iterating, the previous bricks
+       kept where they still fit and the rest laid out anew
+       (:func:`core.iterate.lay_out`).
+    5. **printed_parts**: the bricks touching marked cells (and
+       ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
+       by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
+       iterating, kept parts stay and only changed ones are cut again,
+       :func:`core.iterate.printed_parts`).
+    6. **stability** (:func:`core.stability.analyse`), 7. **build order**
+       (:func:`core.build_order.plan`; the layout's bricks get their steps),
+       8. with an iteration, the **changes** (:func:`core.iterate.changes`),
+       9. with printed parts and ``slice_parts``, **print times**
+       (:func:`print_times`).
+
+    Raises :class:`~core.errors.InputError` for bad input; otherwise the
+    layout covers every filled cell once.
     """
+    req = as_request(job, **settings)
     progress = progress or _noop
-    chosen = catalog.select(parts)
     timings: dict[str, float] = {}
 
     def timed(name: str, fraction: float, fn, *args, **kwargs):
@@ -130,76 +155,98 @@ def run(path: str | os.PathLike, units: str = "mm", scale: float = 1.0, seed: in
         timings[name] = round(time.perf_counter() - start, 4)
         return value
 
-    model = timed("load", 0.0, mesh_io.load_model, path, units=units, scale=scale)
-    interface = Fit(stud_fit=stud_fit, socket_fit=socket_fit).check()
-    for flag, value in (("--seconds-per-brick", seconds_per_brick), ("--seconds-per-part", seconds_per_part)):
-        if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1e6):
-            raise InputError(f"{flag} {value!r} must be a number of seconds >= 0")
-    if previous is not None:
-        return _iterate(previous, model, chosen, seed, timed, timings, progress, high_res=high_res,
-                        high_res_solids=high_res_solids, units=units, scale=scale,
-                        fit=interface, connectors=connectors,
-                        seconds_per_brick=float(seconds_per_brick),
-                        seconds_per_part=float(seconds_per_part), slice_parts=slice_parts,
-                        profile=profile)
-    boxes = [high_res_stage.as_box(b) for b in high_res]
-    regions = [high_res_stage.load_region(p, units=units, scale=scale) for p in high_res_solids]
-    fit = None
-    if fit_grid and (boxes or regions):
-        fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, boxes, regions, units=units,
-                    scale=scale, closed=model.watertight)
-    origin, shape = voxelize.grid_frame(model.mesh.bounds) if fit is None else (fit.origin, fit.shape)
-    grid = timed("legofy", 0.2, voxelize.legofy,
-                 voxelize.snap_to_lattice(model.mesh, origin, np.asarray(CELL_MM)),
-                 origin=origin, shape=shape, closed=model.watertight)
-    if grid.count == 0:
-        raise InputError(f"{Path(path).name}: the part fills no cell of the "
-                         f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
-    marked = timed("high_res", 0.3, high_res_stage.marked_cells, grid, boxes, regions,
-                   units=units, scale=scale)
-    cells = high_res_stage.anchor(grid, marked) if connectors else marked
-    if cells.any():
-        layout = timed("layout", 0.4, high_res_stage.lay_out_around, grid, cells, chosen, seed=seed)
+    chosen = catalog.select(req.parts)
+    model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale)
+    loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale)
+              for p in req.high_res_solids]
+    regions = high_res_stage.Regions.of(req.high_res, loaded)
+    notes: list[str] = []
+    before = alignment = None
+    if req.previous is not None:
+        before = timed("previous", 0.03, iterate_stage.load_previous, req.previous)
+        why = iterate_stage.reusable(before, req.units, req.scale, req.seed)
+        if why is None:
+            alignment, aligned = timed("align", 0.05, iterate_stage.align_to, before, model)
+            if iterate_moved_out(req, alignment):
+                why = "the new version is moved or turned against the previous one"
+            else:
+                model, regions = aligned, regions.moved(alignment.transform)
+        if why is not None:
+            notes.append(f"laid out anew where it stands: {why}")
+            before = alignment = None
+
+    fit = diff = None
+    if before is None:
+        if req.fit_grid and regions:
+            fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, regions.boxes, loaded,
+                        closed=model.watertight)
+        origin, shape = voxelize.grid_frame(model.mesh.bounds) if fit is None else (fit.origin, fit.shape)
+        grid = timed("legofy", 0.2, voxelize.legofy,
+                     voxelize.snap_to_lattice(model.mesh, origin, np.asarray(CELL_MM)),
+                     origin=origin, shape=shape, closed=model.watertight)
+        if grid.count == 0:
+            raise InputError(f"{Path(req.model).name}: the part fills no cell of the "
+                             f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
     else:
-        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=seed)
+        diff = timed("legofy", 0.2, iterate_stage.legofy_on, before, model)
+        grid = diff.grid
+        if req.previous_regions:
+            regions = iterate_stage.previous_regions(before) + regions
+
+    marked = timed("high_res", 0.3, regions.cells, grid)
+    cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
+    plan = rings = None
+    if before is not None:
+        (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
+                                      chosen, req.seed)
+    elif cells.any():
+        layout = timed("layout", 0.4, high_res_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
+    else:
+        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
+
+    ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
+    if req.high_res_bricks:
+        regions = regions + high_res_stage.Regions.of_bricks(layout, req.high_res_bricks)
+    groups = _edited(layout, high_res_stage.groups(layout, ids), req.part_edits)
     made: list[printed_stage.PrintedPart] = []
-    clamp, links = None, None
-    if cells.any() or high_res_bricks:
-        ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, high_res_bricks)
-        groups = _edited(layout, high_res_stage.groups(layout, ids), part_edits)
-        if groups:
-            source = timed("model_solid", 0.6, printed_stage.model_solid, model)
-            contacts = connectors_stage.find(layout, groups)
-            made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
-                         source, interface, connectors, links=contacts)
-            links = contacts if connectors else connectors_stage.find(layout, [])
-            layout = printed_stage.apply(layout, made)
-            clamp = printed_stage.clamp_masks(layout, made)
+    clamp = links = reprint = None
+    if groups and before is not None:
+        made, reprint, links, layout = timed(
+            "printed_parts", 0.6, iterate_stage.printed_parts, before, layout, plan, groups,
+            model, alignment, req.fit, req.connectors)
+        links = links if req.connectors else connectors_stage.find(layout, [])
+    elif groups:
+        source = timed("model_solid", 0.6, printed_stage.model_solid, model)
+        contacts = connectors_stage.find(layout, groups)
+        made = timed("printed_parts", 0.65, printed_stage.build_parts, layout, groups,
+                     source, req.fit, req.connectors, links=contacts)
+        links = contacts if req.connectors else connectors_stage.find(layout, [])
+        layout = printed_stage.apply(layout, made)
+    if made:
+        clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
-    fab = Fabrication(model, chosen, grid, layout, stab, seed, timings, made,
-                      seconds_per_brick=float(seconds_per_brick), connectors=links,
-                      seconds_per_part=float(seconds_per_part), interface=interface,
-                      profile=None if profile is None else str(profile),
+    order = timed("build_order", 0.82, build_order.plan, layout)
+    layout = build_order.numbered(layout, order)
+    iteration = None
+    if before is not None:
+        reprint = reprint or []
+        changes = iterate_stage.changes(before, alignment, diff, layout, plan, made, reprint, rings)
+        iteration = iterate_stage.Iteration(before, alignment, diff,
+                                            [r["id"] for r in reprint if r["reprint"]], changes, rings)
+    fab = Fabrication(req, model, chosen, grid, layout, stab, order, timings, made,
+                      connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
-                             "anchor_cells": int(np.count_nonzero(cells & ~marked))}, fit=fit)
-    if made and slice_parts:
-        timed("print_time", 0.85, print_times, fab)
+                             "anchor_cells": int(np.count_nonzero(cells & ~marked))},
+                      fit=fit, iteration=iteration, notes=notes)
+    if fab.to_print and req.slice_parts:
+        fab = timed("print_time", 0.85, print_times, fab)
+        fab.timings_s.update(timings)
     return fab
 
 
-def _iterate(previous, model, chosen, seed, timed, timings: dict, progress, slice_parts: bool,
-             seconds_per_brick: float, seconds_per_part: float, profile, **marks) -> Fabrication:
-    """:func:`run` with ``previous``: the iteration stage, as a Fabrication."""
-    from core import iterate as iterate_stage
-    before = timed("previous", 0.05, iterate_stage.load_previous, previous)
-    it = iterate_stage.iterate(before, model, chosen, seed, progress=progress, **marks)
-    fab = iterate_stage.to_fabrication(it, seconds_per_brick)
-    fab.seconds_per_part, fab.interface, fab.iteration = seconds_per_part, marks["fit"], it
-    fab.profile = None if profile is None else str(profile)
-    if fab.printed and slice_parts:
-        timed("print_time", 0.85, print_times, fab)
-    fab.timings_s = {**timings, **it.timings_s}
-    return fab
+def iterate_moved_out(req: Request, alignment) -> bool:
+    """Whether ``req`` lays a moved new version out anew instead of iterating on it."""
+    return not req.iterate_moved and iterate_stage.moved(alignment)
 
 
 def _edited(layout: Layout, groups: list[list[int]], part_edits) -> list[list[int]]:
@@ -220,38 +267,43 @@ def _edited(layout: Layout, groups: list[list[int]], part_edits) -> list[list[in
     return groups
 
 
-def print_times(fab: Fabrication) -> None:
-    """Slice the whole model (the baseline) and the plates of the printed parts
-    to print (:func:`core.export.plates`: one plate unless they do not fit the
-    bed), the slicer runs two at a time; the parts' time is the plates' sum.
+def print_times(fab: Fabrication) -> Fabrication:
+    """``fab`` with print times: the whole model (the baseline) and the plates of the
+    printed parts to print (:func:`core.export.plates`: one plate unless they do not
+    fit the bed) sliced, two at a time; the parts' time is the plates' sum.
 
-    The plates are kept in ``fab.plates`` (for :func:`write_outputs`, which
-    writes them as they were timed).  The whole model is posed and timed first (its pose search already
-    slices two poses at a time), then the plates, two at a time.  A part's
+    The returned Fabrication keeps the plates in ``plates`` (for
+    :func:`write_outputs`, which writes them as they were timed).  A part's
     own ``print_s`` is its plate's time shared out in proportion to the
     parts' own sliced times in their poses (their calibrated estimates
-    without a slicer), so the parts' times add up to the plates'.
+    without a slicer), so the parts' times add up to the plates'.  ``fab``
+    itself is not changed.
     """
     from concurrent.futures import ThreadPoolExecutor
 
     from core.export import plates
     printing = fab.to_print
-    beds = fab.plates = plates(printing, profile=fab.profile)
+    beds = plates(printing, profile=fab.profile)
     profile = {} if fab.profile is None else {"profile": fab.profile}
     with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work:
-        fab.print_full = print_time_stage.print_time([fab.model.mesh], work, **profile)
+        full = print_time_stage.print_time([fab.model.mesh], work, **profile)
         with ThreadPoolExecutor(max_workers=2) as pool:
             results = list(pool.map(lambda items: print_time_stage.print_time(
                 [m for _, m, _ in items], work, **profile), beds))
     methods = sorted({r.method for r in results})
-    fab.print_parts = print_time_stage.PrintEstimate(
+    parts = print_time_stage.PrintEstimate(
         sum(r.seconds for r in results),
         "; ".join(methods) if methods else "nothing to print: no printed part changed", None)
+    seconds: dict[str, float] = {}
     for items, result in zip(beds, results):
         weights = [pose.slicer_s or print_time_stage.estimate_seconds([m]) for _, m, pose in items]
         total = sum(weights) or 1.0
         for (index, _, _), w in zip(items, weights):
-            printing[index].print_s = result.seconds * w / total
+            seconds[printing[index].id] = result.seconds * w / total
+    printed = [dataclasses.replace(p, print_s=seconds[p.id]) if p.id in seconds else p
+               for p in fab.printed]
+    return dataclasses.replace(fab, printed=printed, print_full=full, print_parts=parts,
+                               plates=beds, timings_s=dict(fab.timings_s))
 
 
 def assembly_split(fab: Fabrication) -> tuple[float, float]:
@@ -385,6 +437,7 @@ def report(fab: Fabrication) -> dict:
                           "full print / (parts print + all assembly)",
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
         "timings_s": dict(fab.timings_s),
+        "notes": list(fab.notes),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
 
@@ -398,15 +451,17 @@ def _prepare_out(out: Path) -> None:
                          "choose an empty or new folder")
 
 
-def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True,
+def write_outputs(fab: Fabrication, out: str | os.PathLike,
                   progress: Progress | None = None) -> dict:
-    """Write ``report.json``, ``layout.json`` (and ``layout.png``), the printed
-    parts (``parts/``) and the builder's files (``instructions.html``,
-    ``assembly.mpd``, ``bom.csv``, ``bricklink.xml``, :mod:`core.instructions`,
-    which also numbers every brick's assembly step) into ``out``.
+    """Write ``report.json``, ``layout.json`` (and ``layout.png`` unless the request
+    says no picture), the printed parts (``parts/``), the builder's files
+    (``instructions.html``, ``assembly.mpd``, ``bom.csv``, ``bricklink.xml``,
+    :mod:`core.instructions`, in the run's build order), the iteration
+    snapshot (``iteration/``) and after an iteration ``changes.html`` into
+    ``out``; returns the report.  Reads ``fab`` only.
 
     Everything is written into a temporary sibling folder first and moved
-    into place at the end, replacing an earlier output; returns the report.
+    into place at the end, replacing an earlier output.
     """
     progress = progress or _noop
     out = Path(out)
@@ -414,6 +469,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     tmp.chmod(0o755)
+    title = Path(fab.model.path).name
     try:
         start = time.perf_counter()
         if fab.printed:
@@ -425,21 +481,19 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
         progress(0.92, "instructions")
         from core import instructions
         assembly = instructions.write_assembly(
-            fab.layout, fab.printed, tmp, title=Path(fab.model.path).name,
-            seconds_per_brick=fab.seconds_per_brick, seconds_per_part=fab.seconds_per_part)
+            fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
+            seconds_per_part=fab.seconds_per_part, order=fab.order)
         (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
-        if picture:
+        if fab.request.picture:
             progress(0.95, "picture")
             from core import render
             render.render_layout(fab.layout, tmp / "layout.png",
-                                 title=f"{Path(fab.model.path).name}: "
-                                       f"{len(fab.layout.bricks)} bricks")
-        fab.timings_s["write"] = round(time.perf_counter() - start, 4)
-        from core import iterate as iterate_stage
-        iterate_stage.snapshot(fab, tmp, fit=fab.interface)
+                                 title=f"{title}: {len(fab.layout.bricks)} bricks")
+        iterate_stage.snapshot(fab, tmp)
         if fab.iteration is not None:
-            iterate_stage.changes_page(fab.iteration, tmp / "changes.html")
+            iterate_stage.changes_page(fab.iteration, fab.layout, tmp / "changes.html", title)
         doc = report(fab)
+        doc["timings_s"]["write"] = round(time.perf_counter() - start, 4)
         doc["assembly"] = assembly
         doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
         (tmp / "report.json").write_text(json.dumps(doc, indent=2))
@@ -453,16 +507,9 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike, picture: bool = True
     return doc
 
 
-def fabricate(path: str | os.PathLike, out: str | os.PathLike, units: str = "mm",
-              scale: float = 1.0, seed: int = 0, parts: str | None = None,
-              picture: bool = True, progress: Progress | None = None, **printing) -> dict:
-    """Run the pipeline on ``path`` and write its outputs into ``out``; returns the report.
-
-    ``printing`` are the high-res and iteration keywords of :func:`run` (``previous``, ``high_res``,
-    ``high_res_solids``, ``high_res_bricks``, ``stud_fit``, ``socket_fit``,
-    ``seconds_per_brick``, ``seconds_per_part``, ``slice_parts``, ``connectors``,
-    ``part_edits``, ``profile``, ``fit_grid``).
-    """
+def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:
+    """Run the driver on ``job`` (a :class:`Request`, or a model path with ``settings``
+    as Request fields) and write its outputs into ``out``; returns the report."""
+    req = as_request(job, **settings)
     _prepare_out(Path(out))
-    fab = run(path, units=units, scale=scale, seed=seed, parts=parts, progress=progress, **printing)
-    return write_outputs(fab, out, picture=picture, progress=progress)
+    return write_outputs(run(req, progress=progress), out, progress=progress)

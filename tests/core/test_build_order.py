@@ -115,9 +115,11 @@ def test_real_model_with_printed_parts_is_ordered_bottom_up(hmd):
         assert s.layer == lowest
     assert all(len(s.bricks) <= build_order.BRICKS_PER_STEP for s in order.steps if not s.printed_part)
     assert order.steps[0].layer == 0
-    build_order.assign(lay, order)
-    assert all(b.step is not None for b in lay.bricks)
-    assert {b.step for b in lay.bricks} == set(range(1, len(order.steps) + 1))
+    before = [b.step for b in lay.bricks]
+    numbered = build_order.numbered(lay, order)
+    assert [b.step for b in lay.bricks] == before, "numbered() must not change its input"
+    assert all(b.step is not None for b in numbered.bricks)
+    assert {b.step for b in numbered.bricks} == set(range(1, len(order.steps) + 1))
 
 
 def test_box_without_overhangs_goes_layer_by_layer():
@@ -181,12 +183,12 @@ def test_empty_layout_and_bad_arguments():
     assert build_order.plan(lay).steps == []
     full = layout_of([("3024", (0, 0, 0), (1, 1, 1))], (1, 1, 1))
     for bad in (0, -2, 1.5, "3"):
-        with pytest.raises(InputError):
+        with pytest.raises(ValueError):
             build_order.plan(full, bricks_per_step=bad)
     full.bricks.append(Brick(0, "3024", (1, 1, 1), (0, 0, 0)))
-    with pytest.raises(InputError):
+    with pytest.raises(ValueError):
         build_order.plan(full)
-    with pytest.raises(InputError):
+    with pytest.raises(TypeError):
         build_order.plan("not a layout")
 
 

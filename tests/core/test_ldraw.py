@@ -22,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def hmd(tmp_path_factory, hmd_step):
     fab = pipeline.run(hmd_step, high_res=HMD_HIGH_RES, slice_parts=False)
-    order = build_order.plan(fab.layout)
-    build_order.assign(fab.layout, order)
+    order = fab.order
+    assert [b.step for b in fab.layout.bricks] == [b.step for b in build_order.numbered(fab.layout, order).bricks]
     path = ldraw.write(fab.layout, fab.printed, order.steps,
                        tmp_path_factory.mktemp("ldraw") / "assembly.mpd", title="hmd")
     return fab, order, path
@@ -148,12 +148,12 @@ def _write_text(lay, steps) -> str:
 def test_writer_refuses_incomplete_or_repeated_steps():
     bricks = [Brick(0, "3024", (1, 1, 1), (0, 0, 0)), Brick(1, "3024", (1, 1, 1), (0, 0, 1))]
     lay = Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), np.ones((1, 1, 2), bool)), bricks)
-    with pytest.raises(InputError, match="no assembly step"):
+    with pytest.raises(ValueError, match="no assembly step"):
         _write_text(lay, [[0]])
-    with pytest.raises(InputError, match="already"):
+    with pytest.raises(ValueError, match="already"):
         _write_text(lay, [[0], [0, 1]])
     bricks[1].kind, bricks[1].printed_part = "printed", "P9"
-    with pytest.raises(InputError, match="P9"):
+    with pytest.raises(ValueError, match="P9"):
         _write_text(lay, [[0], [1]])
 
 

@@ -1,0 +1,187 @@
+"""A job: the model to build and every setting of the run, with the one table of defaults.
+
+:class:`Request` is what the command line, the watch command and the
+FreeCAD workbench hand to the driver (:func:`core.pipeline.run`).  Its
+fields' defaults are *the* defaults of Fabrickator: the CLI's options
+(:func:`add_options`), the workbench's preferences and the Fabrication's
+properties all read them from :data:`DEFAULTS`, so a default changes in
+one place.  The stud and socket fit default to :class:`core.interfaces.Fit`,
+the table of the printed interfaces.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+
+from core.errors import InputError
+from core.interfaces import Fit
+
+def _setting(default, help: str, flag: str | None = None, metavar: str | None = None,
+             off: str | None = None):
+    """A Request field with its CLI help (``flag`` None: not a command-line option of its own;
+    ``off``: the help of the ``--no-...`` switch of a setting that is on by default)."""
+    return field(default=default, metadata={"help": help, "flag": flag, "metavar": metavar,
+                                            "off": off})
+
+
+@dataclass(frozen=True)
+class Request:
+    """Everything one run needs: the model file and the settings (all plain values).
+
+    ``high_res`` are boxes ("X0,Y0,Z0,X1,Y1,Z1" strings, six numbers or
+    (2, 3) arrays, model mm), ``high_res_solids`` region solid files (in
+    ``units``/``scale``), ``high_res_bricks`` brick ids of the layout,
+    ``part_edits`` merge/split edits ({"op", "boxes", "bricks"}).
+    ``previous`` is an earlier output folder (or an unpacked snapshot) of
+    the same object: the run is then an iteration on it.  With
+    ``previous_regions`` the previous run's high-res regions stay marked and
+    this request's regions add to them (the command line); without, only
+    this request's regions count (the workbench, which sends all of its
+    regions every time).  ``iterate_moved`` False lays the new version out
+    anew where it stands when it was moved or turned against the previous
+    one (the workbench, whose bricks stand at the Source); True iterates in
+    the previous frame.  Build a Request, then :meth:`checked` it.
+    """
+
+    model: str = _setting("", "the model file")
+    units: str = _setting("mm", "unit of the file's coordinates", "--units")
+    scale: float = _setting(1.0, "extra scale factor applied after --units", "--scale", "S")
+    seed: int = _setting(0, "seed of the layout (same seed, same layout)", "--seed", "N")
+    parts: str | None = _setting(None, "brick set: all, plates, bricks, design numbers (3001,3024) "
+                                       "or plate2x4-style names, comma-separated; must contain 3024",
+                                 "--parts", "SET")
+    high_res: tuple = _setting((), "box in model mm whose bricks become printed parts (repeatable; "
+                                   "write --high-res=-5,... when it starts with a minus)",
+                               "--high-res", "X0,Y0,Z0,X1,Y1,Z1")
+    high_res_solids: tuple = _setting((), "region solid (STL/STEP/...) whose bricks become printed "
+                                          "(repeatable)", "--high-res-solid", "FILE")
+    high_res_bricks: tuple = _setting((), "brick ids of the layout that become printed")
+    part_edits: tuple = _setting((), "merge/split edits of the printed parts")
+    stud_fit: float = _setting(Fit.stud_fit, "printed studs are 4.8 + MM across (signed); find "
+                                             "your printer's value with calibration-strip",
+                               "--stud-fit", "MM")
+    socket_fit: float = _setting(Fit.socket_fit, "printed sockets are 4.8 + MM between the walls a "
+                                                 "real stud touches (signed, negative is tighter)",
+                                 "--socket-fit", "MM")
+    seconds_per_brick: float = _setting(10.0, "assembly estimate per LEGO brick placed",
+                                        "--seconds-per-brick", "S")
+    seconds_per_part: float = _setting(30.0, "assembly estimate per printed part inserted",
+                                       "--seconds-per-part", "S")
+    slice_parts: bool = _setting(True, "print-time the whole model and the printed parts with "
+                                       "PrusaSlicer")
+    connectors: bool = _setting(True, "give printed parts the studs and sockets they clamp with",
+                                "--no-connectors", off="cut printed parts exactly, even where "
+                                                       "that cuts the studs and sockets they "
+                                                       "clamp with")
+    fit_grid: bool = _setting(True, "shift the grid so that the high-res regions print the least",
+                              "--no-grid-fit", off="keep the grid centred on the part instead of "
+                                                   "shifting it so that the high-res regions "
+                                                   "print the least")
+    profile: str | None = _setting(None, "a PrusaSlicer ini to slice with instead of the bundled one")
+    previous: str | None = _setting(None, "an earlier --out of the same object: align, diff, keep "
+                                          "its layout where nothing changed, reprint only changed "
+                                          "parts (changes.html)", "--previous", "DIR")
+    previous_regions: bool = _setting(True, "keep the previous run's high-res regions marked")
+    iterate_moved: bool = _setting(True, "iterate on a moved or turned new version in the "
+                                         "previous frame (else lay it out anew)")
+    picture: bool = _setting(True, "render layout.png", "--no-picture",
+                             off="do not render layout.png")
+
+    @property
+    def fit(self) -> Fit:
+        """The stud and socket :class:`~core.interfaces.Fit` of this request."""
+        return Fit(stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit))
+
+    def replace(self, **changes) -> "Request":
+        """A copy with ``changes``; InputError naming an unknown setting."""
+        unknown = sorted(set(changes) - set(DEFAULTS))
+        if unknown:
+            raise InputError(f"unknown setting(s): {', '.join(unknown)}")
+        return dataclasses.replace(self, **changes)
+
+    def checked(self) -> "Request":
+        """This request with its values normalised (tuples, floats, str paths).
+
+        Raises :class:`InputError` with one line naming the first setting
+        out of range: scale not a positive finite
+        number, a negative or non-integer seed, seconds not in [0, 1e6), a
+        stud or socket fit :meth:`Fit.check` refuses (the units are checked
+        where the model is loaded, :func:`core.mesh_io.load_model`).
+        """
+        if not self.model:
+            raise InputError("no model file given")
+        if not _number(self.scale) or not (math.isfinite(self.scale) and self.scale > 0):
+            raise InputError(f"--scale {self.scale!r} must be a positive number")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 32:
+            raise InputError(f"--seed {self.seed!r} must be a whole number from 0 to {2 ** 32 - 1}")
+        for name in ("seconds_per_brick", "seconds_per_part"):
+            value = getattr(self, name)
+            if not _number(value) or not 0 <= value < 1e6:
+                raise InputError(f"--{name.replace('_', '-')} {value!r} must be a number of "
+                                 f"seconds >= 0")
+        for name in ("stud_fit", "socket_fit"):
+            if not _number(getattr(self, name)):
+                raise InputError(f"--{name.replace('_', '-')} {getattr(self, name)!r} must be a "
+                                 f"number of mm")
+        self.fit.check()
+        return dataclasses.replace(
+            self, model=os.fspath(self.model), scale=float(self.scale),
+            high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),
+            high_res_bricks=tuple(self.high_res_bricks), part_edits=tuple(self.part_edits),
+            stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit),
+            seconds_per_brick=float(self.seconds_per_brick),
+            seconds_per_part=float(self.seconds_per_part),
+            profile=None if self.profile is None else os.fspath(self.profile),
+            previous=None if self.previous is None else os.fspath(self.previous))
+
+
+def _number(value) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+
+
+#: The one table of defaults: setting name -> default value.
+DEFAULTS = {f.name: f.default for f in dataclasses.fields(Request)}
+
+
+def request(model, **settings) -> Request:
+    """A checked :class:`Request` for ``model`` with ``settings`` (InputError for a bad one)."""
+    return Request(model=model).replace(**settings).checked()
+
+
+def add_options(parser, names, units=()) -> None:
+    """Add the command-line options of the settings ``names`` to an argparse ``parser``.
+
+    Each option's flag, help and default come from the Request field: a
+    boolean setting whose default is True becomes a ``--no-...`` switch,
+    a tuple setting a repeatable option; ``units`` are the unit names
+    ``--units`` offers.
+    """
+    for f in dataclasses.fields(Request):
+        if f.name not in names:
+            continue
+        flag, default, text = f.metadata["flag"], f.default, f.metadata["help"]
+        if isinstance(default, bool):
+            parser.add_argument(flag, dest=f.name, action="store_false",
+                                help=f.metadata["off"] or text)
+        elif isinstance(default, tuple):
+            parser.add_argument(flag, dest=f.name, action="append", default=[],
+                                metavar=f.metadata["metavar"], help=text)
+        elif f.name == "units":
+            parser.add_argument(flag, dest=f.name, choices=sorted(units), default=default,
+                                help=f"{text} (default {default})")
+        else:
+            kind = {"seed": int}.get(f.name, float if isinstance(default, float) else str)
+            shown = f"{default:+g}" if f.name.endswith("_fit") else f"{default:g}" if isinstance(default, float) else default
+            parser.add_argument(flag, dest=f.name, type=kind, default=default,
+                                metavar=f.metadata["metavar"],
+                                help=text + ("" if default is None else f" (default {shown})"))
+
+
+def from_options(args, model) -> Request:
+    """The checked Request of parsed command-line ``args`` (from :func:`add_options`) for ``model``."""
+    given = {f.name: getattr(args, f.name) for f in dataclasses.fields(Request)
+             if f.name != "model" and hasattr(args, f.name)}
+    return request(model, **given)
