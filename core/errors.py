@@ -1,9 +1,28 @@
-"""Errors a user can act on.
+"""Errors a user can act on, and bugs reported as bugs.
 
-Every stage raises :class:`InputError` for bad input; the CLI prints its
-message as one line and exits with status 2.  Nothing else is caught, so a
-programming error still shows its traceback to the developer.
+:class:`InputError` is for the user's input only: a file, an option value,
+a region, a brick set.  Its message is one line that names the problem;
+the CLI prints it and exits with status 2.  A stage that finds a caller of
+ours passing wrong data raises ValueError, TypeError or RuntimeError
+instead: that is a bug in Fabrickator, not the user's fault.
+
+For any exception that is not an InputError the CLI calls :func:`log_bug`
+(the full traceback goes into a log file) and prints :func:`bug_message`
+(one line naming that file), then exits with status 1.
 """
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+#: Folder name of the bug logs inside the state (or temporary) folder.
+LOG_FOLDER = "fabrickator"
 
 
 class InputError(Exception):
@@ -11,3 +30,70 @@ class InputError(Exception):
 
     def __init__(self, message: str):
         super().__init__(" ".join(str(message).split()))
+
+
+def log_folders() -> list[Path]:
+    """Where :func:`log_bug` tries to write, in order: ``$XDG_STATE_HOME/fabrickator``
+    (when XDG_STATE_HOME is set to an absolute path), ``~/.local/state/fabrickator``,
+    then ``<temporary folder>/fabrickator``."""
+    folders = []
+    state = os.environ.get("XDG_STATE_HOME", "")
+    if os.path.isabs(state):
+        folders.append(Path(state) / LOG_FOLDER)
+    home = Path(os.path.expanduser("~"))
+    if home.is_absolute():
+        folders.append(home / ".local" / "state" / LOG_FOLDER)
+    folders.append(Path(tempfile.gettempdir()) / LOG_FOLDER)
+    return folders
+
+
+def log_bug(exc: BaseException, context: str) -> Path:
+    """Write ``exc``'s full traceback into a new log file and return the file's path.
+
+    The file, ``bug-<UTC time>-<pid>.log`` in the first of :func:`log_folders`
+    that can be written, holds ``context`` (what was running, e.g. the
+    command), Fabrickator's version, Python's version and executable, the
+    platform, ``sys.argv`` and the traceback with its chained causes.  Each
+    call makes its own file; nothing is overwritten.  Raises OSError only
+    when no folder at all can be written.
+    """
+    from core import __version__
+
+    lines = [
+        f"context: {context}",
+        f"time: {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}",
+        f"fabrickator: {__version__}",
+        f"python: {sys.version.split()[0]} ({sys.executable})",
+        f"platform: {platform.platform()}",
+        f"argv: {sys.argv!r}",
+        "",
+        *traceback.format_exception(type(exc), exc, exc.__traceback__),
+    ]
+    text = "\n".join(line.rstrip("\n") for line in lines) + "\n"
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    failure: OSError | None = None
+    for folder in log_folders():
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            path = folder / f"bug-{stamp}-{os.getpid()}.log"
+            n = 1
+            while path.exists():
+                n += 1
+                path = folder / f"bug-{stamp}-{os.getpid()}-{n}.log"
+            with open(path, "x", encoding="utf-8") as stream:
+                stream.write(text)
+            return path
+        except OSError as err:
+            failure = err
+    raise OSError(f"cannot write a bug log into any of {[str(f) for f in log_folders()]}") from failure
+
+
+def bug_message(exc: BaseException, log_path: str | os.PathLike) -> str:
+    """The one line the CLI prints for a bug: ``bug: <ExcType>: <first line of
+    the message> — this is a bug in Fabrickator, not your input; the traceback
+    is in <log_path>; please report it``.  One line: of a message of several
+    lines only the first (non-blank) one is used."""
+    first = next((line.strip() for line in str(exc).splitlines() if line.strip()), "")
+    what = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+    return (f"bug: {what} — this is a bug in Fabrickator, not your input; "
+            f"the traceback is in {os.fspath(log_path)}; please report it")
