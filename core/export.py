@@ -27,9 +27,6 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from OCP.IFSelect import IFSelect_RetDone
-from OCP.Interface import Interface_Static
-from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
 
 from core import print_time
 from core.errors import InputError
@@ -161,6 +158,10 @@ def plate(parts: list) -> list[trimesh.Trimesh]:
 
 def write_step(shape, path: str | os.PathLike) -> None:
     """Write an OCP shape as a STEP (AP214) file in mm; InputError when OCC refuses."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.Interface import Interface_Static
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
     Interface_Static.SetCVal_s("write.step.unit", "MM")
     writer = STEPControl_Writer()
     writer.Transfer(shape, STEPControl_AsIs)

@@ -34,30 +34,22 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import cadquery as cq
 import manifold3d as m3
 import numpy as np
 import trimesh
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakePolygon
-from OCP.BRepCheck import BRepCheck_Analyzer
-from OCP.BRepOffsetAPI import BRepOffsetAPI_ThruSections
-from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
-from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
-from OCP.ShapeFix import ShapeFix_Shape
-from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.BRepClass3d import BRepClass3d_SolidClassifier
-from OCP.TopAbs import TopAbs_IN, TopAbs_SOLID
-from OCP.TopoDS import TopoDS_Shape
 from scipy.spatial import cKDTree
 
 from core import connectors as connectors_stage, high_res, interfaces, thickness
-from core.brick_solids import SIDE_TAGS, BooleanFailed, run_boolean, sub_shapes, to_trimesh
 from core.errors import InputError
 from core.interfaces import Fit
 from core.mesh_io import LoadedModel
 from core.model import Brick, Layout
+
+if TYPE_CHECKING:  # OpenCascade and cadquery are imported where B-rep parts are made
+    import cadquery as cq
+    from OCP.TopoDS import TopoDS_Shape
 
 #: Depth (mm) of the engraved part id.
 ENGRAVE_DEPTH_MM = 0.5
@@ -218,6 +210,7 @@ def model_solid(model: LoadedModel) -> ModelSolid:
         solids = _solids(model.brep)
         if not solids:
             raise InputError(f"{model.path}: the file has no solid to cut printed parts from")
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
         brep = solids[0] if len(solids) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), solids[0], solids[1:]))
     return ModelSolid(manifold=manifold, brep=brep)
 
@@ -592,13 +585,19 @@ class _Brep:
         self.model = model
 
     def box(self, lo, hi) -> TopoDS_Shape:
+        from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+        from OCP.gp import gp_Pnt
         return BRepPrimAPI_MakeBox(gp_Pnt(*map(float, lo)), gp_Pnt(*map(float, hi))).Shape()
 
     def cylinder(self, x, y, z0, z1, r) -> TopoDS_Shape:
+        from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+        from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
         axis = gp_Ax2(gp_Pnt(float(x), float(y), float(z0)), gp_Dir(0, 0, 1))
         return BRepPrimAPI_MakeCylinder(axis, float(r), float(z1 - z0)).Shape()
 
     def bar(self, a, b, side) -> TopoDS_Shape:
+        from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+        from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
         a, b = np.asarray(a, float), np.asarray(b, float)
         axis = b - a
         length = float(np.linalg.norm(axis))
@@ -610,6 +609,9 @@ class _Brep:
                                    side, side, length + side).Shape()
 
     def taper(self, rects) -> TopoDS_Shape:
+        from OCP.BRepBuilderAPI import BRepBuilderAPI_MakePolygon
+        from OCP.BRepOffsetAPI import BRepOffsetAPI_ThruSections
+        from OCP.gp import gp_Pnt
         loft = BRepOffsetAPI_ThruSections(True, True)
         for corners in _rect_corners(rects):
             loft.AddWire(BRepBuilderAPI_MakePolygon(*[gp_Pnt(*map(float, c)) for c in corners], True).Wire())
@@ -617,24 +619,30 @@ class _Brep:
         return loft.Shape()
 
     def union(self, shapes):
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
         return shapes[0] if len(shapes) == 1 else _unify(_occ(BRepAlgoAPI_Fuse(), shapes[0], shapes[1:]))
 
     def cut(self, shape, tools):
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
         return shape if not tools else _unify(_occ(BRepAlgoAPI_Cut(), shape, tools))
 
     def intersect(self, a, b):
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
         return _unify(_occ(BRepAlgoAPI_Common(), a, [b]))
 
     def common(self, envelope, lo, hi):
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
         return _unify(_occ(BRepAlgoAPI_Common(), self.model, [envelope]))
 
     def volume(self, shape) -> float:
-        return float(cq.Shape.cast(shape).Volume()) if _solids(shape) else 0.0
+        return _volume(shape) if _solids(shape) else 0.0
 
     def pieces(self, shape) -> list:
-        return [s for s in _solids(shape) if float(cq.Shape.cast(s).Volume()) > CRUMB_MM3]
+        return [s for s in _solids(shape) if _volume(s) > CRUMB_MM3]
 
     def only_solid(self, shape, part_id: str):
+        from OCP.BRepCheck import BRepCheck_Analyzer
+        from OCP.ShapeFix import ShapeFix_Shape
         pieces = self.pieces(shape)
         if len(pieces) != 1:
             raise _InvalidSolid(f"{len(pieces)} pieces")
@@ -648,15 +656,26 @@ class _Brep:
         return _solids(solid)[0]
 
     def mesh(self, shape) -> trimesh.Trimesh:
+        from core.brick_solids import to_trimesh
         return to_trimesh(shape, MESH_TOL_MM, MESH_ANGLE_RAD)
 
 
 def _solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
+    from OCP.TopAbs import TopAbs_SOLID
+
+    from core.brick_solids import sub_shapes
     return sub_shapes(shape, TopAbs_SOLID)
+
+
+def _volume(shape: TopoDS_Shape) -> float:
+    """The volume (mm³) of the OCC ``shape``."""
+    import cadquery as cq
+    return float(cq.Shape.cast(shape).Volume())
 
 
 def _run(op, argument, tools):
     """:func:`core.brick_solids.run_boolean` for a printed part; a failure is bad input."""
+    from core.brick_solids import BooleanFailed, run_boolean
     try:
         return run_boolean(op, argument, list(tools), None, True)
     except BooleanFailed:
@@ -668,6 +687,7 @@ def _occ(op, argument, tools):
     makes the part on the mesh instead (:class:`_InvalidSolid`).  Faces closer than
     :data:`FUZZY_MM` count as one (a model aligned onto an earlier version lies a
     rounding error off the cell planes)."""
+    from core.brick_solids import BooleanFailed, run_boolean
     op.SetFuzzyValue(FUZZY_MM)
     try:
         return run_boolean(op, argument, list(tools), None, True)
@@ -677,6 +697,7 @@ def _occ(op, argument, tools):
 
 def _unify(shape: TopoDS_Shape) -> TopoDS_Shape:
     """``shape`` with coplanar / co-cylindrical neighbouring faces merged into one."""
+    from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
     unify = ShapeUpgrade_UnifySameDomain(shape, True, True, False)
     unify.Build()
     return unify.Shape()
@@ -700,6 +721,7 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
     ``engraving`` (where, or why not) and updates the part's solid, mesh and
     volume.
     """
+    from core.brick_solids import SIDE_TAGS, to_trimesh
     sizes = {f: _text_size(part.id, f) for f in ENGRAVE_FONT_SIZES}
     candidates = []
     for b in bricks:
@@ -804,6 +826,7 @@ def _use_system_fontconfig() -> None:
 def text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.Shape:
     """``text`` at ``font`` size, DejaVu Sans Bold, centred at the plane's origin,
     extruded ``distance`` along the plane's normal (negative: into the part)."""
+    import cadquery as cq
     _use_system_fontconfig()
     kwargs = {"fontPath": _font_path()} if _font_path() else {}
     return cq.Workplane(plane).text(text, font, distance, combine=False, halign="center",
@@ -812,6 +835,7 @@ def text_shape(text: str, font: float, plane: cq.Plane, distance: float) -> cq.S
 
 def _text_size(text: str, font: float) -> tuple[float, float]:
     """Width and height (mm) of ``text`` set at ``font`` size."""
+    import cadquery as cq
     box = text_shape(text, font, cq.Plane.XY(), 1.0).BoundingBox()
     return float(box.xlen), float(box.ylen)
 
@@ -819,6 +843,7 @@ def _text_size(text: str, font: float) -> tuple[float, float]:
 def _text_solid(text: str, font: float, face: dict) -> TopoDS_Shape:
     """The cutting tool of the engraving: ``text`` centred on ``face``, from
     ENGRAVE_OVERSHOOT_MM outside it to ENGRAVE_DEPTH_MM into the part."""
+    import cadquery as cq
     start = face["centre"] + ENGRAVE_OVERSHOOT_MM * face["normal"]
     shape = text_shape(text, font, cq.Plane(origin=tuple(start), xDir=tuple(face["right"]),
                                              normal=tuple(face["normal"])),
@@ -853,6 +878,9 @@ def _inside_test(part: PrintedPart):
             tool = m3.Manifold.cube(list(box[1] - box[0])).translate(list(box[0]))
             return (tool - solid).volume() <= 1e-6 * np.prod(box[1] - box[0])
         return inside_mesh
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_IN
     classifier = BRepClass3d_SolidClassifier(part.solid)
 
     def inside_brep(box: np.ndarray) -> bool:
@@ -868,11 +896,14 @@ def _inside_test(part: PrintedPart):
 
 def _inside_brep(shape: TopoDS_Shape, box: np.ndarray) -> bool:
     """True when the box ((2, 3) corners) lies wholly inside the OCC solid ``shape``."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+    from OCP.gp import gp_Pnt
     tool = BRepPrimAPI_MakeBox(gp_Pnt(*box[0]), gp_Pnt(*box[1])).Shape()
     outside = BRepAlgoAPI_Cut(tool, shape)
     if not outside.IsDone():
         return False
-    return float(cq.Shape.cast(outside.Shape()).Volume()) <= 1e-6 * np.prod(box[1] - box[0])
+    return _volume(outside.Shape()) <= 1e-6 * np.prod(box[1] - box[0])
 
 
 def _manifold(mesh: trimesh.Trimesh) -> m3.Manifold:
