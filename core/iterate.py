@@ -679,6 +679,7 @@ def changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_st
         "bricks_removed": len(taken),
         "bricks_kept": len(kept),
         "neighbourhood_rings": rings,
+        "first_new_id": int(plan.next_id),
         "parts_reprinted": [r["id"] for r in printing],
         "parts_kept": [r["id"] for r in reprint if not r["reprint"]],
         "parts_removed": removed,
@@ -703,8 +704,7 @@ th{background:#eee}.off{color:#b00020}.on{color:#00703c}.print{color:#0050b0}
 """
 
 
-def changes_page(iteration: Iteration, layout: Layout, path: str | os.PathLike,
-                 title: str) -> Path:
+def changes_page(changes: dict, layout: Layout, path: str | os.PathLike, title: str) -> Path:
     """Write the instructions diff as one self-contained HTML file at ``path``.
 
     Sections: what changed (alignment, cells); 1. take off: LEGO bricks (by
@@ -715,9 +715,9 @@ def changes_page(iteration: Iteration, layout: Layout, path: str | os.PathLike,
     of every layer that changes (kept bricks grey, taken off red dashed,
     added green, printed blue).  Returns the path written.
     """
-    ch = iteration.changes
+    ch = changes
     tr = ch["transform"]
-    name = f"{title}: changes since {iteration.previous.folder.name}"
+    name = f"{title}: changes since the previous version"
     e = html.escape
     rows = [f"<h1>{e(name)}</h1>",
             f"<p>{e(tr['message'])}. Rotation {tr['rotation_deg']:.3g}°, translation "
@@ -760,7 +760,7 @@ def changes_page(iteration: Iteration, layout: Layout, path: str | os.PathLike,
     if ch["parts_removed"]:
         rows.append(f"<p>Printed part(s) no longer used: {e(', '.join(ch['parts_removed']))}.</p>")
     rows.append("<h2>Layers that change</h2><div class='layers'>")
-    rows += _layer_views(iteration, layout)
+    rows += _layer_views(changes, layout)
     rows.append("</div>")
     text = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>" + e(name) + "</title><style>"
             + _PAGE_STYLE + "</style></head><body>" + "\n".join(rows) + "</body></html>\n")
@@ -788,12 +788,12 @@ def _brick_table(entries: list[dict], empty: str, replaces: bool) -> str:
     return "\n".join(out)
 
 
-def _layer_views(iteration: Iteration, layout: Layout, px: int = 14) -> list[str]:
+def _layer_views(changes: dict, layout: Layout, px: int = 14) -> list[str]:
     """One small SVG top view per changed layer, in previous-build coordinates:
     kept bricks grey, taken off red (dashed), added LEGO green, added printed blue."""
-    ch = iteration.changes
+    ch = changes
     offset = np.asarray(ch["grid_offset"])
-    first_new = _next_id(iteration)
+    first_new = ch["first_new_id"]
     boxes = [(np.array(b.cell) + offset, b.size, "#ccc") for b in layout.bricks
              if b.id < first_new]
     boxes += [(b["cell_previous"], b["size"], "#d33") for b in ch["take_off"]]
@@ -818,8 +818,3 @@ def _layer_views(iteration: Iteration, layout: Layout, px: int = 14) -> list[str
         out.append(f"<div class='layer'>layer {k}<br><svg xmlns='http://www.w3.org/2000/svg' "
                    f"width='{w}' height='{h}' viewBox='0 0 {w} {h}'>{''.join(shapes)}</svg></div>")
     return out
-
-
-def _next_id(iteration: Iteration) -> int:
-    """The first id given to a brick of this iteration."""
-    return max((b.id for b in iteration.previous.layout.bricks), default=-1) + 1

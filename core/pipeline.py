@@ -451,8 +451,43 @@ def _prepare_out(out: Path) -> None:
                          "choose an empty or new folder")
 
 
+def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
+    """The Fabrication of a stored result: the iteration snapshot in ``folder`` (an output
+    folder, or what the workbench keeps of one) and its report ``doc``.
+
+    It holds what :func:`write_outputs` writes (layout with its steps,
+    printed parts, model, regions, settings); the report is ``doc`` itself,
+    so :func:`write_outputs` called with ``report=doc`` writes the same
+    files a run writes.  Raises InputError when the snapshot cannot be read.
+    """
+    before = iterate_stage.load_previous(folder)
+    state = before.state
+    settings = state.get("settings") or {}
+    fit = state.get("fit") or {}
+    req = Request(model=str(doc["model"]["path"]), units=settings.get("units", "mm"),
+                  scale=float(settings.get("scale", 1.0)), seed=int(state.get("seed", 0)),
+                  stud_fit=float(fit.get("stud_fit", Fit.stud_fit)),
+                  socket_fit=float(fit.get("socket_fit", Fit.socket_fit)),
+                  seconds_per_brick=float(doc.get("seconds_per_brick", Request.seconds_per_brick)),
+                  seconds_per_part=float(doc.get("seconds_per_part", Request.seconds_per_part)))
+    m = doc["model"]
+    model = mesh_io.LoadedModel(before.mesh, str(m["path"]), m.get("format", ""),
+                                int(m.get("triangles", 0)), before.watertight,
+                                list(m.get("repaired", ())), list(m.get("warnings", ())), before.brep)
+    st = doc["stability"]
+    stab = stability_stage.Stability(int(st["regions"]), int(st["components"]),
+                                     list(st.get("weak_point_bricks", ())),
+                                     list(st.get("unconnectable", ())))
+    chosen = tuple(catalog.BY_NUMBER[n] for n in state["brick_set"] if n in catalog.BY_NUMBER)
+    printed = [before.parts[p["id"]] for p in doc.get("printed_parts", ()) if p["id"] in before.parts]
+    return Fabrication(req, model, chosen, before.grid, before.layout, stab,
+                       build_order.plan(before.layout), dict(doc.get("timings_s", {})), printed,
+                       regions=before.regions or high_res_stage.Regions(),
+                       marks=dict(doc.get("high_res", {})))
+
+
 def write_outputs(fab: Fabrication, out: str | os.PathLike,
-                  progress: Progress | None = None) -> dict:
+                  progress: Progress | None = None, report_doc: dict | None = None) -> dict:
     """Write ``report.json``, ``layout.json`` (and ``layout.png`` unless the request
     says no picture), the printed parts (``parts/``), the builder's files
     (``instructions.html``, ``assembly.mpd``, ``bom.csv``, ``bricklink.xml``,
@@ -461,7 +496,9 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     ``out``; returns the report.  Reads ``fab`` only.
 
     Everything is written into a temporary sibling folder first and moved
-    into place at the end, replacing an earlier output.
+    into place at the end, replacing an earlier output.  ``report_doc`` is
+    the report to write instead of :func:`report`'s (a stored result's,
+    :func:`stored`), with its ``changes`` page written too.
     """
     progress = progress or _noop
     out = Path(out)
@@ -490,10 +527,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
             render.render_layout(fab.layout, tmp / "layout.png",
                                  title=f"{title}: {len(fab.layout.bricks)} bricks")
         iterate_stage.snapshot(fab, tmp)
-        if fab.iteration is not None:
-            iterate_stage.changes_page(fab.iteration, fab.layout, tmp / "changes.html", title)
-        doc = report(fab)
-        doc["timings_s"]["write"] = round(time.perf_counter() - start, 4)
+        doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
+        if doc.get("changes"):
+            iterate_stage.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
+        doc.setdefault("timings_s", {})["write"] = round(time.perf_counter() - start, 4)
         doc["assembly"] = assembly
         doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
         (tmp / "report.json").write_text(json.dumps(doc, indent=2))
