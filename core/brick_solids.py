@@ -7,10 +7,14 @@ sews the rest into one solid (:func:`merged_solid`; "Merging and
 splitting").  Printed parts are not made from these solids any more: they
 keep the model whole and get studs and sockets only where they meet LEGO
 (:mod:`core.printed`, :mod:`core.interfaces`).  This
-This
 module builds the brick solid with OpenCascade (through cadquery's OCP)
 and tags every face from the construction history of the Boolean
 operations, never by guessing from positions afterwards.
+
+Nothing here sees the user's input (the callers build bricks from a layout
+and the catalog): wrong arguments raise ValueError or TypeError, an
+OpenCascade step that fails RuntimeError (:class:`BooleanFailed`,
+:class:`TessellationFailed`).
 
 Face indices
 ------------
@@ -66,8 +70,6 @@ from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape, TopoDS_Shell
 from OCP.TopTools import TopTools_IndexedMapOfShape, TopTools_ListOfShape
-
-from core.errors import InputError
 
 #: The four outer side tags, by axis and direction.
 SIDE_TAGS = ("side-x", "side+x", "side-y", "side+y")
@@ -127,12 +129,12 @@ class BrickGeometry:
         return self.wall - self.clearance / 2
 
     def check(self, layers: int) -> None:
-        """Raise :class:`InputError` unless a brick of ``layers`` plates can be built."""
+        """Raise ValueError unless a brick of ``layers`` plates can be built."""
         values = {name: getattr(self, name) for name in self.__dataclass_fields__}
         bad = [n for n, v in values.items()
                if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v)]
         if bad:
-            raise InputError(f"brick geometry: {', '.join(bad)} must be finite numbers")
+            raise ValueError(f"brick geometry: {', '.join(bad)} must be finite numbers")
         needs = (
             ("pitch", self.pitch > 0),
             ("plate_height", self.plate_height > 0),
@@ -149,7 +151,7 @@ class BrickGeometry:
         )
         wrong = [name for name, ok in needs if not ok]
         if wrong:
-            raise InputError(f"brick geometry: impossible {', '.join(wrong)}")
+            raise ValueError(f"brick geometry: impossible {', '.join(wrong)}")
 
 
 @dataclass
@@ -251,23 +253,24 @@ def brick_solid(size_x: int, size_y: int, layers: int,
 
     Returns one valid closed solid with every face tagged exactly once
     (tags from the history of the Booleans that build it).  Raises
-    :class:`InputError` for non-positive sizes, an unknown ``flush`` tag,
-    cells outside the footprint, a joint rectangle that is not one face
-    of the brick, or an impossible geometry.  Nothing is cached.
+    ValueError for non-positive sizes, an unknown ``flush`` tag, an origin
+    that is not three finite numbers, cells outside the footprint, a joint
+    rectangle that is not one face of the brick, or an impossible geometry.
+    Nothing is cached.
     """
     sizes = (size_x, size_y, layers)
     if not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes):
-        raise InputError(f"brick size {sizes} must be three positive whole numbers")
+        raise ValueError(f"brick size {sizes} must be three positive whole numbers")
     flush = frozenset(flush)
     if not flush <= set(SIDE_TAGS):
-        raise InputError(f"unknown side tag(s) {sorted(flush - set(SIDE_TAGS))} in flush "
+        raise ValueError(f"unknown side tag(s) {sorted(flush - set(SIDE_TAGS))} in flush "
                          f"(use {', '.join(SIDE_TAGS)})")
     try:
         ox, oy, oz = (float(v) for v in origin)
     except (TypeError, ValueError):
-        raise InputError(f"brick origin {origin!r} must be three numbers") from None
+        raise ValueError(f"brick origin {origin!r} must be three numbers") from None
     if not all(math.isfinite(v) for v in (ox, oy, oz)):
-        raise InputError(f"brick origin {origin!r} must be finite")
+        raise ValueError(f"brick origin {origin!r} must be finite")
     g = geometry
     g.check(layers)
     no_studs, solid_under = _footprint_cells(no_studs, size_x, size_y, "no_studs"), \
@@ -403,25 +406,26 @@ def to_trimesh(shape, tolerance: float = 0.05, angular_tolerance: float = 0.3) -
     every face's triangulation in bulk through OpenCascade's binary STL
     writer into a temporary file and trimesh's vectorised STL reader, which
     merges the shared edge nodes.  The mesh is watertight when the shape is
-    a valid closed solid.  Raises :class:`InputError` for a shape without
-    faces or a non-positive tolerance.
+    a valid closed solid.  Raises TypeError for what is not a shape,
+    ValueError for a shape without faces or a non-positive tolerance and
+    :class:`TessellationFailed` when OpenCascade cannot mesh a face.
     """
     occ = _occ(shape)
     if not (tolerance > 0 and angular_tolerance > 0):
-        raise InputError(f"tessellation tolerance {tolerance} must be positive")
+        raise ValueError(f"tessellation tolerances {tolerance}, {angular_tolerance} must be positive")
     if occ.IsNull() or _face_map(occ).Extent() == 0:
-        raise InputError("the shape to tessellate has no faces")
+        raise ValueError("the shape to tessellate has no faces")
     mesher = BRepMesh_IncrementalMesh(occ, tolerance, False, angular_tolerance, False)
     mesher.Perform()
     missing = [f for f in face_list(occ) if BRep_Tool.Triangulation_s(f, TopLoc_Location()) is None]
     if missing:
-        raise InputError(f"{len(missing)} face(s) of the shape could not be tessellated")
+        raise TessellationFailed(f"{len(missing)} face(s) of the shape could not be tessellated")
     with tempfile.TemporaryDirectory(prefix="fabrickator-") as tmp:
         path = Path(tmp) / "shape.stl"
         writer = StlAPI_Writer()
         writer.ASCIIMode = False
         if not writer.Write(occ, str(path)):
-            raise InputError("the shape could not be tessellated")
+            raise TessellationFailed("OpenCascade's STL writer could not write the tessellated shape")
         mesh = trimesh.load(str(path), file_type="stl", force="mesh")
     mesh.merge_vertices()
     return mesh
@@ -431,7 +435,7 @@ def _occ(shape) -> TopoDS_Shape:
     """The OCP shape inside a cadquery shape, or the OCP shape itself."""
     occ = getattr(shape, "wrapped", shape)
     if not isinstance(occ, TopoDS_Shape):
-        raise InputError(f"expected a cadquery or OCP shape, got {type(shape).__name__}")
+        raise TypeError(f"expected a cadquery or OCP shape, got {type(shape).__name__}")
     return occ
 
 
@@ -456,6 +460,10 @@ def _listed(shapes) -> TopTools_ListOfShape:
 
 class BooleanFailed(RuntimeError):
     """OpenCascade could not compute a Boolean."""
+
+
+class TessellationFailed(RuntimeError):
+    """OpenCascade could not tessellate a shape (:func:`to_trimesh`)."""
 
 
 def run_boolean(op, argument: TopoDS_Shape, tools: list, tagged: list | None = None,
@@ -506,27 +514,27 @@ def _only_solid(shape: TopoDS_Shape) -> TopoDS_Shape:
 
 
 def _cell_boxes(a_cell, a_size, b_cell, b_size):
-    """Integer min/max corners of two cell boxes; InputError when malformed."""
+    """Integer min/max corners of two cell boxes; ValueError when malformed."""
     try:
         parts = [tuple(int(v) for v in t) for t in (a_cell, a_size, b_cell, b_size)]
     except (TypeError, ValueError):
-        raise InputError("facing_sides needs cells and sizes as whole-number tuples") from None
+        raise ValueError("facing_sides needs cells and sizes as whole-number tuples") from None
     if len({len(t) for t in parts}) != 1 or len(parts[0]) not in (2, 3):
-        raise InputError("facing_sides needs cells and sizes of the same length, 2 or 3")
+        raise ValueError("facing_sides needs cells and sizes of the same length, 2 or 3")
     if any(s <= 0 for s in parts[1] + parts[3]):
-        raise InputError("facing_sides needs positive brick sizes")
+        raise ValueError("facing_sides needs positive brick sizes")
     (ac, asz, bc, bsz) = parts
     return (ac, tuple(c + s for c, s in zip(ac, asz)), bc, tuple(c + s for c, s in zip(bc, bsz)))
 
 
 def _footprint_cells(cells, size_x: int, size_y: int, what: str) -> frozenset[tuple[int, int]]:
-    """``cells`` as a set of (a, b) footprint cells; InputError when one lies outside."""
+    """``cells`` as a set of (a, b) footprint cells; ValueError when one lies outside."""
     try:
         out = frozenset((int(a), int(b)) for a, b in cells)
     except (TypeError, ValueError):
-        raise InputError(f"{what} must be footprint cells (a, b)") from None
+        raise ValueError(f"{what} must be footprint cells (a, b)") from None
     if any(not (0 <= a < size_x and 0 <= b < size_y) for a, b in out):
-        raise InputError(f"{what} has cells outside the {size_x}x{size_y} footprint")
+        raise ValueError(f"{what} has cells outside the {size_x}x{size_y} footprint")
     return out
 
 
@@ -544,10 +552,10 @@ def _joint_rects(joints) -> dict[str, tuple[tuple[float, ...], tuple[float, ...]
         try:
             lo, hi = (tuple(float(v) for v in c) for c in corners)
         except (TypeError, ValueError):
-            raise InputError(f"joint {name}: {corners!r} are not two corners") from None
+            raise ValueError(f"joint {name}: {corners!r} are not two corners") from None
         flat = [i for i in range(3) if abs(hi[i] - lo[i]) <= 1e-9] if len(lo) == len(hi) == 3 else []
         if len(flat) != 1 or any(hi[i] - lo[i] <= 1e-9 for i in range(3) if i != flat[0]):
-            raise InputError(f"joint {name}: {lo}..{hi} is not a rectangle normal to an axis")
+            raise ValueError(f"joint {name}: {lo}..{hi} is not a rectangle normal to an axis")
         out[str(name)] = (lo, hi)
     return out
 
@@ -575,8 +583,8 @@ def _face_box(face) -> np.ndarray:
 def _joint_faces(solid: TopoDS_Shape, rects: dict) -> dict[str, list[int]]:
     """Per joint rectangle, the index of the one face of ``solid`` that is exactly it.
 
-    InputError when a rectangle is not exactly one face (it does not lie
-    on a plain outer face of the brick)."""
+    :class:`_JointNotAFace` when a rectangle is not exactly one face (it does
+    not lie on a plain outer face of the brick)."""
     if not rects:
         return {}
     faces = face_list(solid)
@@ -588,7 +596,8 @@ def _joint_faces(solid: TopoDS_Shape, rects: dict) -> dict[str, list[int]]:
         area = float(np.prod([h - l for l, h in zip(lo, hi) if h - l > 1e-9]))
         hit = [int(i) for i in hit if abs(_area(faces[i]) - area) <= 1e-6 * max(area, 1.0)]
         if len(hit) != 1:
-            raise InputError(f"joint {name} is not one plain outer face of the brick ({len(hit)} found)")
+            raise _JointNotAFace(f"joint {name} is not one plain outer face of the brick "
+                                 f"({len(hit)} found)")
         out[name] = hit
     return out
 
@@ -710,18 +719,19 @@ def merged_solid(cells, sizes, geometry: BrickGeometry = BrickGeometry(),
     solids when face removal does not give one valid closed solid),
     ``"remove"`` (face removal only: RuntimeError when it fails) or
     ``"fuse"``.  ``names`` label the bricks in the tags (default their
-    index).  Raises InputError for malformed cells or sizes and for bricks
-    that overlap or do not form one face-to-face connected group.
+    index).  Raises ValueError for an unknown method, malformed cells or
+    sizes and for bricks that overlap or do not form one face-to-face
+    connected group.
     """
     if method not in ("auto", "remove", "fuse"):
-        raise InputError(f"merge method {method!r} must be auto, remove or fuse")
+        raise ValueError(f"merge method {method!r} must be auto, remove or fuse")
     try:
         cells, sizes = [tuple(int(v) for v in c) for c in cells], [tuple(int(v) for v in s) for s in sizes]
     except (TypeError, ValueError):
-        raise InputError("merged_solid needs cells and sizes as whole-number triples") from None
+        raise ValueError("merged_solid needs cells and sizes as whole-number triples") from None
     names = [str(v) for v in (names if names is not None else range(len(cells)))]
     if not cells or len(cells) != len(sizes) or len(names) != len(cells):
-        raise InputError("merged_solid needs as many cells, sizes and names as bricks, at least one")
+        raise ValueError("merged_solid needs as many cells, sizes and names as bricks, at least one")
     _check_group(cells, sizes)
     contacts = part_contacts(cells, sizes, geometry, grid_origin)
     origins = [tuple(np.asarray(grid_origin, float) + np.array(cell) * [geometry.pitch, geometry.pitch,
@@ -744,7 +754,7 @@ def merged_solid(cells, sizes, geometry: BrickGeometry = BrickGeometry(),
             bricks, tagged = build(True)
             shape, carried, removed = _sew(bricks, tagged)
             return MergedSolid(shape, carried, "face removal", removed)
-        except (_MergeFailed, InputError) as exc:
+        except (_MergeFailed, _JointNotAFace) as exc:
             if method == "remove":
                 raise RuntimeError(f"face removal failed: {exc}") from None
             reason = str(exc)
@@ -760,21 +770,25 @@ class _MergeFailed(Exception):
     """Face removal and sewing did not give one valid closed solid; the message says why."""
 
 
+class _JointNotAFace(ValueError):
+    """A joint rectangle is not exactly one face of the brick built with it."""
+
+
 def _check_group(cells, sizes) -> None:
-    """InputError unless the bricks neither overlap nor fall apart into several groups."""
+    """ValueError unless the bricks neither overlap nor fall apart into several groups."""
     n = len(cells)
     boxes = [_cell_boxes(c, s, c, s)[:2] for c, s in zip(cells, sizes)]
     if any(len(c) != 3 for c in cells) or any(min(s) < 1 for s in sizes):
-        raise InputError("brick cells and sizes must be (i, j, k) and positive (x, y, z)")
+        raise ValueError("brick cells and sizes must be (i, j, k) and positive (x, y, z)")
     lo, hi = np.array([b[0] for b in boxes]), np.array([b[1] for b in boxes])
     gap = np.minimum(hi[:, None], hi[None]) - np.maximum(lo[:, None], lo[None])  # (n, n, 3)
     overlap = np.all(gap > 0, axis=2) & ~np.eye(n, dtype=bool)
     if overlap.any():
         a, b = np.argwhere(overlap)[0]
-        raise InputError(f"bricks {a} and {b} overlap")
+        raise ValueError(f"bricks {a} and {b} overlap")
     touch = (np.count_nonzero(gap == 0, axis=2) == 1) & np.all(gap >= 0, axis=2)
     if connected_components(csr_matrix(touch), directed=False)[0] != 1:
-        raise InputError("the bricks to merge do not touch face to face as one group")
+        raise ValueError("the bricks to merge do not touch face to face as one group")
 
 
 def _sew(bricks: list[BrickSolid], tagged: list) -> tuple[TopoDS_Shape, list, int]:

@@ -184,12 +184,12 @@ def _serpentine(box: np.ndarray) -> np.ndarray:
 
 def _check(layout: Layout, bricks_per_step: int) -> None:
     if not isinstance(layout, Layout):
-        raise InputError(f"build order needs a Layout, got {type(layout).__name__}")
+        raise TypeError(f"build order needs a Layout, got {type(layout).__name__}")
     if not (isinstance(bricks_per_step, (int, np.integer)) and bricks_per_step >= 1):
-        raise InputError(f"bricks per step must be a whole number >= 1, got {bricks_per_step!r}")
+        raise ValueError(f"bricks per step must be a whole number >= 1, got {bricks_per_step!r}")
     ids = [b.id for b in layout.bricks]
     if len(set(ids)) != len(ids):
-        raise InputError("the layout has bricks with the same id; cannot number the steps")
+        raise ValueError("the layout has bricks with the same id; cannot number the steps")
 
 
 def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
@@ -200,8 +200,9 @@ def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
     unit of a step stands on the base or touches (directly above or below) a
     unit of an earlier step, except the bricks listed in ``unattached``; a
     printed part not listed in ``early_parts`` comes after every unit under
-    it.  Does not modify ``layout`` (see :func:`assign`).  Raises
-    InputError for a layout with duplicate brick ids or a bad step size.
+    it.  Does not modify ``layout`` (see :func:`assign`).  Raises TypeError
+    for what is not a Layout, ValueError for a layout with duplicate brick
+    ids or a bad step size.
     """
     _check(layout, bricks_per_step)
     if not layout.bricks:
@@ -305,7 +306,11 @@ def assign(layout: Layout, order: BuildOrder) -> None:
 
 def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRICK,
                      seconds_per_part: float = SECONDS_PER_PART) -> float:
-    """Assembly estimate: ``seconds_per_brick`` per LEGO brick + ``seconds_per_part`` per printed part."""
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick + ``seconds_per_part`` per printed part.
+
+    The two are the user's settings (command line, document properties), so a
+    value that is not a number of seconds >= 0 is an :class:`InputError`.
+    """
     for name, value in (("seconds per brick", seconds_per_brick),
                         ("seconds per printed part", seconds_per_part)):
         if not (isinstance(value, (int, float)) and 0 <= value < 1e6):

@@ -165,7 +165,9 @@ def build_strip(values, fit: Fit = Fit()) -> Strip:
     z = ``socket_depth + roof``, its socket a square hole ``4.8 + values[n]``
     wide from z = 0 up to ``socket_depth``, both centred on the column's
     block; its label is raised LABEL_RAISE_MM on the band beside it.  Raises
-    InputError for an empty ``values`` or a value :func:`column_fit` refuses.
+    InputError for a value :func:`column_fit` refuses (the user's), ValueError
+    for an empty ``values`` (:func:`strip_values` never gives one) and
+    RuntimeError when the strip does not come out as one valid solid.
     """
     import cadquery as cq
 
@@ -173,7 +175,7 @@ def build_strip(values, fit: Fit = Fit()) -> Strip:
 
     values = tuple(_tidy(v) for v in values)
     if not values:
-        raise InputError("the calibration strip needs at least one value")
+        raise ValueError("the calibration strip needs at least one value")
     fits = [column_fit(fit, v) for v in values]
     cell = cell_mm(fit)
     height = fit.socket_depth + fit.roof
@@ -196,7 +198,7 @@ def build_strip(values, fit: Fit = Fit()) -> Strip:
     solid = band.fuse(*cells).fuse(*labels, glue=True)
     solid = solid.clean()
     if len(solid.Solids()) != 1 or not solid.isValid():
-        raise InputError("the calibration strip did not come out as one valid solid")
+        raise RuntimeError("the calibration strip did not come out as one valid solid")
     shape = solid.Solids()[0].wrapped
     mesh = to_trimesh(shape, MESH_TOLERANCE_MM, MESH_ANGLE_RAD)
     return Strip(values, fit, pitch, shape, mesh)

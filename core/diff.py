@@ -150,6 +150,8 @@ def changed_boxes(old: trimesh.Trimesh, new: trimesh.Trimesh, old_brep=None, new
     Regions that no box meets have the same surface in both versions.
     """
     if old_brep is not None and new_brep is not None:
+        from core.brick_solids import TessellationFailed
+
         a, b = _face_table(old_brep), _face_table(new_brep)
         keep_a, keep_b = _faces_matched(a, b, tol), _faces_matched(b, a, tol)
         gone = [f for f, ok in zip(a.faces, keep_a) if not ok]
@@ -157,7 +159,7 @@ def changed_boxes(old: trimesh.Trimesh, new: trimesh.Trimesh, old_brep=None, new
         coarse = np.concatenate([a.boxes[~keep_a], b.boxes[~keep_b]])
         try:
             before, after = _face_triangles(gone), _face_triangles(came)
-        except InputError:
+        except TessellationFailed:
             return coarse
     else:
         ta, tb = np.asarray(old.triangles), np.asarray(new.triangles)

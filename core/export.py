@@ -29,7 +29,6 @@ import numpy as np
 import trimesh
 
 from core import print_time
-from core.errors import InputError
 from core.print_time import Pose
 from core.printed import PrintedPart
 
@@ -157,7 +156,8 @@ def plate(parts: list) -> list[trimesh.Trimesh]:
 
 
 def write_step(shape, path: str | os.PathLike) -> None:
-    """Write an OCP shape as a STEP (AP214) file in mm; InputError when OCC refuses."""
+    """Write an OCP shape as a STEP (AP214) file in mm; RuntimeError when OCC's
+    writer fails (the shape cannot be written there)."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.Interface import Interface_Static
     from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
@@ -166,7 +166,7 @@ def write_step(shape, path: str | os.PathLike) -> None:
     writer = STEPControl_Writer()
     writer.Transfer(shape, STEPControl_AsIs)
     if writer.Write(str(path)) != IFSelect_RetDone:
-        raise InputError(f"could not write the STEP file {path}")
+        raise RuntimeError(f"OpenCascade could not write the STEP file {path}")
 
 
 #: Fixed part of a faceted STEP file: header, product and mm units (entities #1..#13).
@@ -207,11 +207,12 @@ def write_faceted_step(mesh: trimesh.Trimesh, path: str | os.PathLike, name: str
     triangle, bounded by a ``POLY_LOOP`` of its three corners (counter-
     clockwise seen from outside) on the ``PLANE`` of its outward normal.
     OpenCascade reads it back as one closed solid of the mesh's volume.
+    Raises ValueError for a mesh without triangles.
     """
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if len(faces) == 0:
-        raise InputError(f"cannot write {path}: the part has no triangles")
+        raise ValueError(f"cannot write {path}: the part has no triangles")
     normals = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.where(length > 1e-300, normals / np.where(length > 1e-300, length, 1.0), [0.0, 0.0, 1.0])

@@ -50,7 +50,6 @@ from scipy.sparse.csgraph import connected_components
 
 from core import bom, build_order, ldraw
 from core.catalog import BY_NUMBER
-from core.errors import InputError
 from core.model import Layout
 
 #: Picture directions: screen right and screen down of a model vector (mm).
@@ -406,12 +405,12 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
          assembly_s: float | None = None) -> tuple[str, dict]:
     """The whole ``instructions.html`` text, and facts about its picture.
 
-    Raises InputError when ``order`` does not cover every brick of ``layout``.
+    Raises ValueError when ``order`` does not cover every brick of ``layout``.
     """
     step_of = order.step_of()
     missing = [b.id for b in layout.bricks if b.id not in step_of]
     if missing:
-        raise InputError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
+        raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
     svg, facts = svg_picture(layout, order, current=1)
     used = sorted({b.part for b in layout.bricks if b.kind != "printed" and b.part in BY_NUMBER})
     icons = "".join(_icon(n, layout.grid.cell) for n in used)
@@ -475,11 +474,14 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     :class:`core.build_order.BuildOrder`), ``split_bricks`` (bricks the
     picture draws as columns, see :func:`drawing_pieces`), ``files`` (role ->
     file name) and ``timings_s``.  Raises
-    InputError for a folder that does not exist or bad numbers.
+    FileNotFoundError for a folder that does not exist (the caller makes
+    it), InputError for seconds per brick or part that are not a number of
+    seconds >= 0 (the user's settings, :func:`core.build_order.assembly_seconds`)
+    and ValueError for a bad ``bricks_per_step``.
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(f"cannot write the assembly files: folder {folder} does not exist")
+        raise FileNotFoundError(f"cannot write the assembly files: folder {folder} does not exist")
     printed_parts = list(printed_parts or [])
     timings = {}
     t = time.perf_counter()

@@ -138,10 +138,11 @@ def lay_out(grid: Grid, parts: tuple[Part, ...] = CATALOG, seed: int = 0,
     only; together the bricks cover every filled cell once.  The same grid,
     parts and seed give the same layout.  ``progress(fraction, message)`` is
     called now and then.  Raises :class:`InputError` for a part set without
-    the 1x1 plate 3024 or a grid that is not a 3-D boolean array.
+    the 1x1 plate 3024 or a seed that is not a whole number >= 0 (both the
+    user's choice), TypeError for a grid that is not a 3-D boolean array.
     """
     report = progress or _silent
-    filled = _check(grid, parts)
+    filled = _check(grid, parts, seed)
     if not filled.any():
         return Layout(grid, [])
     parts = tuple(parts)
@@ -194,13 +195,16 @@ def _better(new: tuple[int, int, int], old: tuple[int, int, int], budget: int) -
     return new[2] < old[2]
 
 
-def _check(grid: Grid, parts: tuple[Part, ...]) -> np.ndarray:
-    """The grid's occupancy as a C-contiguous bool array, or InputError."""
+def _check(grid: Grid, parts: tuple[Part, ...], seed) -> np.ndarray:
+    """The grid's occupancy as a C-contiguous bool array; TypeError for a grid that
+    is not a 3-D boolean array, InputError for the user's brick set or seed."""
     filled = np.asarray(grid.filled)
     if filled.ndim != 3 or filled.dtype != np.bool_:
-        raise InputError(f"the grid must be a 3-D boolean array, not {filled.dtype} of shape {filled.shape}")
+        raise TypeError(f"the grid must be a 3-D boolean array, not {filled.dtype} of shape {filled.shape}")
     if not any(p.footprint == (1, 1) and p.layers == PLATE_LAYERS for p in parts):
         raise InputError("the brick set must contain the 1x1 plate 3024, or some cells could not be covered")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"the seed must be a whole number >= 0, got {seed!r}")
     return np.ascontiguousarray(filled)
 
 

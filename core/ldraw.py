@@ -129,8 +129,9 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
     in model mm).  Each step's LEGO bricks become type-1 references to
     ``<design number>.dat`` in :data:`LEGO_COLOR`; a printed part becomes one
     reference to its embedded subfile, in the step of its first brick.
-    Raises InputError when a brick is in no step or a printed brick has no
-    printed part.
+    Raises ValueError when a brick is in no step or in two, a step names a
+    brick that is not in the layout, or a printed brick has no printed part
+    (the caller's steps and parts do not match the layout).
     """
     grid = layout.grid
     shift = centring_shift(grid.shape)
@@ -152,12 +153,12 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
         for bid in bricks:
             b = index.get(bid)
             if b is None or bid in seen:
-                raise InputError(f"step {n + 1} lists brick {bid}, which is not in the layout "
+                raise ValueError(f"step {n + 1} lists brick {bid}, which is not in the layout "
                                  "or already in an earlier step")
             seen.add(bid)
             if b.kind == "printed":
                 if b.printed_part not in meshes:
-                    raise InputError(f"brick {bid} is printed but its printed part "
+                    raise ValueError(f"brick {bid} is printed but its printed part "
                                      f"{b.printed_part!r} was not given")
                 if b.printed_part not in inserted:
                     inserted.add(b.printed_part)
@@ -168,7 +169,7 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
             lines.append(_ref(LEGO_COLOR, pos, rot, f"{b.part}.dat"))
     missing = [b.id for b in layout.bricks if b.id not in seen]
     if missing:
-        raise InputError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
+        raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
     if step_lists:
         lines.append("0 STEP")
     lines.append("0 NOFILE")
@@ -232,7 +233,8 @@ def parse(text_or_path) -> LDrawDocument:
     Line types: 0 (``FILE``, ``NOFILE``, ``STEP``, ``BFC CERTIFY CCW``; other
     meta lines and comments are skipped), 1 (references), 2-5 (geometry;
     triangles are kept, quads counted).  A trailing empty step is dropped.
-    Raises InputError naming the line for an unknown line type, a wrong
+    LDraw text is a file the user may give (from LeoCAD, Studio, ...), so it
+    raises InputError naming the line for an unknown line type, a wrong
     number of fields, a number that does not parse or is not finite, a
     singular rotation, or geometry outside any file of an MPD.
     """

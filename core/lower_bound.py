@@ -270,13 +270,15 @@ def brick_lower_bound(grid: Grid, parts: tuple[Part, ...] = CATALOG,
     its clock now and then, so it may run over by a few seconds on programs
     near the size limit); it is shared among the 6-connected regions, fewest
     placements first, each getting a share of what is left proportional to
-    its number of placements.  An empty grid needs 0 parts.
+    its number of placements.  An empty grid needs 0 parts.  Raises
+    InputError for an empty brick set, ValueError for a time limit that is
+    not positive.
     """
     start = time.perf_counter()
     if not parts:
         raise InputError("the brick set for the lower bound is empty")
     if not time_limit_s > 0:
-        raise InputError(f"the time limit for the lower bound must be positive, not {time_limit_s}")
+        raise ValueError(f"the time limit for the lower bound must be positive, not {time_limit_s}")
     filled = np.asarray(grid.filled, dtype=bool)
     shapes = part_shapes(parts)
     found, n_vars = _placements(filled, shapes)

@@ -91,12 +91,13 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     for a missing, empty, unreadable or unsupported file, bad units or
     scale, non-finite coordinates, a file without triangles or solids, or a
     mesh of which nothing encloses volume.  Never raises another exception
-    for a bad file.
+    for a bad file; a ``tolerance_mm`` that is not a positive number (the
+    caller's) is a ValueError.
     """
     factor = _unit_factor(units, scale)
     if not (isinstance(tolerance_mm, (int, float)) and math.isfinite(tolerance_mm)
             and tolerance_mm > 0):
-        raise InputError(f"tolerance_mm must be a positive number of mm, not {tolerance_mm!r}")
+        raise ValueError(f"tolerance_mm must be a positive number of mm, not {tolerance_mm!r}")
     file = _check_file(path)
     fmt = FORMATS[file.suffix.lower()]
     warnings: list[str] = []

@@ -324,7 +324,8 @@ def as_meshes(meshes) -> list[trimesh.Trimesh]:
     """Meshes from a list of ``trimesh.Trimesh`` and/or mesh file paths.
 
     Raises InputError naming the file that is missing, unreadable or holds
-    no triangles.
+    no triangles, ValueError for a given mesh without triangles (the
+    caller's).
     """
     loaded = []
     for index, item in enumerate(meshes):
@@ -336,10 +337,10 @@ def as_meshes(meshes) -> list[trimesh.Trimesh]:
                 mesh = trimesh.load(str(item), force="mesh")
             except Exception as exc:  # trimesh raises many types for bad files
                 raise InputError(f"cannot read mesh {item}: {exc}") from None
-            if not isinstance(mesh, trimesh.Trimesh):
+            if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
                 raise InputError(f"cannot read mesh {item}: no triangles")
         if len(mesh.faces) == 0:
-            raise InputError(f"mesh {name} has no triangles")
+            raise ValueError(f"mesh {name} has no triangles")
         loaded.append(mesh)
     return loaded
 
@@ -736,8 +737,9 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike = 
     slicing fails, the result is :func:`estimate_seconds` plus
     :func:`support_seconds` for each part that needs supports, and
     ``method`` says ``"estimate (...; <reason>)"``.  Never raises for parts
-    that do not fit; raises InputError only for meshes that cannot be read
-    or an unreadable profile.  An empty list takes 0 s.
+    that do not fit; raises InputError only for mesh files that cannot be
+    read or an unreadable profile (ValueError for a given mesh without
+    triangles).  An empty list takes 0 s.
     """
     parts = as_meshes(meshes)
     if not parts:

@@ -199,7 +199,8 @@ def model_solid(model: LoadedModel) -> ModelSolid:
     another that faces inward stays a cavity); a B-rep of several solids is
     fused into one.  Raises :class:`InputError` when a mesh model is not a
     closed oriented 2-manifold (an open or self-touching mesh cannot be
-    intersected exactly).
+    intersected exactly), a B-rep model has no solid or its solids cannot
+    be fused.
     """
     manifold = _union_of_shells(model.mesh)
     if manifold.status() != m3.Error.NoError or manifold.is_empty():
@@ -210,9 +211,21 @@ def model_solid(model: LoadedModel) -> ModelSolid:
         solids = _solids(model.brep)
         if not solids:
             raise InputError(f"{model.path}: the file has no solid to cut printed parts from")
-        from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-        brep = solids[0] if len(solids) == 1 else _unify(_run(BRepAlgoAPI_Fuse(), solids[0], solids[1:]))
+        brep = solids[0] if len(solids) == 1 else _fused(solids, model.path)
     return ModelSolid(manifold=manifold, brep=brep)
+
+
+def _fused(solids: list, path) -> TopoDS_Shape:
+    """The union of the model's B-rep ``solids``; InputError naming ``path`` when
+    OpenCascade cannot fuse them (the model's geometry defeats the Boolean)."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
+
+    from core.brick_solids import BooleanFailed, run_boolean
+    try:
+        return _unify(run_boolean(BRepAlgoAPI_Fuse(), solids[0], list(solids[1:]), None, True))
+    except BooleanFailed:
+        raise InputError(f"{path}: OpenCascade could not fuse its {len(solids)} solids into one, "
+                         "so printed parts cannot be cut from it") from None
 
 
 def _union_of_shells(mesh: trimesh.Trimesh) -> m3.Manifold:
@@ -256,17 +269,18 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit
                 links: connectors_stage.Connectors | None = None) -> list[PrintedPart]:
     """One :class:`PrintedPart` per group of brick ids, named P1, P2, ... in group order.
 
-    Every group must be face-to-face connected (InputError otherwise), and
-    no brick may be in two groups.  With ``connectors`` every cell where a
-    part meets a brick of another group or a LEGO brick directly above or
-    below gets a stud or a socket; ``links`` are those cells when the caller
-    already has them (:func:`core.connectors.find` of ``groups``).  Does not
-    change ``layout``; see :func:`apply`.
+    Every group must be face-to-face connected (InputError otherwise: a
+    merge brush joined parts that do not touch), and no brick may be in two
+    groups (ValueError: the caller's groups are wrong).  With ``connectors``
+    every cell where a part meets a brick of another group or a LEGO brick
+    directly above or below gets a stud or a socket; ``links`` are those
+    cells when the caller already has them (:func:`core.connectors.find` of
+    ``groups``).  Does not change ``layout``; see :func:`apply`.
     """
     seen: set[int] = set()
     for g in groups:
         if seen & set(g):
-            raise InputError(f"brick(s) {sorted(seen & set(g))[:5]} are in two printed parts")
+            raise ValueError(f"brick(s) {sorted(seen & set(g))[:5]} are in two printed parts")
         seen |= set(g)
         high_res.check_ids(layout, g)
         if not high_res.is_connected(layout, g):
@@ -671,15 +685,6 @@ def _volume(shape: TopoDS_Shape) -> float:
     """The volume (mm³) of the OCC ``shape``."""
     import cadquery as cq
     return float(cq.Shape.cast(shape).Volume())
-
-
-def _run(op, argument, tools):
-    """:func:`core.brick_solids.run_boolean` for a printed part; a failure is bad input."""
-    from core.brick_solids import BooleanFailed, run_boolean
-    try:
-        return run_boolean(op, argument, list(tools), None, True)
-    except BooleanFailed:
-        raise InputError("OpenCascade could not compute a printed part (Boolean failed)") from None
 
 
 def _occ(op, argument, tools):

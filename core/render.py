@@ -31,7 +31,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
-from core.errors import InputError
 from core.model import Layout
 
 #: LEGO colours (RGB 0..1): red, blue, yellow, green, orange, medium azure,
@@ -195,19 +194,20 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     Bricks are shaded boxes with black outlines along brick edges and studs
     on their exposed tops, printed bricks light grey; ``title`` goes above.
     A layout without bricks gives a picture that says so.  Raises
-    InputError for a size that is not two positive integers or a path whose
-    folder does not exist.
+    ValueError for a size that is not two integers from 16 to 20000 and
+    FileNotFoundError for a path whose folder does not exist (the caller
+    makes the folder).
     """
     try:
         width, height = (int(s) for s in size_px)
     except (TypeError, ValueError):
-        raise InputError(f"picture size must be two integers (width, height), got {size_px!r}")
+        raise ValueError(f"picture size must be two integers (width, height), got {size_px!r}") from None
     if width < 16 or height < 16 or width > 20000 or height > 20000:
-        raise InputError(f"picture size must be 16 to 20000 pixels each way, got {width} x {height}")
+        raise ValueError(f"picture size must be 16 to 20000 pixels each way, got {width} x {height}")
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise InputError(f"cannot write the picture: folder {folder} does not exist")
+        raise FileNotFoundError(f"cannot write the picture: folder {folder} does not exist")
 
     dpi = 100
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=BACKGROUND_RGB)

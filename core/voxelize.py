@@ -68,7 +68,6 @@ from numba import njit, prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from core.errors import InputError
 from core.model import CELL_MM, Grid
 
 #: A triangle must penetrate a cell's interior by more than this (mm) to fill it.
@@ -86,10 +85,10 @@ SAMPLE_FRACTION = (0.5 + 0.1234567, 0.5 + 0.0765432, 0.5 + 0.1471)
 
 
 def _cell_size(cell) -> np.ndarray:
-    """The cell size as a float array of 3 positive finite numbers, else InputError."""
+    """The cell size as a float array of 3 positive finite numbers, else ValueError."""
     c = np.asarray(cell, dtype=np.float64)
     if c.shape != (3,) or not np.all(np.isfinite(c)) or np.any(c <= 0):
-        raise InputError(f"cell size must be three positive numbers in mm, got {cell!r}")
+        raise ValueError(f"cell size must be three positive numbers in mm, got {cell!r}")
     return c
 
 
@@ -100,16 +99,17 @@ def grid_frame(bounds: np.ndarray, cell=CELL_MM) -> tuple[np.ndarray, tuple[int,
     Alignment: z starts at the part's lowest point (the part stands on the base
     plate); in x and y the grown box is centred on the part's box (equal overhang
     both sides).  At least one cell per axis.  A part extent that is a whole number
-    of cells (within 1e-6 mm) gets exactly that many cells.  Raises InputError for
-    bounds that are not finite or not ordered.
+    of cells (within 1e-6 mm) gets exactly that many cells.  Raises ValueError for
+    bounds that are not finite or not ordered (the model loader refuses such a
+    model first, :mod:`core.mesh_io`).
     """
     c = _cell_size(cell)
     b = np.asarray(bounds, dtype=np.float64)
     if b.shape != (2, 3) or not np.all(np.isfinite(b)):
-        raise InputError("model bounds are not finite (empty mesh or NaN/inf coordinates)")
+        raise ValueError("model bounds are not finite (empty mesh or NaN/inf coordinates)")
     extent = b[1] - b[0]
     if np.any(extent < 0):
-        raise InputError("model bounds are not ordered (max below min)")
+        raise ValueError("model bounds are not ordered (max below min)")
     counts = np.maximum(1, np.ceil((extent - WHOLE_CELL_TOL_MM) / c)).astype(np.int64)
     origin = b[0] - (counts * c - extent) / 2.0
     origin[2] = b[0, 2]
@@ -145,26 +145,27 @@ def legofy(mesh: trimesh.Trimesh, cell=CELL_MM, origin=None, shape=None,
     ignored (they still decide what is inside).  closed defaults to
     mesh.is_watertight and decides which inside test is used: one ray family for
     closed meshes, six-way voting plus generalized winding numbers otherwise (see
-    the module docstring).  Raises InputError for a mesh without triangles, with
-    non-finite coordinates, or a bad cell size, origin or shape.
+    the module docstring).  Raises ValueError for a mesh without triangles, with
+    non-finite coordinates, or a bad cell size, origin or shape: the user's
+    files are refused before, by :mod:`core.mesh_io`.
     """
     c = _cell_size(cell)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if faces.ndim != 2 or len(faces) == 0:
-        raise InputError("mesh has no triangles")
+        raise ValueError("mesh has no triangles")
     if not np.all(np.isfinite(vertices)):
-        raise InputError("mesh has NaN or infinite vertex coordinates")
+        raise ValueError("mesh has NaN or infinite vertex coordinates")
     if origin is None or shape is None:
         frame_origin, frame_shape = grid_frame(mesh.bounds, c)
         origin = frame_origin if origin is None else origin
         shape = frame_shape if shape is None else shape
     origin = np.asarray(origin, dtype=np.float64)
     if origin.shape != (3,) or not np.all(np.isfinite(origin)):
-        raise InputError(f"grid origin must be three finite numbers, got {origin!r}")
+        raise ValueError(f"grid origin must be three finite numbers, got {origin!r}")
     dims = np.asarray(shape)
     if dims.shape != (3,) or not np.issubdtype(dims.dtype, np.integer) or np.any(dims < 1):
-        raise InputError(f"grid shape must be three positive integers, got {shape!r}")
+        raise ValueError(f"grid shape must be three positive integers, got {shape!r}")
     dims = dims.astype(np.int64)
     if closed is None:
         closed = bool(mesh.is_watertight)

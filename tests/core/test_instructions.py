@@ -152,11 +152,11 @@ def test_write_assembly_sets_steps_and_writes_all_files(hmd):
 
 def test_write_assembly_refuses_a_missing_folder_and_bad_numbers(hmd, tmp_path):
     fab, _, _ = hmd
-    with pytest.raises(InputError, match="does not exist"):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
         instructions.write_assembly(fab.layout, fab.printed, tmp_path / "nope")
     with pytest.raises(InputError, match="seconds"):
         instructions.write_assembly(fab.layout, fab.printed, tmp_path, seconds_per_brick=-5)
-    with pytest.raises(InputError, match="per step"):
+    with pytest.raises(ValueError, match="per step"):
         instructions.write_assembly(fab.layout, fab.printed, tmp_path, bricks_per_step=0)
 
 
@@ -164,7 +164,7 @@ def test_page_refuses_an_order_that_misses_bricks(hmd):
     fab, _, _ = hmd
     order = build_order.plan(fab.layout)
     short = build_order.BuildOrder(order.steps[:-1])
-    with pytest.raises(InputError, match="no assembly step"):
+    with pytest.raises(ValueError, match="no assembly step"):
         instructions.page(fab.layout, short)
 
 

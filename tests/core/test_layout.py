@@ -169,7 +169,7 @@ def test_part_set_without_1x1_plate_is_refused():
 
 
 def test_non_boolean_grid_is_refused():
-    with pytest.raises(InputError, match="boolean"):
+    with pytest.raises(TypeError, match="boolean"):
         lay_out(Grid(np.zeros(3), np.array(CELL_MM), np.ones((2, 2), dtype=float)))
 
 

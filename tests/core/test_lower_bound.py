@@ -108,7 +108,7 @@ def test_empty_grid_needs_nothing():
 def test_bad_arguments():
     with pytest.raises(InputError):
         brick_lower_bound(solid(1, 1, 1), ())
-    with pytest.raises(InputError):
+    with pytest.raises(ValueError):
         brick_lower_bound(solid(1, 1, 1), time_limit_s=0)
 
 

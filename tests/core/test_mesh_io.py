@@ -294,7 +294,7 @@ def test_bad_units_or_scale_are_refused(tmp_path, units, scale):
 def test_bad_tolerance_is_refused(tmp_path, tolerance):
     path = tmp_path / "box.stl"
     box_mesh().export(path)
-    with pytest.raises(InputError, match="tolerance"):
+    with pytest.raises(ValueError, match="tolerance"):
         load_model(path, tolerance_mm=tolerance)
 
 

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from core.errors import InputError
 from core.model import CELL_MM, Brick, Grid, Layout
 from core.render import PRINTED_RGB, SHADE, brick_colours, render_layout
 
@@ -100,9 +99,9 @@ def test_many_bricks(tmp_path):
 
 
 def test_bad_arguments(tmp_path):
-    with pytest.raises(InputError):
+    with pytest.raises(ValueError):
         render_layout(staircase(), tmp_path / "a.png", size_px=(0, 100))
-    with pytest.raises(InputError):
+    with pytest.raises(ValueError):
         render_layout(staircase(), tmp_path / "a.png", size_px="big")
-    with pytest.raises(InputError):
+    with pytest.raises(FileNotFoundError):
         render_layout(staircase(), tmp_path / "missing" / "a.png")

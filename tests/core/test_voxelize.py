@@ -13,7 +13,6 @@ from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from core import voxelize
-from core.errors import InputError
 from core.model import CELL_MM
 
 MODELS = Path(__file__).resolve().parents[2].parent / "shared" / "models"
@@ -106,7 +105,7 @@ def test_frame_centres_xy_and_stands_on_zmin():
 @pytest.mark.parametrize("bounds", [np.array([[0, 0, np.nan], [1, 1, 1]]), np.zeros((3, 3)),
                                     np.array([[0, 0, 0], [1, -1, 1]])])
 def test_frame_refuses_bad_bounds(bounds):
-    with pytest.raises(InputError):
+    with pytest.raises(ValueError):
         voxelize.grid_frame(bounds)
 
 
@@ -343,7 +342,7 @@ def test_bad_input_is_refused_with_one_line():
         (good, {"cell": (8, 0, 3.2)}),
     ]
     for mesh, kwargs in cases:
-        with pytest.raises(InputError) as err:
+        with pytest.raises(ValueError) as err:
             voxelize.legofy(mesh, **kwargs)
         assert "\n" not in str(err.value)
 
