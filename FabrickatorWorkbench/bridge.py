@@ -13,6 +13,8 @@ import io
 import os
 
 import FreeCAD as App
+import Mesh
+import Part
 
 
 def source_kind(obj) -> str | None:
@@ -50,14 +52,17 @@ def write_source(obj, folder: str) -> str:
 
 
 def _compound(shapes):
-    import Part
-
     return Part.makeCompound(shapes)
+
+
+def shapes_to_brep(shapes) -> str:
+    """BREP text of FreeCAD ``shapes`` (a compound of them, in their order, in the
+    document's coordinates): how faces or solids reach :mod:`core`."""
+    return _compound(list(shapes)).exportBrepToString()
 
 
 def occ_to_part(occ_shape):
     """A FreeCAD ``Part.Shape`` from an OCP (cadquery) shape, through BREP text."""
-    import Part
     from OCP.BRepTools import BRepTools
 
     stream = io.BytesIO()
@@ -84,9 +89,6 @@ def trimesh_to_part(mesh):
     One planar face per triangle, sewn: the exact result of a Boolean on a
     mesh model is a mesh, and this is that mesh as a FreeCAD shape.
     """
-    import Part
-    import Mesh
-
     fc = Mesh.Mesh()
     fc.addFacets(mesh.triangles.tolist())
     shape = Part.Shape()

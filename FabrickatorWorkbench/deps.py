@@ -94,7 +94,7 @@ def bootstrap() -> str | None:
             else:
                 toolkits.__path__ = [local] + list(path)
     elif missing():
-        _report(f"Fabrickator: cannot use its Python packages ({trouble}); run: {fix_command()}",
+        report(f"Fabrickator: cannot use its Python packages ({trouble}); run: {fix_command()}",
                 warning=True)
     return trouble
 
@@ -118,7 +118,7 @@ def load_core():
                           f"disable that add-on or restart FreeCAD")
     found = importlib.util.find_spec("core")
     if found is not None and found.origin and os.path.abspath(found.origin) != ours:
-        _report(f"Fabrickator: another 'core' package ({found.origin}) comes first on sys.path; "
+        report(f"Fabrickator: another 'core' package ({found.origin}) comes first on sys.path; "
                 f"loading Fabrickator's {os.path.dirname(ours)} instead, so that add-on's "
                 f"'core' is shadowed in this session\n", warning=True)
     spec = importlib.util.spec_from_file_location("core", ours,
@@ -156,12 +156,12 @@ def check(command: str) -> bool:
         except ImportError as exc:
             trouble = str(exc)
     if trouble:
-        _report(f"{trouble} ({command} did nothing)")
+        report(f"{trouble} ({command} did nothing)")
         return False
     return True
 
 
-def _report(line: str, warning: bool = False) -> None:
+def report(line: str, warning: bool = False) -> None:
     """Write one line to FreeCAD's Report view (or stderr outside FreeCAD)."""
     text = line.rstrip("\n") + "\n"
     try:

@@ -12,6 +12,10 @@ from __future__ import annotations
 import os
 
 import FreeCAD as App
+import Part
+
+import FabrickatorWorkbench as fab
+from FabrickatorWorkbench import log
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STEP = os.path.join(ROOT, "examples", "build", "hmd.step")
@@ -21,11 +25,6 @@ LENS_MOUNTS = ((-54, 25, 25.5, -9, 36, 70.5), (9, 25, 25.5, 54, 36, 70.5))
 
 def open_example(path: str = STEP):
     """A new document with the example's Fabrication computed; the Fabrication."""
-    import Part
-
-    import FabrickatorWorkbench as fab
-    from FabrickatorWorkbench import log
-
     if not os.path.exists(path):
         log.error(f"{path} is missing: run `make examples/build/hmd.step` in {ROOT}")
         return None
@@ -52,9 +51,14 @@ def open_example(path: str = STEP):
     return f
 
 
-if __name__ != "FabrickatorWorkbench.example" and App.GuiUp:
+def open_when_the_window_is_up() -> None:
+    """Open the example half a second from now, once FreeCAD's main window is up (GUI only)."""
     from PySide import QtCore
 
-    from FabrickatorWorkbench import example as _module
+    from FabrickatorWorkbench import example
 
-    QtCore.QTimer.singleShot(500, _module.open_example)
+    QtCore.QTimer.singleShot(500, example.open_example)
+
+
+if __name__ != "FabrickatorWorkbench.example" and App.GuiUp:
+    open_when_the_window_is_up()

@@ -19,15 +19,23 @@ commands do that around them).
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import FreeCAD as App
+import Mesh
+import Part
 
+from core import calibration
+from core.errors import InputError
+from core.watch import model_name, same_model
 from FabrickatorWorkbench import bridge, deps, log, preferences
 from FabrickatorWorkbench.objects import tree
+from FabrickatorWorkbench.objects.fabricate import edits
 from FabrickatorWorkbench.objects.fabrication import Fabrication, is_fabrication
 from FabrickatorWorkbench.objects.high_res_region import HighResRegion
+from FabrickatorWorkbench.objects.high_res_region import boxes as region_boxes
+from FabrickatorWorkbench.objects.tree import remove_owned
+from FabrickatorWorkbench.viewproviders import attach_missing
 
 #: Model formats Legofy reads from a file: B-rep ones become Part features,
 #: meshes (loaded and repaired by the core) Mesh features.
@@ -36,8 +44,6 @@ MESH_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".fcstd")
 
 #: Property of an imported object naming the file it came from (:func:`import_model`).
 MODEL_FILE = "ModelFile"
-#: A version suffix of a file name: "_v2", "-3", ".001", " (1)".
-VERSION_SUFFIX = re.compile(r"(?:[ _.-](?:v|rev)?\d+| ?\(\d+\))$", re.IGNORECASE)
 
 #: A brick's box is shrunk by this much (mm) on every side when it becomes a
 #: high-res box, so that it never touches a neighbouring cell.
@@ -80,7 +86,6 @@ def make_fabrication(source, doc=None, brick_set: str | None = None,
                            else preferences.get("SliceOnRecompute"))
     obj.Label = label or f"{source.Label} LEGO"
     if App.GuiUp:
-        from FabrickatorWorkbench.viewproviders import attach_missing
         attach_missing(obj)
     return obj
 
@@ -134,7 +139,6 @@ def mark_high_res(fab, box=None, boxes=(), solid=None, faces=None, bricks=(), la
     region.Label = label or f"High-res {region.Mode.lower()}"
     fab.Regions = list(fab.Regions) + [region]
     if App.GuiUp:
-        from FabrickatorWorkbench.viewproviders import attach_missing
         attach_missing(region)
     region.Proxy.execute(region)
     fab.touch()
@@ -146,8 +150,6 @@ def unmark(fab, bricks) -> int:
 
     Regions left without boxes are deleted.  Recompute to apply.
     """
-    from FabrickatorWorkbench.objects.high_res_region import boxes as region_boxes
-
     targets = brick_boxes(fab, bricks)
     removed = 0
     for region in list(fab.Regions):
@@ -177,23 +179,22 @@ def split_bricks(fab, bricks) -> None:
 
 
 def _edit(fab, op: str, bricks) -> None:
-    from FabrickatorWorkbench.objects.fabricate import edits
-
     changes = edits(fab) + [{"op": op, "boxes": brick_boxes(fab, bricks)}]
     fab.PartEdits = json.dumps(changes)
     fab.touch()
 
 
 def brick_boxes(fab, bricks) -> list[list[float]]:
-    """The boxes (Source mm, inset by BOX_INSET_MM) of brick objects or brick ids of ``fab``."""
-    by_id = {b.BrickId: b for b in tree.bricks(fab)}
-    objs = [by_id[int(b)] if isinstance(b, int) else b for b in bricks]
-    origin, cell, scale = fab.GridOrigin, fab.CellSize, float(fab.Scale) or 1.0
+    """The boxes (Source mm, inset by BOX_INSET_MM) of brick objects or brick ids of ``fab``
+    (:meth:`core.model.Grid.box_mm` of each brick in the stored layout's grid)."""
+    stored = tree.stored_layout(fab)
+    by_id = {b.id: b for b in stored.bricks}
+    scale = float(fab.Scale) or 1.0
     out = []
-    for b in objs:
-        lo = [origin[n] + b.Cell[n] * cell[n] + BOX_INSET_MM for n in range(3)]
-        hi = [origin[n] + (b.Cell[n] + b.Size[n]) * cell[n] - BOX_INSET_MM for n in range(3)]
-        out.append([v / scale for v in lo + hi])
+    for b in bricks:
+        brick = by_id[int(b) if isinstance(b, int) else int(b.BrickId)]
+        lo, hi = stored.grid.box_mm(brick.cell, brick.size)
+        out.append([float(v) / scale for v in list(lo + BOX_INSET_MM) + list(hi - BOX_INSET_MM)])
     return out
 
 
@@ -254,25 +255,10 @@ def steps(fab) -> list[dict]:
 
 
 def layout(fab):
-    """The stored layout as a :class:`core.model.Layout` (steps included)."""
+    """The stored layout as a :class:`core.model.Layout` (steps included); ValueError when
+    ``fab`` has none yet."""
     _require("layout")
-    import numpy as np
-
-    from core.model import Brick, Grid, Layout
-
-    if not fab.LayoutJson:
-        raise ValueError(f"{fab.Label} has no layout yet: recompute it")
-    data = json.loads(fab.LayoutJson)
-    filled = np.zeros(data["shape"], dtype=bool)
-    out = []
-    for b in data["bricks"]:
-        brick = Brick(b["id"], b["part"], tuple(b["size"]), tuple(b["cell"]), b["kind"],
-                      b["printed_part"], b["step"])
-        filled[brick.slices()] = True
-        out.append(brick)
-    grid = Grid(np.array(data["origin_mm"], dtype=float), np.array(data["cell_mm"], dtype=float),
-                filled)
-    return Layout(grid, out)
+    return tree.stored_layout(fab)
 
 
 def core_printed_parts(fab) -> list:
@@ -328,31 +314,6 @@ def clear_changes(fab) -> int:
     return count
 
 
-def remove_owned(fab) -> None:
-    """Delete everything ``fab`` made (bricks, layer groups, printed parts, region group).
-
-    The regions themselves and the Source stay; unused prototypes are deleted.
-    """
-    doc = fab.Document
-    for obj in tree.owned(fab):
-        if tree.role(obj) == tree.REGIONS_GROUP_ROLE:
-            obj.Group = []
-        if doc.getObject(obj.Name) is not None:
-            doc.removeObject(obj.Name)
-    _remove_unused_prototypes(doc)
-
-
-def _remove_unused_prototypes(doc) -> None:
-    group = next((o for o in doc.Objects if tree.role(o) == tree.PROTOTYPES_ROLE), None)
-    if group is None:
-        return
-    for proto in list(group.Group):
-        if not [o for o in proto.InList if o.Name != group.Name]:
-            doc.removeObject(proto.Name)
-    if not group.Group:
-        doc.removeObject(group.Name)
-
-
 def import_model(path, doc=None):
     """Add the model file at ``path`` to ``doc``: a Part feature (STEP, IGES, BREP) or a Mesh
     feature (STL, OBJ, PLY, 3MF, FCStd; loaded and repaired by the core).  Returns the object.
@@ -365,10 +326,7 @@ def import_model(path, doc=None):
     suffix = path.suffix.lower()
     name = "".join(c if c.isalnum() else "_" for c in path.stem) or "Model"
     if suffix in BREP_SUFFIXES:
-        import Part
-
         if not path.is_file():
-            from core.errors import InputError
             raise InputError(f"{path}: no such file")
         obj = doc.addObject("Part::Feature", name)
         obj.Shape = Part.read(str(path))
@@ -392,30 +350,21 @@ def reload_model(obj, path) -> None:
     if obj.TypeId == "Mesh::Feature":
         obj.Mesh = _mesh_of(path)
     else:
-        import Part
-
         obj.Shape = Part.read(str(path))
     if hasattr(obj, MODEL_FILE):
         setattr(obj, MODEL_FILE, str(path.resolve()))
     obj.touch()
 
 
-def model_name(path) -> str:
-    """The name of the model a file is a version of: its stem without a version suffix
-    ("bracket_v2.stl", "bracket-3.stl", "bracket (1).stl" and "bracket.stl" are all
-    "bracket")."""
-    stem = Path(path).stem
-    return VERSION_SUFFIX.sub("", stem) or stem
-
-
 def imported_from(doc, path) -> list:
     """The objects of ``doc`` imported (:func:`import_model`) from a version of the model
-    file ``path`` (same folder, same :func:`model_name`), latest first."""
+    file ``path`` (:func:`core.watch.same_model`: the same folder and the same
+    :func:`core.watch.model_name`, letter case aside), latest first."""
     path = Path(path).resolve()
     found = []
     for obj in doc.Objects:
         source = getattr(obj, MODEL_FILE, "")
-        if source and Path(source).parent == path.parent and model_name(source) == model_name(path):
+        if source and same_model(source, path):
             found.append(obj)
     return found[::-1]
 
@@ -423,7 +372,7 @@ def imported_from(doc, path) -> list:
 def feed_file(path, doc=None) -> tuple:
     """A model file as the next version of what it is a version of: when ``doc`` has a
     Fabrication of an object imported from the same model (same name, or a versioned
-    name, :func:`model_name`), that object takes the file's geometry and its
+    name, :func:`core.watch.same_model`), that object takes the file's geometry and its
     Fabrications will recompute as an iteration; otherwise the file is legofied into a
     new Fabrication.  Returns (source, [fabrications], new); recompute to apply."""
     doc = doc or App.ActiveDocument or App.newDocument("Watched")
@@ -440,8 +389,6 @@ def feed_file(path, doc=None) -> tuple:
 
 def _mesh_of(path: Path):
     """The model file at ``path`` loaded and repaired by the core, as a FreeCAD mesh."""
-    import Mesh
-
     from core import mesh_io
 
     model = mesh_io.load_model(path)
@@ -475,8 +422,6 @@ def make_calibration_strip(folder, doc=None, values=None):
     added) for a folder that cannot be written or values out of range.
     """
     _require("the calibration strip")
-    from core import calibration
-
     fit = preferences.fit()
     if values is None:
         values = calibration.column_values(fit=fit)

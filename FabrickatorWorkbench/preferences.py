@@ -13,7 +13,11 @@ change of the table reaches every user who has not chosen a value.
 
 from __future__ import annotations
 
+import os
+
 import FreeCAD as App
+
+from core.interfaces import Fit
 
 #: Parameter group of the preferences.
 PATH = "User parameter:BaseApp/Preferences/Mod/Fabrickator"
@@ -44,20 +48,9 @@ def group():
     return App.ParamGet(PATH)
 
 
-def _fit_class():
-    """:class:`core.interfaces.Fit` from this repository's ``core`` (raises ImportError
-    when it cannot be loaded)."""
-    from FabrickatorWorkbench import deps
-
-    deps.load_core()
-    from core.interfaces import Fit
-
-    return Fit
-
-
 def fit_default(field: str) -> float:
     """The default of ``field`` ("stud_fit", "socket_fit", ...) in :class:`core.interfaces.Fit`."""
-    return float(getattr(_fit_class()(), field))
+    return float(getattr(Fit(), field))
 
 
 def default(name: str):
@@ -100,7 +93,7 @@ def values() -> dict:
 def fit():
     """The :class:`core.interfaces.Fit` of the preferences: their stud and socket fit,
     everything else Fit's defaults (not checked: :meth:`Fit.check` says what is wrong)."""
-    return _fit_class()(stud_fit=float(get("StudFit")), socket_fit=float(get("SocketFit")))
+    return Fit(stud_fit=float(get("StudFit")), socket_fit=float(get("SocketFit")))
 
 
 class PreferencePage:
@@ -114,8 +107,6 @@ class PreferencePage:
     """
 
     def __init__(self, parent=None):
-        import os
-
         import FreeCADGui as Gui
 
         path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "resources", "ui",

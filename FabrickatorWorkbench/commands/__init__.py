@@ -9,14 +9,14 @@ enabled only when it applies.
 
 from __future__ import annotations
 
+import FreeCADGui as Gui
+
+from FabrickatorWorkbench.commands import (assembly, brushes, calibration, export, layout, legofy,
+                                           report, watch)
+
 
 def register() -> list[str]:
     """Add every command to FreeCADGui; the names in toolbar order."""
-    import FreeCADGui as Gui
-
-    from FabrickatorWorkbench.commands import (assembly, brushes, calibration, export, layout,
-                                               legofy, report, watch)
-
     commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), brushes.MergeBrush(),
                 brushes.SplitBrush(), export.Export(), assembly.Assembly(), report.Report(),
                 watch.WatchFolder(), calibration.CalibrationStrip()]

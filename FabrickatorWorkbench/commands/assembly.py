@@ -5,6 +5,8 @@ from __future__ import annotations
 import FreeCADGui as Gui
 
 from FabrickatorWorkbench.commands.base import Command, no_task_dialog, selected_fabrication
+from FabrickatorWorkbench.commands.brushes import remember_panel
+from FabrickatorWorkbench.taskpanels.assembly import AssemblyPanel
 
 
 class Assembly(Command):
@@ -24,10 +26,6 @@ class Assembly(Command):
 
 def open_assembly(fab):
     """Open the assembly panel for ``fab``; the panel."""
-    from FabrickatorWorkbench.taskpanels.assembly import AssemblyPanel
-
-    from FabrickatorWorkbench.commands.brushes import remember_panel
-
     panel = AssemblyPanel(fab)
     Gui.Control.showDialog(panel)
     remember_panel(fab, panel)

@@ -6,8 +6,11 @@ from contextlib import contextmanager
 
 import FreeCAD as App
 import FreeCADGui as Gui
+from PySide import QtGui
 
 from FabrickatorWorkbench import deps, log
+from FabrickatorWorkbench.make import fabrication_of
+from FabrickatorWorkbench.objects.fabrication import is_fabrication
 from FabrickatorWorkbench.viewproviders import icon
 
 translate = App.Qt.translate
@@ -39,8 +42,6 @@ class Command:
 
 def fabrications(doc=None) -> list:
     """The Fabrications of ``doc`` (the active document by default), cheaply."""
-    from FabrickatorWorkbench.objects.fabrication import is_fabrication
-
     doc = doc or App.ActiveDocument
     if doc is None:
         return []
@@ -52,8 +53,6 @@ def selected_fabrication(computed: bool = True):
 
     With ``computed``, only a Fabrication that has a result counts.
     """
-    from FabrickatorWorkbench.make import fabrication_of
-
     found = None
     for obj in Gui.Selection.getSelection():
         found = fabrication_of(obj)
@@ -110,8 +109,6 @@ def main_window():
 
 def file_dialog(title: str, object_name: str):
     """A QFileDialog that follows FreeCAD's "use the native dialog" preference."""
-    from PySide import QtGui
-
     dialog = QtGui.QFileDialog(Gui.getMainWindow(), title)
     dialog.setObjectName(object_name)
     native = not App.ParamGet("User parameter:BaseApp/Preferences/Dialog").GetBool(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import FreeCADGui as Gui
 
 from FabrickatorWorkbench.commands.base import Command, no_task_dialog, selected_fabrication
+from FabrickatorWorkbench.taskpanels.brush import BrushPanel
 
 
 class _Brush(Command):
@@ -20,8 +21,6 @@ class _Brush(Command):
 
 def open_brush(fab, mode: str):
     """Open the brush panel for ``fab`` in ``mode``; the panel."""
-    from FabrickatorWorkbench.taskpanels.brush import BrushPanel
-
     panel = BrushPanel(fab, mode)
     Gui.Control.showDialog(panel)
     remember_panel(fab, panel)

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import FreeCAD as App
 import FreeCADGui as Gui
+from PySide import QtCore, QtGui
 
-from FabrickatorWorkbench import log
+from FabrickatorWorkbench import make
 from FabrickatorWorkbench.commands.base import Command, transaction
 from FabrickatorWorkbench.commands.export import ask_folder
 
@@ -29,10 +30,6 @@ def show_calibration_strip(folder: str, doc=None):
     """Write the strip into ``folder`` and add it to ``doc`` (the active document, or a new
     one) as one undo step, with a wait cursor; the new object, or None when it failed
     (the Report view says why and the document is unchanged)."""
-    from PySide import QtCore, QtGui
-
-    from FabrickatorWorkbench import make
-
     doc = doc or App.ActiveDocument or App.newDocument("CalibrationStrip")
     made = []
     QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)

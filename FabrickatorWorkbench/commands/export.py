@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from FabrickatorWorkbench import log
+from PySide import QtCore, QtGui
+
+from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.commands.base import Command, file_dialog, selected_fabrication
 
 
@@ -25,10 +27,6 @@ class Export(Command):
 
 def export_to(fab, folder: str) -> list[str]:
     """Export ``fab`` into ``folder`` with a wait cursor; the file names ([] on failure)."""
-    from PySide import QtCore, QtGui
-
-    from FabrickatorWorkbench import make
-
     QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
     try:
         return make.export(fab, folder)
@@ -41,8 +39,6 @@ def export_to(fab, folder: str) -> list[str]:
 
 def ask_folder(title: str) -> str:
     """A folder chosen in a dialog ('' when cancelled)."""
-    from PySide import QtGui
-
     dialog = file_dialog(title, "FabrickatorChooseFolder")
     dialog.setFileMode(QtGui.QFileDialog.Directory)
     dialog.setOption(QtGui.QFileDialog.ShowDirsOnly, True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import FreeCADGui as Gui
+from PySide import QtGui
 
 from FabrickatorWorkbench import log
 from FabrickatorWorkbench.commands.base import (Command, recompute_or_fail, selected_fabrication,
@@ -43,8 +44,6 @@ class LayoutDialog:
     """A small dialog with the layout parameters of a Fabrication."""
 
     def __init__(self, fab):
-        from PySide import QtGui
-
         self.dialog = QtGui.QDialog(Gui.getMainWindow())
         self.dialog.setObjectName("FabrickatorLayoutDialog")
         self.dialog.setWindowTitle(f"Lay out {fab.Label}")
@@ -86,8 +85,6 @@ class LayoutDialog:
 
 def fit_box(value: float, name: str, tip: str):
     """A signed mm spin box for a stud or socket fit (the range Fit.check allows)."""
-    from PySide import QtGui
-
     box = QtGui.QDoubleSpinBox()
     box.setObjectName(name)
     box.setRange(-0.8, 0.8)

@@ -6,8 +6,9 @@ import os
 
 import FreeCAD as App
 import FreeCADGui as Gui
+from PySide import QtGui
 
-from FabrickatorWorkbench import bridge, log
+from FabrickatorWorkbench import bridge, log, make
 from FabrickatorWorkbench.commands.base import Command, file_dialog, recompute_or_fail, transaction
 
 #: File types the open dialog offers.
@@ -39,8 +40,6 @@ def sources_in_selection() -> list:
 
 def legofy_objects(sources) -> list:
     """Make and compute one Fabrication per source, in one transaction; the Fabrications."""
-    from FabrickatorWorkbench import make
-
     doc = sources[0].Document
     made = []
     with transaction(doc, "Legofy"):
@@ -54,8 +53,6 @@ def legofy_objects(sources) -> list:
 
 def legofy_path(path: str):
     """Import the model file at ``path`` into the active (or a new) document and legofy it."""
-    from FabrickatorWorkbench import make
-
     doc = App.ActiveDocument or App.newDocument(os.path.splitext(os.path.basename(path))[0])
     fab = None
     with transaction(doc, "Legofy"):
@@ -70,8 +67,6 @@ def legofy_path(path: str):
 
 def ask_model_file() -> str:
     """A model file chosen in a dialog ('' when cancelled)."""
-    from PySide import QtGui
-
     dialog = file_dialog("Legofy a model file", "FabrickatorOpenModel")
     dialog.setNameFilter(FILTER)
     dialog.setFileMode(QtGui.QFileDialog.ExistingFile)

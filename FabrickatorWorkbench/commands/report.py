@@ -5,8 +5,9 @@ from __future__ import annotations
 import html
 
 import FreeCADGui as Gui
+from PySide import QtCore, QtGui
 
-from FabrickatorWorkbench import log
+from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.commands.base import (Command, recompute_or_fail, selected_fabrication,
                                                 transaction)
 
@@ -37,8 +38,6 @@ def _time(seconds) -> str:
 
 def summary(fab) -> list[str]:
     """The headline numbers of ``fab``'s last result, one short line each."""
-    from FabrickatorWorkbench import make
-
     doc = make.report(fab)
     bricks, st = doc["bricks"], doc["stability"]
     lines = [f"{bricks['total']} bricks ({bricks['lego']} LEGO, {bricks['printed']} printed) "
@@ -61,8 +60,6 @@ def summary(fab) -> list[str]:
 
 def report_html(fab) -> str:
     """The report of ``fab`` as a small HTML page."""
-    from FabrickatorWorkbench import make
-
     doc = make.report(fab)
     esc = html.escape
     rows = "".join(f"<tr><td>{esc(part)}</td><td align='right'>{n}</td></tr>"
@@ -95,8 +92,6 @@ class ReportDialog:
     """The report in a dialog, with a button that slices the print times."""
 
     def __init__(self, fab):
-        from PySide import QtGui
-
         self.fab = fab
         self.dialog = QtGui.QDialog(Gui.getMainWindow())
         self.dialog.setObjectName("FabrickatorReportDialog")
@@ -120,8 +115,6 @@ class ReportDialog:
         self.text.setHtml(report_html(self.fab))
 
     def on_slice(self) -> None:
-        from PySide import QtCore, QtGui
-
         QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
         try:
             slice_print_times(self.fab)

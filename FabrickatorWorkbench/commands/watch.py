@@ -2,7 +2,8 @@
 
 A new file (STL, OBJ, PLY, 3MF, STEP) is imported and legofied; a new
 version of a model already legofied in the document (the same file written
-again, or a versioned name: ``part_v2.stl`` after ``part.stl``) replaces
+again, or a versioned name: ``part_v2.stl`` after ``part.stl``, by the rule
+the CLI's ``watch`` follows too, :func:`core.watch.same_model`) replaces
 its Source's geometry, so its Fabrication recomputes as the next iteration
 (keeping the layout where nothing changed, highlighting what changed).
 Imported objects remember their file (``ModelFile``), so this also works
@@ -14,11 +15,15 @@ window; running the command again stops it.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import FreeCAD as App
 import FreeCADGui as Gui
+from PySide import QtCore, QtGui
 
-from FabrickatorWorkbench import log
+from core.errors import InputError
+from core.watch import FolderWatcher
+from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.commands.base import Command, recompute_or_fail, transaction
 from FabrickatorWorkbench.commands.export import ask_folder
 
@@ -36,8 +41,6 @@ class WatchFolder(Command):
            "written again updates its Fabrication.  Run again to stop watching")
 
     def run(self):
-        from PySide import QtGui
-
         running = running_watcher()
         if running is not None:
             answer = QtGui.QMessageBox.question(
@@ -53,16 +56,12 @@ class WatchFolder(Command):
 
 def running_watcher():
     """The running watcher, or None."""
-    from PySide import QtCore
-
     found = Gui.getMainWindow().findChild(QtCore.QObject, WATCHER_NAME)
     return getattr(found, "fabrickator", None) if found is not None else None
 
 
 def start_watching(folder: str, doc=None):
     """Start watching ``folder`` for the document ``doc`` (the active one, or a new one)."""
-    from core.errors import InputError
-
     doc = doc or App.ActiveDocument or App.newDocument("Watched")
     try:
         watcher = FolderWatch(folder, doc)
@@ -78,12 +77,6 @@ class FolderWatch:
     """Polls a folder (:class:`core.watch.FolderWatcher`) and legofies what appears."""
 
     def __init__(self, folder: str, doc):
-        from pathlib import Path
-
-        from PySide import QtCore
-
-        from core.watch import FolderWatcher
-
         self.folder = folder
         self.doc_name = doc.Name
         self.watcher = FolderWatcher(Path(folder))
@@ -107,8 +100,6 @@ class FolderWatch:
         """Legofy a new model, or feed a new version of a known one (the same file written
         again, or a versioned name like ``part_v2.stl``) to its Fabrication as an
         iteration (:func:`FabrickatorWorkbench.make.feed_file`)."""
-        from FabrickatorWorkbench import make
-
         doc = App.getDocument(self.doc_name)
         name = os.path.basename(path)
         with transaction(doc, f"Watch folder: {name}"):

@@ -20,10 +20,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import FreeCAD as App
+import numpy as np
 
+from core import catalog
+from core.errors import InputError
+from core.interfaces import Fit
+from core.model import CELL_MM
 from FabrickatorWorkbench import bridge, deps, log, preferences
-from FabrickatorWorkbench.objects import high_res_region
-from FabrickatorWorkbench.objects.fabrication import PARAMETERS
+from FabrickatorWorkbench.objects import high_res_region, tree
+
+#: Inputs of a Fabrication the user edits; the last values that recomputed fine are
+#: kept in ``LastGood`` and put back when a recompute fails.
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
+              "FitGrid")
 
 
 class Cancelled(Exception):
@@ -47,16 +56,12 @@ class Result:
 
 def cell_size() -> App.Vector:
     """The core's cell size (one 1x1 plate), mm."""
-    from core.model import CELL_MM
-
     return App.Vector(*CELL_MM)
 
 
 def fit(obj):
     """The :class:`core.interfaces.Fit` of Fabrication ``obj``: its StudFit and SocketFit,
     the rest Fit's defaults; raises InputError naming a setting out of range."""
-    from core.interfaces import Fit
-
     return Fit(stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value)).check()
 
 
@@ -87,9 +92,6 @@ def recompute(obj) -> bool:
     if not deps.check(f"recomputing {obj.Label}"):
         obj.Status = "failed: Fabrickator's Python packages are missing (see the Report view)"
         return False
-    from core.errors import InputError
-    from FabrickatorWorkbench.objects import tree
-
     try:
         result = run_core(obj)
     except (InputError, ValueError, Cancelled) as exc:
@@ -112,8 +114,6 @@ def change_lines(obj, first: bool, marks: bool = True) -> list[str]:
     bricks to take off (the ghosts), bricks to add (the highlighted ones), printed
     parts to reprint, and what stays.  Without ``marks`` (parameters, regions or
     brush edits changed) one line says the layout was made for the new inputs."""
-    from FabrickatorWorkbench.objects import tree
-
     parts = tree.printed_parts(obj)
     printing = [p.PartId for p in parts if p.Reprint]
     if first or not marks:
@@ -153,7 +153,6 @@ def run_core(obj) -> Result:
     stops it.
     """
     from core import build_order, pipeline
-    from core.errors import InputError
 
     source = obj.Source
     if source is None:
@@ -219,9 +218,7 @@ def _iterate(obj, path: str, boxes, solids, work: str, progress, fitting):
     """The new Source as an iteration on the stored snapshot, with the stud and socket
     fit ``fitting`` (a :class:`core.interfaces.Fit`): (core Fabrication, changes), or
     (None, None) when the iteration does not apply (then the caller lays out anew)."""
-    import numpy as np
-
-    from core import catalog, iterate, mesh_io, pipeline
+    from core import iterate, mesh_io, pipeline
 
     folder = os.path.join(work, "previous")
     try:

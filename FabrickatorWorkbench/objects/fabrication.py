@@ -21,18 +21,15 @@ from functools import partial
 import FreeCAD as App
 
 from FabrickatorWorkbench import log
+from FabrickatorWorkbench.objects import fabricate, prototype, tree
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
 from FabrickatorWorkbench.preferences import fit_default
+from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
 #: Value of the hidden ``FabrickatorRole`` property that marks a Fabrication.
 ROLE = "Fabrication"
-
-#: Inputs the user edits; the last values that recomputed fine are kept in
-#: ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
-              "FitGrid")
 
 PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base",
@@ -129,23 +126,24 @@ class Fabrication(FeatureProxy):
         """Add what is missing (idempotent), with the preferred cell size."""
         super().ensure_properties(obj)
         if obj.CellSize.Length == 0:
-            from FabrickatorWorkbench.objects.fabricate import cell_size
-            obj.CellSize = cell_size()
+            obj.CellSize = fabricate.cell_size()
 
     def onDocumentRestored(self, obj):
         super().onDocumentRestored(obj)
         retire_clearance(obj)
         if App.GuiUp:
-            from FabrickatorWorkbench.objects import prototype, tree
-            from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
             for proto in tree.prototypes(obj.Document):
                 prototype.apply_colour(proto)
             for ghost in tree.ghosts(obj):
                 apply_ghost_look(ghost)
 
     def execute(self, obj):
-        from FabrickatorWorkbench.objects import fabricate
         fabricate.recompute(obj)
+
+    def remove_owned(self, obj) -> None:
+        """Delete everything Fabrication ``obj`` made (:func:`.tree.remove_owned`): what
+        its view provider does when the user deletes it."""
+        tree.remove_owned(obj)
 
 
 #: The property older versions had instead of StudFit and SocketFit: one FDM clearance,

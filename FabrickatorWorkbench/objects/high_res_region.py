@@ -7,7 +7,8 @@ A ``Part::FeaturePython`` in one of three modes:
 * ``Solid``: a region solid (``RegionSolid``, any object with a solid or a
   mesh), e.g. a cylinder placed around a screw seat;
 * ``Faces``: faces of the Source (``Faces``); every cell the faces' inner
-  skin (:data:`SKIN_MM` thick) passes through is marked.
+  skin (:data:`core.face_region.SKIN_MM` thick, made by
+  :func:`core.face_region.skins`) passes through is marked.
 
 Its Shape shows the region; the Fabrication hands boxes to the core as
 boxes and the other modes as a region solid file.
@@ -16,7 +17,10 @@ boxes and the other modes as a region solid file.
 from __future__ import annotations
 
 import FreeCAD as App
+import Part
 
+from core import face_region
+from FabrickatorWorkbench import bridge, log
 from FabrickatorWorkbench.objects.properties import HIDDEN, Prop, FeatureProxy
 
 QT = App.Qt.QT_TRANSLATE_NOOP
@@ -25,9 +29,6 @@ ROLE = "HighResRegion"
 
 #: Modes of a region.
 MODES = ["Bricks", "Solid", "Faces"]
-
-#: Thickness (mm) of the skin under picked faces that marks cells.
-SKIN_MM = 0.4
 
 PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base",
@@ -60,8 +61,6 @@ def boxes(obj) -> list[tuple[float, ...]]:
 
 def region_shape(obj):
     """The shape that shows the region: its boxes, its solid, or the faces' skin."""
-    import Part
-
     if obj.Mode == "Bricks":
         solids = [Part.makeBox(x1 - x0, y1 - y0, z1 - z0, App.Vector(x0, y0, z0))
                   for x0, y0, z0, x1, y1, z1 in boxes(obj) if x1 > x0 and y1 > y0 and z1 > z0]
@@ -76,31 +75,24 @@ def region_shape(obj):
 
 
 def face_skins(obj) -> list:
-    """One thin solid per picked face: the face offset :data:`SKIN_MM` into the material.
+    """One thin solid per picked face (in the document's coordinates): the skin
+    :data:`core.face_region.SKIN_MM` into the material, made by
+    :func:`core.face_region.skins`.
 
-    A face whose offset fails (a degenerate surface) falls back to its
-    bounding box grown by the skin, and a warning says so.
+    A face whose offset fails (a degenerate surface) is marked by its bounding box
+    grown by the skin, and a warning says so.
     """
-    import Part
-
-    from FabrickatorWorkbench import log
-
-    out = []
-    for owner, names in obj.Faces:
-        for name in names:
+    faces, names = [], []
+    for owner, subs in obj.Faces:
+        for name in subs:
             face = owner.getSubObject(name)
-            if face is None or face.isNull():
-                continue
-            try:
-                skin = face.makeOffsetShape(-SKIN_MM, 0.01, fill=True)
-                if skin.isNull() or skin.Volume <= 0:
-                    raise ValueError("empty offset")
-                out.append(skin)
-            except Exception:
-                box = face.BoundBox
-                box.enlarge(SKIN_MM)
-                log.warning(f"{obj.Label}: face {owner.Label}.{name} has no clean offset; "
-                            f"marking its bounding box instead")
-                out.append(Part.makeBox(box.XLength, box.YLength, box.ZLength,
-                                        App.Vector(box.XMin, box.YMin, box.ZMin)))
-    return out
+            if face is not None and not face.isNull():
+                faces.append(face)
+                names.append(f"{owner.Label}.{name}")
+    if not faces:
+        return []
+    skins = face_region.skins(bridge.shapes_to_brep(faces))
+    for n in skins.fallbacks:
+        log.warning(f"{obj.Label}: face {names[n]} has no clean offset; "
+                    f"marking its bounding box instead")
+    return [bridge.occ_to_part(solid) for solid in skins.solids]

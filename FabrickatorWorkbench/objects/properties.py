@@ -10,6 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import FreeCAD as App
+
+from FabrickatorWorkbench.viewproviders import attach_missing
+
 #: Editor modes of FreeCAD's property editor.
 NORMAL, READ_ONLY, HIDDEN = 0, 1, 2
 
@@ -48,8 +52,8 @@ def ensure(obj, props) -> list[str]:
 
 
 class Stateless:
-    """Base of proxies (objects and view providers) that keep nothing of their own:
-    everything lives in the object's properties, so nothing is serialised."""
+    """Base of object proxies that keep nothing of their own: everything lives in the
+    object's properties, so nothing is serialised."""
 
     def dumps(self):
         return None
@@ -80,9 +84,6 @@ class FeatureProxy(Stateless):
         ensure(obj, self.PROPERTIES)
 
     def onDocumentRestored(self, obj):
-        import FreeCAD as App
-
         self.ensure_properties(obj)
         if App.GuiUp:
-            from FabrickatorWorkbench.viewproviders import attach_missing
             attach_missing(obj)

@@ -21,6 +21,10 @@ QT = App.Qt.QT_TRANSLATE_NOOP
 
 ROLE = "Prototype"
 
+#: Colour of bricks new in the last recompute (a bright green no LEGO brick of
+#: the layout has, :data:`core.render.PALETTE`): their prototypes glow.
+HIGHLIGHT_COLOUR = (0.1, 1.0, 0.45)
+
 PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base",
          QT("App::Property", "Fabrickator object role"), ROLE, HIDDEN),
@@ -46,16 +50,20 @@ def make_prototype(doc, part: str, colour: tuple, shape):
 def apply_colour(obj) -> None:
     """Show the prototype (and so every link to it) in its ``Color`` (GUI only); the
     prototypes of highlighted (new) bricks also glow, so they stand out from LEGO greens."""
-    from FabrickatorWorkbench.objects.tree import HIGHLIGHT_COLOUR, _rgb
-
     view = getattr(obj, "ViewObject", None)
     if view is not None:
         colour = tuple(obj.Color[:3])
         if tuple(view.ShapeColor[:3]) != colour:
             view.ShapeColor = colour
-        if _rgb(colour) == _rgb(HIGHLIGHT_COLOUR):
+        if rgb_key(colour) == rgb_key(HIGHLIGHT_COLOUR):
             material = view.ShapeMaterial
             material.EmissiveColor = tuple(0.45 * c for c in HIGHLIGHT_COLOUR)
             view.ShapeMaterial = material
         if view.Visibility:
             view.Visibility = False
+
+
+def rgb_key(colour) -> tuple:
+    """A colour as an RGB tuple rounded to 1/255 (a stable dictionary key: one prototype
+    per part and key)."""
+    return tuple(round(float(c) * 255) / 255 for c in tuple(colour)[:3])

@@ -27,12 +27,21 @@ objects.  What the recompute changed stays visible until the next one:
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 
 import FreeCAD as App
+import numpy as np
 
+from core.catalog import BY_NUMBER
+from core.model import Brick, Grid, Layout
 from FabrickatorWorkbench import bridge
+from FabrickatorWorkbench.objects import prototype as prototypes_module
+from FabrickatorWorkbench.objects.printed_part import PrintedPart
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
+from FabrickatorWorkbench.objects.prototype import HIGHLIGHT_COLOUR, make_prototype, rgb_key
+from FabrickatorWorkbench.viewproviders import attach_missing
+from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
 
 QT = App.Qt.QT_TRANSLATE_NOOP
 
@@ -43,12 +52,6 @@ REGIONS_GROUP_ROLE = "Regions"
 PROTOTYPES_ROLE = "Prototypes"
 GHOST_ROLE = "RemovedBrick"
 GHOSTS_GROUP_ROLE = "RemovedBricks"
-
-#: Colour of printed parts (a light, PLA-like orange).
-PRINTED_COLOUR = (0.96, 0.62, 0.26)
-#: Colour of bricks new in the last recompute (a bright green no LEGO brick of
-#: the layout has, :data:`core.render.PALETTE`).
-HIGHLIGHT_COLOUR = (0.1, 1.0, 0.45)
 
 BRICK_PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base", QT("App::Property", "Fabrickator object role"),
@@ -141,20 +144,61 @@ def owned(fab) -> list:
     return out
 
 
-def placement(brick, origin, cell) -> App.Placement:
-    """Where the prototype of ``brick``'s part goes so that it fills the brick's cells.
+def remove_owned(fab) -> None:
+    """Delete everything ``fab`` made (bricks, ghosts, layer groups, printed parts, the
+    region group); the regions themselves and the Source stay, prototypes no other
+    object uses go."""
+    doc = fab.Document
+    for obj in owned(fab):
+        if role(obj) == REGIONS_GROUP_ROLE:
+            obj.Group = []
+        if doc.getObject(obj.Name) is not None:
+            doc.removeObject(obj.Name)
+    _remove_unused_prototypes(doc)
+
+
+def _remove_unused_prototypes(doc) -> None:
+    group = next((o for o in doc.Objects if role(o) == PROTOTYPES_ROLE), None)
+    if group is None:
+        return
+    for proto in list(group.Group):
+        if not [o for o in proto.InList if o.Name != group.Name]:
+            doc.removeObject(proto.Name)
+    if not group.Group:
+        doc.removeObject(group.Name)
+
+
+def stored_layout(fab) -> Layout:
+    """The layout stored in Fabrication ``fab`` (its ``LayoutJson``) as a
+    :class:`core.model.Layout`, steps included; ValueError when it has none yet."""
+    if not fab.LayoutJson:
+        raise ValueError(f"{fab.Label} has no layout yet: recompute it")
+    data = json.loads(fab.LayoutJson)
+    filled = np.zeros(data["shape"], dtype=bool)
+    out = []
+    for b in data["bricks"]:
+        brick = Brick(b["id"], b["part"], tuple(b["size"]), tuple(b["cell"]), b["kind"],
+                      b["printed_part"], b["step"])
+        filled[brick.slices()] = True
+        out.append(brick)
+    grid = Grid(np.array(data["origin_mm"], dtype=float), np.array(data["cell_mm"], dtype=float),
+                filled)
+    return Layout(grid, out)
+
+
+def placement(brick, grid: Grid) -> App.Placement:
+    """Where the prototype of ``brick``'s part goes so that it fills the brick's cells
+    of ``grid``.
 
     Prototypes have their short side along x; a brick whose x extent is
     the long side is the prototype turned 90 degrees about z.
     """
-    from core.catalog import BY_NUMBER
-
-    base = [origin[n] + brick.cell[n] * cell[n] for n in range(3)]
+    lo, hi = grid.box_mm(brick.cell, brick.size)
     turned = brick.size[0] != BY_NUMBER[brick.part].footprint[0]
     if turned:
-        base[0] += brick.size[0] * cell[0]
-        return App.Placement(bridge.vector(base), App.Rotation(App.Vector(0, 0, 1), 90))
-    return App.Placement(bridge.vector(base), App.Rotation())
+        return App.Placement(bridge.vector((hi[0], lo[1], lo[2])),
+                             App.Rotation(App.Vector(0, 0, 1), 90))
+    return App.Placement(bridge.vector(lo), App.Rotation())
 
 
 def sync(fab, result) -> tuple[int, int]:
@@ -167,12 +211,8 @@ def sync(fab, result) -> tuple[int, int]:
     """
     from core.render import brick_colours
 
-    from FabrickatorWorkbench.objects import prototype as prototypes_module
-
     doc = fab.Document
     layout = result.fab.layout
-    origin = [float(v) for v in layout.grid.origin]
-    cell = [float(v) for v in layout.grid.cell]
     colours = brick_colours(layout, layout.labels())
     had_layout = bool(fab.LayoutJson) and getattr(result, "marks", True)
     by_id = result.report.get("changes") is not None
@@ -197,13 +237,13 @@ def sync(fab, result) -> tuple[int, int]:
         highlight = had_layout and new
         proto = (protos.get(brick.part, HIGHLIGHT_COLOUR) if highlight
                  else _lego_prototype(obj, brick, protos, tuple(float(c) for c in rgb)))
-        _update_brick(obj, brick, proto, placement(brick, origin, cell), changed=highlight)
+        _update_brick(obj, brick, proto, placement(brick, layout.grid), changed=highlight)
         by_layer[brick.cell[2]].append(obj)
     removed = list(existing.values())
-    ghost_group = _sync_ghosts(fab, removed if had_layout else [], origin, cell, made)
+    ghost_group = _sync_ghosts(fab, removed if had_layout else [], layout.grid, made)
     for obj in removed:
         doc.removeObject(obj.Name)
-    layers = _sync_layers(fab, by_layer, made, origin[2], cell[2])
+    layers = _sync_layers(fab, by_layer, made, layout.grid)
     printed_group = _group(fab, PRINTED_GROUP_ROLE, "Printed parts", made)
     printed_group.Group = _sync_printed(fab, printed_group, result, made)
     regions_group = _group(fab, REGIONS_GROUP_ROLE, "High-res regions", made)
@@ -215,8 +255,6 @@ def sync(fab, result) -> tuple[int, int]:
         if "Touched" in obj.State:
             obj.purgeTouched()
     if App.GuiUp:
-        from FabrickatorWorkbench.viewproviders import attach_missing
-        from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
         for obj in made:
             attach_missing(obj)
         for proto in protos.made:
@@ -231,9 +269,6 @@ def clear_changes(fab) -> int:
     """Take the marks of the last recompute away: highlighted bricks get their LEGO
     colour back and the ghosts go.  Returns how many bricks were highlighted."""
     from core.render import brick_colours
-
-    from FabrickatorWorkbench.make import layout as stored_layout
-    from FabrickatorWorkbench.objects import prototype as prototypes_module
 
     marked = [b for b in bricks(fab) if b.Changed]
     protos_touched = []
@@ -250,7 +285,7 @@ def clear_changes(fab) -> int:
                 if role(proto) == prototypes_module.ROLE:
                     prototypes_module.apply_colour(proto)
         protos_touched = protos.made + protos.touched()
-    _sync_ghosts(fab, [], None, None, [])
+    _sync_ghosts(fab, [], None, [])
     for obj in [fab] + marked + protos_touched:
         if "Touched" in obj.State:
             obj.purgeTouched()
@@ -274,15 +309,15 @@ def _lego_prototype(obj, brick, protos, rgb: tuple):
     linked = obj.LinkedObject if obj.TypeId == "App::Link" else None
     if (brick.kind == "lego" and linked is not None and role(linked) == "Prototype"
             and linked.PartNumber == brick.part and obj.Kind == "lego"
-            and _rgb(linked.Color) != _rgb(HIGHLIGHT_COLOUR)):
+            and rgb_key(linked.Color) != rgb_key(HIGHLIGHT_COLOUR)):
         return linked
     return protos.get(brick.part, rgb)
 
 
-def _sync_ghosts(fab, removed: list, origin, cell, made: list):
+def _sync_ghosts(fab, removed: list, grid: Grid | None, made: list):
     """Replace the ghosts of ``fab`` by ghosts of the brick objects ``removed`` (their
-    cells expressed in the new grid, ``origin`` / ``cell``); the group, or None when
-    there are no ghosts (an empty group is deleted)."""
+    cells in the stored layout's grid expressed in the new ``grid``); the group, or None
+    when there are no ghosts (an empty group is deleted)."""
     doc = fab.Document
     groups = child_groups(fab, GHOSTS_GROUP_ROLE)
     for group in groups:
@@ -300,16 +335,15 @@ def _sync_ghosts(fab, removed: list, origin, cell, made: list):
                                                "Removed bricks")
     if not groups:
         made.append(group)
-    old_origin, old_cell = tuple(fab.GridOrigin), tuple(fab.CellSize)
+    old_grid = stored_layout(fab).grid
     out = []
     for brick in removed:
         ghost = doc.addObject("App::Link", "RemovedBrick")
         ensure(ghost, GHOST_PROPERTIES)
         ghost.LinkedObject = brick.LinkedObject
         ghost.Placement = brick.Placement
-        at = [int(round((old_origin[n] + brick.Cell[n] * old_cell[n] - origin[n]) / cell[n]))
-              for n in range(3)]
-        ghost.PartNumber, ghost.Cell, ghost.Size = brick.PartNumber, at, list(brick.Size)
+        at = grid.nearest_cell(old_grid.corner_mm(tuple(brick.Cell)))
+        ghost.PartNumber, ghost.Cell, ghost.Size = brick.PartNumber, list(at), list(brick.Size)
         ghost.Kind, ghost.PrintedPart, ghost.BrickId = brick.Kind, brick.PrintedPart, brick.BrickId
         ghost.Label = f"{brick.PartNumber} ({at[0]},{at[1]},{at[2]}) removed"
         ghost.Visibility = True
@@ -369,9 +403,9 @@ def new_group(doc, name: str, wanted: str, label: str):
     return group
 
 
-def _sync_layers(fab, by_layer: dict, made: list, bottom: float, height: float) -> list:
+def _sync_layers(fab, by_layer: dict, made: list, grid: Grid) -> list:
     """One group per occupied layer holding its bricks (labelled with the layer's
-    bottom z, ``bottom + k * height``); empty layer groups removed."""
+    bottom z in ``grid``); empty layer groups removed."""
     groups = {g.Layer: g for g in layer_groups(fab)}
     out = []
     for k in sorted(by_layer):
@@ -382,7 +416,7 @@ def _sync_layers(fab, by_layer: dict, made: list, bottom: float, height: float) 
             group.Layer = k
             group.setEditorMode("Layer", READ_ONLY)
             made.append(group)
-        label = f"Layer {k:02d} (z {bottom + k * height:.1f} mm)"
+        label = f"Layer {k:02d} (z {grid.corner_mm((0, 0, k))[2]:.1f} mm)"
         if group.Label != label:
             group.Label = label
         members = by_layer[k]
@@ -397,8 +431,6 @@ def _sync_layers(fab, by_layer: dict, made: list, bottom: float, height: float) 
 
 def _sync_printed(fab, group, result, made: list) -> list:
     """PrintedPart objects for the result's printed parts (kept by ID); the list, by ID."""
-    from FabrickatorWorkbench.objects.printed_part import PrintedPart
-
     doc = fab.Document
     existing = {p.PartId: p for p in group.Group if role(p) == "PrintedPart"}
     step_of = {}
@@ -454,17 +486,15 @@ class Prototypes:
         self.by_key = {}
         if self.group is not None:
             for p in self.group.Group:
-                self.by_key[(p.PartNumber, _rgb(p.Color))] = p
+                self.by_key[(p.PartNumber, rgb_key(p.Color))] = p
         self.shapes = {}
 
     def get(self, part: str, rgb: tuple):
         """The prototype of ``part`` in colour ``rgb`` (made if missing)."""
-        key = (part, _rgb(rgb))
+        key = (part, rgb_key(rgb))
         found = self.by_key.get(key)
         if found is not None:
             return found
-        from FabrickatorWorkbench.objects.prototype import make_prototype
-
         if self.group is None:
             self.group = new_group(self.doc, "BrickPrototypes", PROTOTYPES_ROLE, "Brick prototypes")
             self.made.append(self.group)
@@ -486,14 +516,8 @@ class Prototypes:
                 self.shapes[part] = same.Shape
             else:
                 from core.brick_solids import brick_solid
-                from core.catalog import BY_NUMBER
 
                 spec = BY_NUMBER[part]
                 solid = brick_solid(spec.footprint[0], spec.footprint[1], spec.layers)
                 self.shapes[part] = bridge.occ_to_part(solid.shape.wrapped)
         return self.shapes[part]
-
-
-def _rgb(colour) -> tuple:
-    """A colour as an RGB tuple rounded to 1/255 (a stable dictionary key)."""
-    return tuple(round(float(c) * 255) / 255 for c in tuple(colour)[:3])

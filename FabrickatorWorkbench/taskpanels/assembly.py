@@ -13,6 +13,10 @@ from __future__ import annotations
 import os
 
 import FreeCADGui as Gui
+from pivy import coin
+from PySide import QtCore, QtGui
+
+from FabrickatorWorkbench import make
 
 #: Colour of the bricks to place in the current step.
 NEXT_COLOUR = (0.1, 0.35, 1.0)
@@ -29,10 +33,6 @@ class AssemblyPanel:
     """Task panel that steps through the assembly of Fabrication ``fab``."""
 
     def __init__(self, fab):
-        from PySide import QtCore
-
-        from FabrickatorWorkbench import make
-
         self.fab = fab
         self.doc = fab.Document
         self.steps = make.steps(fab)
@@ -116,8 +116,6 @@ class AssemblyPanel:
 
     def _label(self, parts: list) -> None:
         """Write the IDs of ``parts`` at their centres in the 3D view (replacing earlier ones)."""
-        from pivy import coin
-
         graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
         if self.labels is not None:
             graph.removeChild(self.labels)
@@ -160,8 +158,6 @@ class AssemblyPanel:
         self.go(self.current + 1)
 
     def getStandardButtons(self):
-        from PySide import QtGui
-
         return int(QtGui.QDialogButtonBox.Close)
 
     def reject(self) -> bool:

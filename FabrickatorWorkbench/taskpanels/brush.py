@@ -17,8 +17,12 @@ import os
 
 import FreeCAD as App
 import FreeCADGui as Gui
+import Part
+from pivy import coin
+from PySide import QtCore, QtGui
 
-from FabrickatorWorkbench import log
+from core import picking
+from FabrickatorWorkbench import log, make
 
 #: Modes and their preview colours.
 MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
@@ -27,9 +31,6 @@ MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
 #: Transaction names per mode.
 TITLES = {"high-res": "High-res brush", "merge": "Merge brush", "split": "Split brush",
           "unmark": "Unmark brush"}
-
-#: A picked point this close (mm) to a brick's box is on that brick.
-PICK_TOLERANCE_MM = 0.05
 
 #: Milliseconds the exact preview waits for the mouse to pause.
 PREVIEW_DELAY_MS = 120
@@ -42,11 +43,6 @@ class BrushPanel:
     """Task panel of the brushes for Fabrication ``fab``, starting in ``mode``."""
 
     def __init__(self, fab, mode: str = "high-res"):
-        import numpy as np
-        from PySide import QtCore
-
-        from FabrickatorWorkbench import make
-
         self.fab = fab
         self.doc = fab.Document
         self.form = Gui.PySideUic.loadUi(UI)
@@ -57,16 +53,14 @@ class BrushPanel:
         for button in self.buttons.values():
             button.toggled.connect(self.on_mode)
         self.form.clear.clicked.connect(self.clear)
-        self.bricks = make.bricks(fab)
-        self.index = {b.Name: n for n, b in enumerate(self.bricks)}
-        origin, cell = fab.GridOrigin, fab.CellSize
-        cells = np.array([b.Cell for b in self.bricks], dtype=float).reshape(-1, 3)
-        sizes = np.array([b.Size for b in self.bricks], dtype=float).reshape(-1, 3)
-        self.lo = np.array(tuple(origin)) + cells * np.array(tuple(cell))
-        self.hi = self.lo + sizes * np.array(tuple(cell))
-        self.part_bricks = {p.Name: [self.index[b.Name] for b in self.bricks
-                                     if b.PrintedPart == p.PartId]
+        #: the stored layout (the core's view of the bricks) and the brick objects by id
+        self.layout = make.layout(fab)
+        self.bricks = {b.BrickId: b for b in make.bricks(fab)}
+        self.by_name = {b.Name: n for n, b in self.bricks.items()}
+        self.boxes = {b.id: self.layout.grid.box_mm(b.cell, b.size) for b in self.layout.bricks}
+        self.part_bricks = {p.Name: {n for n, b in self.bricks.items() if b.PrintedPart == p.PartId}
                             for p in make.printed_parts(fab)}
+        #: brick ids painted so far
         self.painted: set[int] = set()
         self.faces: list[tuple[str, str]] = []
         self.solids: list[str] = []
@@ -83,7 +77,6 @@ class BrushPanel:
         self.timer.setSingleShot(True)
         self.timer.timeout.connect(self.update_preview)
         self.view = Gui.ActiveDocument.ActiveView
-        from pivy import coin
         self.callbacks = [
             (coin.SoMouseButtonEvent.getClassTypeId(),
              self.view.addEventCallbackPivy(coin.SoMouseButtonEvent.getClassTypeId(), self.on_button)),
@@ -123,8 +116,6 @@ class BrushPanel:
     # --- mouse ----------------------------------------------------------------------
 
     def on_button(self, callback) -> None:
-        from pivy import coin
-
         event = callback.getEvent()
         if event.getButton() != coin.SoMouseButtonEvent.BUTTON1:
             return
@@ -147,27 +138,25 @@ class BrushPanel:
             callback.setHandled()
 
     def paint_at(self, position) -> bool:
-        """Paint the bricks within the radius of the point under ``position``; True if on a brick."""
-        import numpy as np
-
+        """Paint the brick under ``position`` (:func:`core.picking.brick_at`: a brick, or the
+        brick of a printed part or of the preview under the point) and those within the
+        brush radius of the point; True if on a brick."""
         info = self.view.getObjectInfo((int(position[0]), int(position[1])))
         if not info:
             return False
         obj = self.doc.getObject(info.get("Object", ""))
-        if obj is None or not (obj.Name in self.index or obj.Name in self.part_bricks
+        if obj is None or not (obj.Name in self.by_name or obj.Name in self.part_bricks
                                or obj.Name == self.preview.Name):
             return False
-        point = np.array([info["x"], info["y"], info["z"]], dtype=float)
-        gap = np.linalg.norm(np.maximum(np.maximum(self.lo - point, point - self.hi), 0.0), axis=1)
-        if obj.Name in self.index:
-            hit = {self.index[obj.Name]}
+        point = (float(info["x"]), float(info["y"]), float(info["z"]))
+        if obj.Name in self.by_name:
+            hit = {self.by_name[obj.Name]}
         else:
-            hit = set(np.flatnonzero(gap <= PICK_TOLERANCE_MM).tolist())
-            if obj.Name in self.part_bricks:
-                hit &= set(self.part_bricks[obj.Name])
-        radius = self.form.radius.value() * float(self.fab.CellSize.x)
+            under = picking.brick_at(self.layout, point, among=self.part_bricks.get(obj.Name))
+            hit = set() if under is None else {under}
+        radius = self.form.radius.value() * float(self.layout.grid.cell[0])
         if radius > 0:
-            hit |= set(np.flatnonzero(gap <= radius).tolist())
+            hit |= set(picking.bricks_within(self.layout, point, radius))
         new = hit - self.painted
         if new:
             self.painted |= new
@@ -210,7 +199,7 @@ class BrushPanel:
                     brick.Visibility = False
             elif brick.Name in self.hidden:
                 brick.Visibility = self.hidden.pop(brick.Name)
-        for name in [n for n in self.hidden if self.index[n] not in self.painted]:
+        for name in [n for n in self.hidden if self.by_name[n] not in self.painted]:
             self.doc.getObject(name).Visibility = self.hidden.pop(name)
         self.preview.ViewObject.ShapeColor = MODES[self.mode]
         self.preview.ViewObject.Transparency = 0 if high_res else 40
@@ -219,8 +208,6 @@ class BrushPanel:
 
     def update_preview(self) -> None:
         """The preview shape: exact pieces of painted LEGO bricks (high-res) or their boxes."""
-        import Part
-
         pieces = []
         source = getattr(self.fab.Source, "Shape", None)
         exact = (self.mode == "high-res" and source is not None and not source.isNull()
@@ -232,7 +219,7 @@ class BrushPanel:
                     self.exact[n] = Part.getShape(brick).common(source)
                 pieces.append(self.exact[n])
             else:
-                lo, hi = self.lo[n], self.hi[n]
+                lo, hi = self.boxes[n]
                 pieces.append(Part.makeBox(*(hi - lo), App.Vector(*lo)))
         self.preview.Shape = Part.makeCompound(pieces) if pieces else Part.Shape()
 
@@ -243,14 +230,10 @@ class BrushPanel:
     # --- accept / reject ------------------------------------------------------------------
 
     def getStandardButtons(self):
-        from PySide import QtGui
-
         return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
 
     def accept(self) -> bool:
         """Apply the painted change and recompute; one undo step (dropped if it fails)."""
-        from FabrickatorWorkbench import make
-
         mode, bricks = self.mode, self.painted_bricks()
         self.cleanup()
         ok = True

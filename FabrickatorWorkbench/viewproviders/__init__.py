@@ -1,34 +1,34 @@
-"""View providers: icons, colours, double-click to edit.  GUI only.
+"""View providers: icons, colours, double-click to edit.  Used by the GUI only, yet
+importable in ``freecadcmd`` (FreeCAD's GUI modules are imported inside the methods
+the GUI calls).
 
 Bricks are ``App::Link`` objects whose look comes from their prototype, so
 they need no view provider of their own.  :func:`attach_missing` gives an
 object made without the GUI (in ``freecadcmd``, or a document saved there)
-its view provider when the GUI shows it.
+its view provider when the GUI shows it.  View providers know nothing of
+the objects' modules: what they need of their object they ask its proxy.
 """
 
 from __future__ import annotations
 
-import os
+from FabrickatorWorkbench.viewproviders.base import ICONS, icon
+from FabrickatorWorkbench.viewproviders.fabrication import ViewProviderFabrication
+from FabrickatorWorkbench.viewproviders.printed_part import ViewProviderPrintedPart
+from FabrickatorWorkbench.viewproviders.region import ViewProviderRegion
 
-#: Folder of the SVG icons.
-ICONS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                     "resources", "icons")
+#: The view provider of each Fabrickator role (the objects' ``FabrickatorRole``).
+BY_ROLE = {"Fabrication": ViewProviderFabrication, "PrintedPart": ViewProviderPrintedPart,
+           "HighResRegion": ViewProviderRegion}
 
-
-def icon(name: str) -> str:
-    """Path of the icon ``name`` (without .svg)."""
-    return os.path.join(ICONS, f"{name}.svg")
+__all__ = ["ICONS", "icon", "attach_missing", "BY_ROLE"]
 
 
 def attach_missing(obj) -> None:
-    """Attach Fabrickator's view provider to ``obj`` unless it has one (GUI only)."""
+    """Attach Fabrickator's view provider to ``obj`` unless it has one (no-op without
+    a view object, i.e. without the GUI)."""
     view = getattr(obj, "ViewObject", None)
     if view is None:
         return
-    from FabrickatorWorkbench.viewproviders import fabrication, printed_part, region
-
-    kind = {"Fabrication": fabrication.ViewProviderFabrication,
-            "PrintedPart": printed_part.ViewProviderPrintedPart,
-            "HighResRegion": region.ViewProviderRegion}.get(getattr(obj, "FabrickatorRole", None))
+    kind = BY_ROLE.get(getattr(obj, "FabrickatorRole", None))
     if kind is not None and getattr(view, "Proxy", None) is None:
         kind(view)

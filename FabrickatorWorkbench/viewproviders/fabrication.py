@@ -1,10 +1,18 @@
-"""View provider of a Fabrication: its icon; double-click opens the brush panel."""
+"""View provider of a Fabrication: its icon, its groups as children; double-click opens
+the brush panel.
+
+The view provider sits below the commands and task panels: it opens the brush
+panel by running the brush command (:data:`EDIT_COMMAND`, by name) on its
+Fabrication, and deleting a Fabrication asks the Fabrication's proxy to remove
+what it made.
+"""
 
 from __future__ import annotations
 
-import FreeCADGui as Gui
-
 from FabrickatorWorkbench.viewproviders.base import ViewProvider
+
+#: The command a double-click (edit mode 0) runs on the Fabrication: the high-res brush.
+EDIT_COMMAND = "Fabrickator_HighResBrush"
 
 
 class ViewProviderFabrication(ViewProvider):
@@ -12,29 +20,34 @@ class ViewProviderFabrication(ViewProvider):
 
     ICON = "Fabrication"
 
-    #: The task panel open on this Fabrication, if any.
+    #: The task panel open on this Fabrication, if any (the commands set it).
     panel = None
 
     def claimChildren(self):
         return list(self.Object.Contents) if hasattr(self.Object, "Contents") else []
 
     def setEdit(self, vobj, mode=0):
+        """Open the brush panel on the Fabrication (mode 0); True when it opened."""
         if mode != 0:
             return None
-        from FabrickatorWorkbench.commands.brushes import remember_panel
-        from FabrickatorWorkbench.taskpanels.brush import BrushPanel
-        panel = BrushPanel(vobj.Object, "high-res")
-        Gui.Control.showDialog(panel)
-        remember_panel(vobj.Object, panel)
-        return True
+        import FreeCADGui as Gui
+
+        Gui.Selection.clearSelection()
+        Gui.Selection.addSelection(vobj.Object)
+        Gui.runCommand(EDIT_COMMAND)
+        return bool(Gui.Control.activeDialog())
 
     def unsetEdit(self, vobj, mode=0):
         if mode != 0:
             return None
+        import FreeCADGui as Gui
+
         Gui.Control.closeDialog()
         return True
 
     def doubleClicked(self, vobj):
+        import FreeCADGui as Gui
+
         if Gui.Control.activeDialog():
             return False
         vobj.Document.setEdit(vobj.Object.Name, 0)
@@ -42,6 +55,7 @@ class ViewProviderFabrication(ViewProvider):
 
     def onDelete(self, vobj, subelements):
         """Deleting a Fabrication deletes what it made (bricks, groups, printed parts)."""
-        from FabrickatorWorkbench.make import remove_owned
-        remove_owned(vobj.Object)
+        remove = getattr(getattr(vobj.Object, "Proxy", None), "remove_owned", None)
+        if remove is not None:
+            remove(vobj.Object)
         return True

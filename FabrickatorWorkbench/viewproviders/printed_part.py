@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from FabrickatorWorkbench.viewproviders.base import ViewProvider
 
+#: Colour of printed parts (a light, PLA-like orange).
+PRINTED_COLOUR = (0.96, 0.62, 0.26)
+
 
 class ViewProviderPrintedPart(ViewProvider):
     """A printed part, shown as its exact solid in the printed colour."""
@@ -12,5 +15,4 @@ class ViewProviderPrintedPart(ViewProvider):
 
     def __init__(self, vobj):
         super().__init__(vobj)
-        from FabrickatorWorkbench.objects.tree import PRINTED_COLOUR
         vobj.ShapeColor = PRINTED_COLOUR
