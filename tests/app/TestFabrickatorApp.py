@@ -353,6 +353,39 @@ class TestFabrication(FabrickatorTestCase):
         corner = [p for p in fab().printed_parts(f) if p.Shape.BoundBox.XMin < 1.0]
         self.assertEqual(len(corner), 1)
 
+    def test_face_skins_are_what_freecads_offset_of_the_faces_gives(self):
+        """The core's face skins (core.face_region, OpenCascade's offset in the venv) are
+        FreeCAD's own ``makeOffsetShape(-skin, 0.01, fill=True)`` of each face: the same
+        volume at the same place, inside the part, for flat, holed and bored faces of a
+        moved and turned Source."""
+        from core.face_region import SKIN_MM
+        from FabrickatorWorkbench.objects import high_res_region
+
+        plate = self.doc.addObject("Part::Box", "Plate")
+        plate.Length, plate.Width, plate.Height = 48.0, 32.0, 9.6
+        hole = self.doc.addObject("Part::Cylinder", "Hole")
+        hole.Radius, hole.Height = 5.0, 9.6
+        hole.Placement.Base = App.Vector(36, 16, 0)
+        source = self.doc.addObject("Part::Cut", "Plate_with_hole")
+        source.Base, source.Tool = plate, hole
+        source.Placement = App.Placement(App.Vector(5, -3, 2), App.Rotation(App.Vector(0, 0, 1), 30))
+        self.doc.recompute()
+        names = [f"Face{n}" for n in range(1, len(source.Shape.Faces) + 1)]
+        region = fab().mark_high_res(fab().make_fabrication(source), faces=[(source, names)])
+        skins = high_res_region.face_skins(region)
+        self.assertEqual(len(skins), len(names))
+        for name, skin in zip(names, skins):
+            expected = source.getSubObject(name).makeOffsetShape(-SKIN_MM, 0.01, fill=True)
+            volume = expected.Volume
+            self.assertGreater(volume, 0.0, name)
+            self.assertAlmostEqual(skin.Volume, volume, delta=1e-4 * volume, msg=name)
+            self.assertAlmostEqual(skin.common(expected).Volume, volume, delta=1e-4 * volume,
+                                   msg=name)
+            self.assertAlmostEqual(skin.common(source.Shape).Volume, volume, delta=1e-4 * volume,
+                                   msg=name)
+        self.assertAlmostEqual(region.Shape.Volume, sum(s.Volume for s in skins), delta=1e-6 *
+                               region.Shape.Volume)
+
     def test_mesh_source_with_a_printed_part(self):
         import Mesh
 

@@ -521,6 +521,20 @@ class TestBrush(GuiTestCase):
         self.doc.undo()
         self.assertEqual(fab().printed_parts(f), [])
 
+    def test_double_click_opens_the_brush_panel(self):
+        """The view provider edits its Fabrication through the high-res brush command."""
+        f = self.fabrication()
+        self.assertTrue(f.ViewObject.Proxy.doubleClicked(f.ViewObject))
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        self.assertIsNotNone(panel)
+        self.assertEqual(panel.mode, "high-res")
+        self.assertIsNotNone(Gui.Control.activeDialog())
+        panel.reject()
+        settle()
+        self.assertFalse(Gui.Control.activeDialog())
+        self.assertIsNone(Gui.ActiveDocument.getInEdit())
+
     def test_radius_paints_neighbours_and_cancel_changes_nothing(self):
         f = self.fabrication()
         before = (f.LayoutJson, len(self.doc.Objects))
