@@ -18,11 +18,13 @@ system and inside FreeCAD's Qt timer):
   rename.
 
 Which file is a version of which is one rule, :func:`model_name` and
-:func:`same_model`, for the CLI's ``watch`` and the workbench's Watch folder
-command alike: a file is a version of a model when it lies in the same
-folder and its name, without the format suffix and without a *version
-suffix*, is the model's name (letter case aside).  A version suffix is what
-modellers, exporters and file managers append to a name:
+:func:`same_model`: the workbench's Watch folder command follows it, and
+:class:`Versions` keeps a watch's last result per model by it (which earlier
+output the CLI's ``watch`` iterates a new file on).  A file is a version of
+a model when it lies in the same folder and its name, without the format
+suffix and without a *version suffix*, is the model's name (letter case
+aside).  A version suffix is what modellers, exporters and file managers
+append to a name:
 
 * a separator (space, ``_``, ``-`` or ``.``), an optional ``v`` or ``rev``,
   and a number, possibly dotted: ``bracket_v2``, ``bracket-3``,
@@ -89,6 +91,30 @@ def same_model(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     """Whether the files ``a`` and ``b`` are versions of one model: the same folder
     and the same :func:`model_name`, letter case aside (a file is a version of itself)."""
     return model_key(a) == model_key(b)
+
+
+@dataclass
+class Versions:
+    """Which earlier result each new file of a watch iterates on: the result last
+    :meth:`record`-ed for a version of the same model (:func:`model_key`).
+
+    ``first`` (the CLI's ``--previous``) is what the first file of the watch iterates
+    on; after that a file of a model not seen yet starts afresh.
+    """
+
+    first: str | os.PathLike | None = None
+    _last: dict[tuple[str, str], str | os.PathLike] = field(default_factory=dict, init=False,
+                                                           repr=False)
+
+    def previous(self, path: str | os.PathLike) -> str | os.PathLike | None:
+        """The result the file at ``path`` iterates on, or None for a fresh run."""
+        if not self._last:
+            return self.first
+        return self._last.get(model_key(path))
+
+    def record(self, path: str | os.PathLike, result: str | os.PathLike) -> None:
+        """``result`` (an output folder) is the newest result of the model of ``path``."""
+        self._last[model_key(path)] = result
 
 
 def is_complete(path: str | os.PathLike) -> bool:

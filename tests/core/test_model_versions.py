@@ -46,3 +46,17 @@ def test_model_key_groups_the_versions_of_a_folder(tmp_path):
         groups.setdefault(watch.model_key(tmp_path / name), []).append(name)
     assert sorted(groups.values()) == [["bracket.stl", "bracket_v2.stl"], ["bracket2.stl"],
                                        ["gear.stl", "Gear (1).stl"]]
+
+
+def test_each_model_of_a_watch_iterates_on_its_own_last_result(tmp_path):
+    versions = watch.Versions(first="earlier-out")
+    assert versions.previous(tmp_path / "bracket.stl") == "earlier-out"
+    versions.record(tmp_path / "bracket.stl", "out/bracket-1")
+    assert versions.previous(tmp_path / "gear.stl") is None
+    versions.record(tmp_path / "gear.stl", "out/gear-2")
+    assert versions.previous(tmp_path / "bracket_v2.stl") == "out/bracket-1"
+    versions.record(tmp_path / "bracket_v2.stl", "out/bracket_v2-3")
+    assert versions.previous(tmp_path / "Bracket (1).stl") == "out/bracket_v2-3"
+    assert versions.previous(tmp_path / "gear-2.obj") == "out/gear-2"
+    assert versions.previous(tmp_path / "bracket2.stl") is None
+    assert watch.Versions().previous(tmp_path / "bracket.stl") is None
