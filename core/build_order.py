@@ -38,6 +38,7 @@ by its engraved ID, turning it the right way and pressing it onto its studs).
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 from dataclasses import dataclass, field
 
@@ -46,6 +47,7 @@ from scipy import sparse
 
 from core.errors import InputError
 from core.model import Layout
+from core.request import DEFAULTS
 
 #: Width (studs, along y) of the bands the serpentine order runs along.
 BAND_STUDS = 4
@@ -53,10 +55,10 @@ BAND_STUDS = 4
 NEAR_STUDS = 4
 #: Default largest number of LEGO bricks in one step.
 BRICKS_PER_STEP = 6
-#: Default assembly estimate: seconds per LEGO brick placed.
-SECONDS_PER_BRICK = 10.0
-#: Default assembly estimate: seconds per printed part inserted.
-SECONDS_PER_PART = 30.0
+#: Default assembly estimate: seconds per LEGO brick placed (the Request table's).
+SECONDS_PER_BRICK = DEFAULTS["seconds_per_brick"]
+#: Default assembly estimate: seconds per printed part inserted (the Request table's).
+SECONDS_PER_PART = DEFAULTS["seconds_per_part"]
 
 
 @dataclass
@@ -200,7 +202,7 @@ def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
     unit of a step stands on the base or touches (directly above or below) a
     unit of an earlier step, except the bricks listed in ``unattached``; a
     printed part not listed in ``early_parts`` comes after every unit under
-    it.  Does not modify ``layout`` (see :func:`assign`).  Raises TypeError
+    it.  Does not modify ``layout`` (:func:`numbered` gives the layout with the steps).  Raises TypeError
     for what is not a Layout, ValueError for a layout with duplicate brick
     ids or a bad step size.
     """
@@ -297,11 +299,11 @@ def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
     return result
 
 
-def assign(layout: Layout, order: BuildOrder) -> None:
-    """Write each brick's step number into ``brick.step``."""
+def numbered(layout: Layout, order: BuildOrder) -> Layout:
+    """A new layout whose bricks carry their step numbers of ``order`` (``layout`` is not changed)."""
     step = order.step_of()
-    for b in layout.bricks:
-        b.step = step.get(b.id)
+    return dataclasses.replace(layout, bricks=[dataclasses.replace(b, step=step.get(b.id))
+                                               for b in layout.bricks])
 
 
 def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRICK,

@@ -17,7 +17,6 @@ import time
 
 from core import __version__, request
 from core.errors import InputError, bug_message, log_bug
-from core.mesh_io import UNITS
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -107,7 +106,7 @@ def _calibration_parser(sub) -> None:
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "seed", "parts", "high_res", "high_res_solids",
-                            "stud_fit", "socket_fit"), units=UNITS)
+                            "stud_fit", "socket_fit"), units=request.UNITS)
 
 
 def main(argv: list[str] | None = None) -> int:

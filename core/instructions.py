@@ -462,8 +462,10 @@ def write_instructions(layout: Layout, order: build_order.BuildOrder, path: str 
 def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, title: str = "",
                    seconds_per_brick: float = build_order.SECONDS_PER_BRICK,
                    seconds_per_part: float = build_order.SECONDS_PER_PART,
-                   bricks_per_step: int = build_order.BRICKS_PER_STEP) -> dict:
-    """Order the assembly, set every ``brick.step`` and write the builder's files into ``folder``.
+                   bricks_per_step: int = build_order.BRICKS_PER_STEP,
+                   order: build_order.BuildOrder | None = None) -> dict:
+    """Write the builder's files of ``layout`` into ``folder``, in the build ``order``
+    (planned here when None; ``layout`` is not changed).
 
     Writes ``instructions.html``, ``assembly.mpd`` (LDraw MPD with ``0 STEP``
     per step and the printed parts embedded), ``bom.csv`` and
@@ -486,8 +488,9 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     timings = {}
     t = time.perf_counter()
     seconds = build_order.assembly_seconds(layout, seconds_per_brick, seconds_per_part)
-    order = build_order.plan(layout, bricks_per_step)
-    build_order.assign(layout, order)
+    if order is None:
+        order = build_order.plan(layout, bricks_per_step)
+    layout = build_order.numbered(layout, order)
     timings["order"] = time.perf_counter() - t
     t = time.perf_counter()
     facts = write_instructions(layout, order, folder / FILES["instructions"], printed_parts,

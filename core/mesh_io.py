@@ -31,9 +31,9 @@ from scipy.sparse.csgraph import connected_components
 
 from core.errors import InputError
 from core.model import CELL_MM
+from core.request import UNITS
 
 #: Length of one file unit in mm, for ``load_model(units=...)``.
-UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
 #: File suffix (lower case) -> format name.
 FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".3mf": "3mf",

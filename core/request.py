@@ -19,6 +19,9 @@ from dataclasses import dataclass, field
 from core.errors import InputError
 from core.interfaces import Fit
 
+#: Unit names a model file's coordinates may be in, and their size in mm.
+UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+
 def _setting(default, help: str, flag: str | None = None, metavar: str | None = None,
              off: str | None = None):
     """A Request field with its CLI help (``flag`` None: not a command-line option of its own;

@@ -23,3 +23,10 @@ def hmd_step(tmp_path_factory) -> Path:
     spec.loader.exec_module(module)
     step, _ = module.export_hmd(tmp_path_factory.mktemp("hmd"))
     return Path(step)
+
+
+@pytest.fixture(autouse=True)
+def _bug_logs_in_tmp(tmp_path, monkeypatch):
+    """Bug logs of the runs a test makes (core.errors.log_bug) go under its tmp_path,
+    not into the user's ~/.local/state."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))

@@ -78,7 +78,7 @@ def _iterate(previous: iterate.Previous, path: Path, **settings) -> types.Simple
 
 
 def _page(it, path: Path) -> str:
-    return iterate.changes_page(it.fab.iteration, it.layout, path, "test").read_text()
+    return iterate.changes_page(it.changes, it.layout, path, "test").read_text()
 
 
 def _save(workplane: cq.Workplane, path: Path) -> Path:
