@@ -134,8 +134,9 @@ def _fabricate(args) -> int:
 
 
 def _watch(args) -> int:
-    """The ``watch`` command: each new version fabricated as an iteration on the last output,
-    with the same settings as ``fabricate``."""
+    """The ``watch`` command: each new file fabricated with the same settings as
+    ``fabricate``, as an iteration on the last output of a version of the same model
+    (:class:`core.watch.Versions`, the one version rule the workbench uses too)."""
     from pathlib import Path
 
     from core import pipeline, watch
@@ -143,19 +144,22 @@ def _watch(args) -> int:
     progress = None if args.quiet else _progress_printer(sys.stderr)
     root, runs = Path(args.out), 0
     job = request.from_options(args, "watched")
+    versions = watch.Versions(first=job.previous)
     files = watch.watch(args.folder, include_existing=args.existing, timeout_s=args.timeout)
     sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
     try:
         for path in files:
             runs += 1
             out = root / f"{path.stem}-{runs}"
+            previous = versions.previous(path)
             try:
-                doc = pipeline.fabricate(job.replace(model=str(path)), out, progress=progress)
+                doc = pipeline.fabricate(job.replace(model=str(path), previous=previous and str(previous)),
+                                         out, progress=progress)
             except InputError as err:
                 sys.stderr.write(f"error: {path.name}: {err}\n")
                 continue
             _summary(doc, out)
-            job = job.replace(previous=str(out))
+            versions.record(path, out)
     except KeyboardInterrupt:
         sys.stderr.write(f"stopped after {runs} version(s)\n")
     return 0
