@@ -2,9 +2,12 @@
 
 Every message starts with ``Fabrickator:`` and is a single line: bad input
 and failed recomputes say what went wrong in words, never as a traceback.
+Only a bug (:func:`bug`) adds its traceback after its line.
 """
 
 from __future__ import annotations
+
+import traceback
 
 import FreeCAD as App
 
@@ -41,4 +44,16 @@ def failure(what: str, exc: BaseException) -> str:
         reason = f"{type(exc).__name__}: {reason}"
     line = f"{what} failed: {reason}"
     error(line)
+    return line
+
+
+def bug(what: str, exc: BaseException) -> str:
+    """Report that ``what`` failed by a bug (``exc`` is not bad input): one error line
+    saying so, then the traceback, in the Report view; returns the line."""
+
+    text = str(exc).strip().splitlines()
+    line = (f"{what} failed by a bug in Fabrickator ({type(exc).__name__}"
+            + (f": {text[0]}" if text else "") + "); please report it with this traceback:")
+    error(line)
+    App.Console.PrintError("".join(traceback.format_exception(type(exc), exc, exc.__traceback__)))
     return line

@@ -19,6 +19,8 @@ commands do that around them).
 from __future__ import annotations
 
 import json
+import shutil
+import tempfile
 from pathlib import Path
 
 import FreeCAD as App
@@ -261,45 +263,29 @@ def layout(fab):
     return tree.stored_layout(fab)
 
 
-def core_printed_parts(fab) -> list:
-    """The PrintedPart objects as :class:`core.printed.PrintedPart` (solid and mesh from the shape)."""
-    _require("export")
-    from core.brick_solids import to_trimesh
-    from core.printed import PrintedPart
-
-    out = []
-    for p in printed_parts(fab):
-        occ = bridge.part_to_occ(p.Shape)
-        out.append(PrintedPart(id=p.PartId, bricks=list(p.BrickIds), cells=p.Cells, solid=occ,
-                               mesh=to_trimesh(occ), volume_mm3=p.VolumeMm3,
-                               print_s=p.PrintTime or None))
-    return out
-
-
 def export(fab, folder) -> list[str]:
-    """Write the printed parts (``<id>.stl``, ``<id>.step``, ``plate.3mf``), ``layout.json``,
-    ``report.json`` and the assembly instructions into ``folder``; returns the file names.
+    """Write the last result of ``fab`` into ``folder`` exactly as the command line writes an
+    output folder (:func:`core.pipeline.write_outputs`): the printed parts (``parts/``:
+    STL, STEP, ``plate.3mf``), ``layout.json``, ``layout.png``, ``report.json``, the
+    instructions, the iteration snapshot and, after an iteration, ``changes.html``.
+    Returns the names written (top level).  Reads the document only.
 
-    Raises ValueError when ``fab`` has not been computed.
+    Raises ValueError when ``fab`` has not been computed, InputError when
+    ``folder`` holds other files.
     """
     _require("export")
-    from core import export as core_export
-    from core import instructions
+    from core import pipeline
 
-    if not fab.LayoutJson:
+    if not fab.LayoutJson or not fab.IterationState:
         raise ValueError(f"{fab.Label} has no result yet: recompute it first")
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    parts = core_printed_parts(fab)
-    written = core_export.export_parts(parts, folder) if parts else []
-    (folder / "layout.json").write_text(fab.LayoutJson)
-    (folder / "report.json").write_text(json.dumps(report(fab), indent=2))
-    written += ["layout.json", "report.json"]
-    assembly = instructions.write_assembly(layout(fab), parts, folder, title=fab.Label,
-                                           seconds_per_brick=float(fab.SecondsPerBrick))
-    written += sorted(assembly.get("files", {}).values())
-    log.message(f"{fab.Label}: exported {len(parts)} printed part(s) and the instructions to {folder}")
-    return written
+    doc = report(fab)
+    doc.pop("assembly", None)
+    with tempfile.TemporaryDirectory(prefix="fabrickator-export-") as work:
+        shutil.unpack_archive(fab.IterationState, work, "zip")
+        written = pipeline.write_outputs(pipeline.stored(work, doc), folder, report_doc=doc)
+    log.message(f"{fab.Label}: exported {len(doc.get('printed_parts', ()))} printed part(s) and "
+                f"the instructions to {folder}")
+    return list(written["outputs"])
 
 
 def clear_changes(fab) -> int:
@@ -458,6 +444,6 @@ def recompute(fab) -> bool:
 
 __all__ = ["make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "unmark",
            "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
-           "report", "steps", "layout", "core_printed_parts", "export", "remove_owned",
+           "report", "steps", "layout", "export", "remove_owned",
            "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",
            "feed_file", "model_name", "make_calibration_strip"]

@@ -5,10 +5,11 @@ are edited on the preferences page (:class:`PreferencePage`, the form
 ``resources/ui/preferences.ui``).  New Fabrications take their defaults
 from here; each Fabrication then keeps its own values as properties.
 
-The stud and socket fit default to :class:`core.interfaces.Fit`, the one
-table of their defaults (the CLI, these preferences and the Fabrication's
-properties all read it): an unset preference follows that table, so a
-change of the table reaches every user who has not chosen a value.
+The stud and socket fit and the seconds per brick default to the core's one
+table of defaults, :data:`core.request.DEFAULTS` (the CLI's options, these
+preferences and the Fabrication's properties all read it): an unset
+preference follows that table, so a change of the table reaches every user
+who has not chosen a value.
 """
 
 from __future__ import annotations
@@ -18,24 +19,28 @@ import os
 import FreeCAD as App
 
 from core.interfaces import Fit
+from core.request import DEFAULTS as DEFAULTS_TABLE
 
 #: Parameter group of the preferences.
 PATH = "User parameter:BaseApp/Preferences/Mod/Fabrickator"
 
 #: name -> (type, default).  Types follow FreeCAD's parameter kinds; a default of
-#: None is the field FIT_FIELDS names of :class:`core.interfaces.Fit`.
+#: None is the setting TABLE_FIELDS names in the core's one table of defaults
+#: (:data:`core.request.DEFAULTS`).  Slicing on recompute is off by default here
+#: (it takes seconds per recompute), unlike the command line's.
 DEFAULTS = {
     "BrickSet": ("String", "all"),
     "StudFit": ("Float", None),
     "SocketFit": ("Float", None),
     "SlicerPath": ("String", ""),
     "SlicerProfile": ("String", ""),
-    "SecondsPerBrick": ("Float", 10.0),
+    "SecondsPerBrick": ("Float", None),
     "SliceOnRecompute": ("Bool", False),
 }
 
-#: Preferences whose default is a field of :class:`core.interfaces.Fit`.
-FIT_FIELDS = {"StudFit": "stud_fit", "SocketFit": "socket_fit"}
+#: Preferences whose default is a setting of :data:`core.request.DEFAULTS`.
+TABLE_FIELDS = {"StudFit": "stud_fit", "SocketFit": "socket_fit",
+                "SecondsPerBrick": "seconds_per_brick"}
 
 #: Widget (object name in preferences.ui) of each preference on the page.
 WIDGETS = {"BrickSet": "brickSet", "StudFit": "studFit", "SocketFit": "socketFit",
@@ -48,15 +53,16 @@ def group():
     return App.ParamGet(PATH)
 
 
-def fit_default(field: str) -> float:
-    """The default of ``field`` ("stud_fit", "socket_fit", ...) in :class:`core.interfaces.Fit`."""
-    return float(getattr(Fit(), field))
+def setting_default(field: str):
+    """The default of setting ``field`` ("stud_fit", "seconds_per_brick", ...) in the core's
+    one table of defaults, :data:`core.request.DEFAULTS`."""
+    return DEFAULTS_TABLE[field]
 
 
 def default(name: str):
-    """The default of preference ``name``: DEFAULTS' value, or Fit's for FIT_FIELDS."""
+    """The default of preference ``name``: DEFAULTS' value, or the table's for TABLE_FIELDS."""
     _, value = DEFAULTS[name]
-    return fit_default(FIT_FIELDS[name]) if name in FIT_FIELDS else value
+    return setting_default(TABLE_FIELDS[name]) if name in TABLE_FIELDS else value
 
 
 def is_set(name: str) -> bool:

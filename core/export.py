@@ -19,6 +19,7 @@ that do not all fit one bed go on further plates, ``plate-2.3mf``,
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 import os
@@ -251,13 +252,14 @@ def _rows(fmt: str, ids, values) -> str:
 
 def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
                  profile: str | os.PathLike | None = None, slicer: str | None = "auto",
-                 beds: list | None = None) -> list[str]:
+                 beds: list | None = None) -> tuple[list[str], list[PrintedPart]]:
     """Write ``<id>.stl``, ``<id>.step`` per part and the 3MF plate(s) into ``folder``.
 
-    Sets ``stl`` and ``step`` of each part to the paths relative to the
-    folder's parent (``parts/P1.stl``) and ``pose`` to its print pose
-    (:meth:`Pose.to_json` plus the plate file it is on); returns the names
-    written.  The plates come from :func:`plates` (``bed``, ``profile`` and
+    Returns the names written and the parts as written: copies whose
+    ``stl`` and ``step`` are the paths relative to the folder's parent
+    (``parts/P1.stl``) and whose ``pose`` is the print pose
+    (:meth:`Pose.to_json` plus the plate file it is on); ``parts`` are not
+    changed.  The plates come from :func:`plates` (``bed``, ``profile`` and
     ``slicer`` as there), or are ``beds`` when given (what :func:`plates`
     returned for these ``parts``, so that the poses are not searched again):
     ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
@@ -270,6 +272,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     written = []
+    files: dict[str, dict] = {}
     for p in parts:
         stl, step = folder / f"{p.id}.stl", folder / f"{p.id}.step"
         p.mesh.export(stl)
@@ -277,17 +280,17 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
             write_step(p.solid, step)
         else:
             write_faceted_step(p.mesh, step, name=p.id)
-        p.stl, p.step = f"{folder.name}/{stl.name}", f"{folder.name}/{step.name}"
+        files[p.id] = {"stl": f"{folder.name}/{stl.name}", "step": f"{folder.name}/{step.name}"}
         written += [stl.name, step.name]
     if beds is None:
         beds = plates(parts, bed, profile, slicer) if parts else []
     for number, items in enumerate(beds, start=1):
         name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
         for index, _, pose in items:
-            parts[index].pose = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
+            files[parts[index].id]["pose"] = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
         config = print_time.plate_config(profile or print_time.DEFAULT_PROFILE,
                                          supports=any(pose.supports for _, _, pose in items))
         (folder / name).write_bytes(print_time.plate_3mf([mesh for _, mesh, _ in items], config,
                                                          names=[parts[index].id for index, _, _ in items]))
         written.append(name)
-    return written
+    return written, [dataclasses.replace(p, **files[p.id]) for p in parts]

@@ -8,14 +8,13 @@ volume; every brick with a touched filled cell becomes printed (paper,
 bricks of one connected region form one printed part (:func:`groups`);
 bricks are connected when they touch face to face, side by side or one on
 the other with overlapping footprints.  Marks by box or solid are made
-before the layout: :func:`lay_out_around` lays out the marked cells and the
+before the layout: :func:`core.layout.lay_out_around` lays out the marked cells and the
 rest separately, so printed and LEGO bricks meet cleanly on the region's
 boundary and a printed part is no larger than the cells the region touches.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,9 +22,7 @@ import trimesh
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import layout as layout_stage
 from core import mesh_io, voxelize
-from core.catalog import CATALOG, Part
 from core.errors import InputError
 from core.model import Grid, Layout
 
@@ -247,25 +244,6 @@ def _tabs(flat: np.ndarray, allowed: np.ndarray) -> np.ndarray:
             if len(hits):
                 out[tuple(hits[len(hits) // 2])] = True
     return out
-
-
-def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,
-                   seed: int = 0) -> Layout:
-    """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
-
-    The filled cells outside ``cells`` and those inside are laid out on
-    their own (:func:`core.layout.lay_out`, same parts and seed), and the two
-    brick lists joined (ids renumbered 0..n-1, the outside bricks first).
-    So the bricks touching ``cells`` cover exactly the marked filled cells.
-    """
-    filled = np.asarray(grid.filled, dtype=bool)
-    inside = filled & np.asarray(cells, dtype=bool)
-    bricks = []
-    for mask in (filled & ~inside, inside):
-        if mask.any():
-            part = layout_stage.lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed)
-            bricks += part.bricks
-    return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])
 
 
 def touched_bricks(layout: Layout, cells: np.ndarray) -> list[int]:

@@ -77,6 +77,7 @@ from core import high_res, layout as layout_stage, mesh_io, printed as printed_s
 from core import stability as stability_stage
 from core.interfaces import Fit
 from core.catalog import BY_NUMBER, Part
+from core.connectivity import FACE_STRUCTURE
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
@@ -224,14 +225,7 @@ def load_previous(folder: str | os.PathLike) -> Previous:
         if state.get("version") not in READABLE_VERSIONS:
             raise InputError(f"--previous {folder}: snapshot version {state.get('version')} "
                              f"is not {SNAPSHOT_VERSION}; fabricate that version again")
-        lay = state["layout"]
-        bricks = [Brick(int(b["id"]), str(b["part"]), tuple(b["size"]), tuple(b["cell"]),
-                        b["kind"], b["printed_part"], b.get("step")) for b in lay["bricks"]]
-        filled = np.zeros(tuple(lay["shape"]), dtype=bool)
-        for b in bricks:
-            filled[b.slices()] = True
-        grid = Grid(origin=np.array(lay["origin_mm"], dtype=np.float64),
-                    cell=np.array(lay["cell_mm"], dtype=np.float64), filled=filled)
+        layout = Layout.from_json(state["layout"])
         snap = folder / SNAPSHOT_DIR
         mesh = trimesh.load(snap / "model.ply", file_type="ply", process=False, force="mesh")
         brep = _read_brep(snap / "model.brep") if state["model"]["brep"] else None
@@ -248,7 +242,7 @@ def load_previous(folder: str | os.PathLike) -> Previous:
     except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
         raise InputError(f"--previous {folder}: the iteration snapshot cannot be read "
                          f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from None
-    return Previous(folder, grid, Layout(grid, bricks), mesh, brep,
+    return Previous(folder, layout.grid, layout, mesh, brep,
                     bool(state["model"]["watertight"]), parts, state, regions)
 
 
@@ -397,7 +391,7 @@ def _keep(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray,
             for i in by_part[pid]:
                 covered[shifted[i].slices()] = True
         free_marks = ndimage.binary_dilation(marked & ~covered,
-                                             structure=stability_stage.FACE_STRUCTURE)
+                                             structure=FACE_STRUCTURE)
         drop = {pid for pid in kept_parts
                 if any(free_marks[shifted[i].slices()].any() for i in by_part[pid])}
         if not drop:
@@ -432,7 +426,28 @@ def lay_out(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray,
     """
     plan = _keep(previous, cells, marked, {p.number for p in parts})
     layout, rings = _relayout(previous, cells.grid, plan, marked, parts, seed)
-    return layout, plan, rings
+    return _same_again(layout, plan) + (rings,)
+
+
+def _same_again(layout: Layout, plan: _Plan) -> tuple[Layout, _Plan]:
+    """A new brick that is a previous brick the re-layout freed, laid again as it was
+    (same part, size and cell; LEGO or printed), is that brick: it gets its id back and
+    counts as kept, so the builder is not told to take it off and put it back.  Returns the
+    layout and plan with those ids (new objects; the inputs are not changed)."""
+    present = {b.id for b in layout.bricks}
+    old = {(b.part, tuple(b.size), tuple(b.cell)): i for i, b in plan.shifted.items()
+           if i not in present}
+    reused: set[int] = set()
+    bricks = []
+    for b in layout.bricks:
+        key = (b.part, tuple(b.size), tuple(b.cell))
+        if b.id >= plan.next_id and old.get(key) not in (None, *reused):
+            reused.add(old[key])
+            b = dataclasses.replace(b, id=old[key])
+        bricks.append(b)
+    if not reused:
+        return layout, plan
+    return Layout(layout.grid, bricks), dataclasses.replace(plan, kept=plan.kept | reused)
 
 
 def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
@@ -456,7 +471,7 @@ def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
     freed: set[int] = set()
     for ring in range(MAX_RINGS + 1):
         if ring:
-            near = ndimage.binary_dilation(free, structure=stability_stage.FACE_STRUCTURE)
+            near = ndimage.binary_dilation(free, structure=FACE_STRUCTURE)
             grow = {int(i) for i in np.unique(label[near & ~free]) if i in lego_kept} - freed
             if not grow:
                 break

@@ -41,6 +41,7 @@ attempts and the final bricks.  Randomness comes only from ``seed``.
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 from typing import Callable
 
@@ -50,8 +51,8 @@ from scipy import ndimage
 
 from core.catalog import BRICK_LAYERS, CATALOG, PLATE_LAYERS, Part
 from core.errors import InputError
+from core.connectivity import articulation_points, component_labels, regions
 from core.model import Brick, Grid, Layout
-from core.stability import articulation_points, component_labels, regions
 
 Progress = Callable[[float, str], None]
 
@@ -983,3 +984,22 @@ def _put(x0, y0, k, w, h, layers, part, nbr, nd, lab, rec, alive, count, parent)
         rb = _find(parent, b)
         if ra != rb:
             parent[ra] = rb
+
+
+def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,
+                   seed: int = 0) -> Layout:
+    """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
+
+    The filled cells outside ``cells`` and those inside are laid out on
+    their own (:func:`core.layout.lay_out`, same parts and seed), and the two
+    brick lists joined (ids renumbered 0..n-1, the outside bricks first).
+    So the bricks touching ``cells`` cover exactly the marked filled cells.
+    """
+    filled = np.asarray(grid.filled, dtype=bool)
+    inside = filled & np.asarray(cells, dtype=bool)
+    bricks = []
+    for mask in (filled & ~inside, inside):
+        if mask.any():
+            part = lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed)
+            bricks += part.bricks
+    return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])

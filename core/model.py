@@ -117,6 +117,21 @@ class Layout:
         lo = np.asarray(self.grid.origin, dtype=float) + cells * self.grid.cell
         return lo, lo + sizes * self.grid.cell
 
+    @classmethod
+    def from_json(cls, data: dict) -> "Layout":
+        """The layout of a ``layout.json`` document (:meth:`to_json`): its grid's
+        filled cells are the bricks' cells, steps as stored.  Raises KeyError,
+        TypeError or ValueError for a document that is not one."""
+        bricks = [Brick(int(b["id"]), str(b["part"]), tuple(int(v) for v in b["size"]),
+                        tuple(int(v) for v in b["cell"]), b["kind"], b["printed_part"],
+                        b.get("step")) for b in data["bricks"]]
+        filled = np.zeros(tuple(int(v) for v in data["shape"]), dtype=bool)
+        for b in bricks:
+            filled[b.slices()] = True
+        grid = Grid(origin=np.array(data["origin_mm"], dtype=np.float64),
+                    cell=np.array(data["cell_mm"], dtype=np.float64), filled=filled)
+        return cls(grid, bricks)
+
     def to_json(self) -> dict:
         return {
             "cell_mm": [float(c) for c in self.grid.cell],

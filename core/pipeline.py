@@ -127,7 +127,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        and unless ``connectors`` is off, anchor tabs are added
        (:func:`core.high_res.anchor`).
     4. **layout**: fresh, marked and other cells laid out apart
-       (:func:`core.high_res.lay_out_around`); iterating, the previous bricks
+       (:func:`core.layout.lay_out_around`); iterating, the previous bricks
        kept where they still fit and the rest laid out anew
        (:func:`core.iterate.lay_out`).
     5. **printed_parts**: the bricks touching marked cells (and
@@ -200,7 +200,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
                                       chosen, req.seed)
     elif cells.any():
-        layout = timed("layout", 0.4, high_res_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
+        layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
     else:
         layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
 
@@ -509,12 +509,14 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     title = Path(fab.model.path).name
     try:
         start = time.perf_counter()
+        placed = {}
         if fab.printed:
             from core import export
             progress(0.9, "export")
-            export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
-                                slicer="none" if fab.print_full is None else "auto",
-                                beds=fab.plates if fab.iteration is None else None)
+            _, parts = export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
+                                           slicer="none" if fab.print_full is None else "auto",
+                                           beds=fab.plates if fab.iteration is None else None)
+            placed = {p.id: p for p in parts}
         progress(0.92, "instructions")
         from core import instructions
         assembly = instructions.write_assembly(
@@ -528,6 +530,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
                                  title=f"{title}: {len(fab.layout.bricks)} bricks")
         iterate_stage.snapshot(fab, tmp)
         doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
+        for entry in doc["printed_parts"]:
+            if entry["id"] in placed:
+                p = placed[entry["id"]]
+                entry.update(stl=p.stl, step=p.step, pose=p.pose)
         if doc.get("changes"):
             iterate_stage.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
         doc.setdefault("timings_s", {})["write"] = round(time.perf_counter() - start, 4)

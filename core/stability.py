@@ -8,9 +8,9 @@ regions of filled cells, finds the weak points (bricks whose removal splits
 their component: articulation points of the graph) and says, for every
 region that the bricks do not hold together, why.
 
-The graph kernels (:func:`component_labels`, :func:`articulation_points`)
-work on plain CSR arrays and are compiled with numba, so the layout stage
-can call them in its repair loop.
+The graph kernels (:func:`core.connectivity.component_labels`,
+:func:`core.connectivity.articulation_points`) live in :mod:`core.connectivity`,
+which the layout stage (earlier in the pipeline) uses too.
 """
 
 from __future__ import annotations
@@ -18,15 +18,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
+from core.connectivity import articulation_points, regions
 from core.model import Layout
-
-#: 6-connectivity: cells touching by a face.
-FACE_STRUCTURE = ndimage.generate_binary_structure(3, 1)
-
 
 @dataclass
 class Stability:
@@ -54,89 +50,6 @@ class Stability:
                 "weak_points": list(self.weak_points),
                 "leaf_supports": list(self.leaf_supports),
                 "unconnectable": list(self.unconnectable)}
-
-
-@njit(cache=True)
-def component_labels(indptr, indices, n):
-    """Component index of every vertex of a CSR graph, numbered from 0 in vertex order."""
-    comp = np.full(n, -1, dtype=np.int64)
-    stack = np.empty(n, dtype=np.int64)
-    c = 0
-    for s in range(n):
-        if comp[s] >= 0:
-            continue
-        comp[s] = c
-        top = 0
-        stack[0] = s
-        while top >= 0:
-            v = stack[top]
-            top -= 1
-            for e in range(indptr[v], indptr[v + 1]):
-                w = indices[e]
-                if comp[w] < 0:
-                    comp[w] = c
-                    top += 1
-                    stack[top] = w
-        c += 1
-    return comp
-
-
-@njit(cache=True)
-def articulation_points(indptr, indices, n):
-    """Boolean mask of the articulation points of a simple undirected CSR graph.
-
-    Iterative Tarjan: a vertex is an articulation point when removing it
-    leaves more components than before.
-    """
-    disc = np.full(n, -1, dtype=np.int64)
-    low = np.zeros(n, dtype=np.int64)
-    parent = np.full(n, -1, dtype=np.int64)
-    pos = indptr[:-1].copy()
-    stack = np.empty(n, dtype=np.int64)
-    art = np.zeros(n, dtype=np.bool_)
-    t = 0
-    for s in range(n):
-        if disc[s] >= 0:
-            continue
-        disc[s] = t
-        low[s] = t
-        t += 1
-        top = 0
-        stack[0] = s
-        root_children = 0
-        while top >= 0:
-            v = stack[top]
-            if pos[v] < indptr[v + 1]:
-                w = indices[pos[v]]
-                pos[v] += 1
-                if disc[w] < 0:
-                    parent[w] = v
-                    disc[w] = t
-                    low[w] = t
-                    t += 1
-                    top += 1
-                    stack[top] = w
-                    if v == s:
-                        root_children += 1
-                elif w != parent[v] and disc[w] < low[v]:
-                    low[v] = disc[w]
-            else:
-                top -= 1
-                p = parent[v]
-                if p >= 0:
-                    if low[v] < low[p]:
-                        low[p] = low[v]
-                    if p != s and low[v] >= disc[p]:
-                        art[p] = True
-        if root_children >= 2:
-            art[s] = True
-    return art
-
-
-def regions(filled: np.ndarray) -> tuple[np.ndarray, int]:
-    """Label the connected regions of filled cells (6-connectivity): ``(labels, count)``; 0 is empty."""
-    lab, n = ndimage.label(filled, structure=FACE_STRUCTURE)
-    return lab, int(n)
 
 
 def brick_graph(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) -> sparse.csr_matrix:

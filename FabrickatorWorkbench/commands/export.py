@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from PySide import QtCore, QtGui
 
+from core.errors import InputError
 from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.commands.base import Command, file_dialog, selected_fabrication
 
@@ -30,8 +31,11 @@ def export_to(fab, folder: str) -> list[str]:
     QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
     try:
         return make.export(fab, folder)
-    except Exception as exc:
+    except (InputError, ValueError) as exc:
         log.failure(f"{fab.Label}: export", exc)
+        return []
+    except Exception as exc:  # noqa: BLE001 - a bug: its traceback goes to the Report view
+        log.bug(f"{fab.Label}: export", exc)
         return []
     finally:
         QtGui.QApplication.restoreOverrideCursor()

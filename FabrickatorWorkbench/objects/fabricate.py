@@ -2,8 +2,8 @@
 
 :func:`recompute` is the Fabrication's ``execute``.  It writes the Source to
 a temporary file (:mod:`FabrickatorWorkbench.bridge`), gathers the high-res
-regions, runs :func:`core.pipeline.run` and :func:`core.build_order.plan`,
-and only when all of that succeeded changes the document
+regions into a :class:`core.request.Request`, runs the core's one driver
+(:func:`core.pipeline.run`), and only when that succeeded changes the document
 (:func:`FabrickatorWorkbench.objects.tree.sync`).  A failure (bad input,
 a Source without a solid, a cancelled run) leaves every object as it was,
 puts the parameters back to the last values that worked, and says why in
@@ -20,9 +20,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import FreeCAD as App
-import numpy as np
 
-from core import catalog
+from core import request as core_request
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM
@@ -31,8 +30,8 @@ from FabrickatorWorkbench.objects import high_res_region, tree
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick", "SlicePrintTimes",
-              "FitGrid")
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick",
+              "SecondsPerPart", "SlicePrintTimes", "FitGrid")
 
 
 class Cancelled(Exception):
@@ -86,18 +85,27 @@ def edits(obj) -> list[dict]:
 def recompute(obj) -> bool:
     """Run the core for Fabrication ``obj`` and update the document; True on success.
 
-    Never raises for bad input: the Report view and ``obj.Status`` say what
-    failed, and the document keeps the previous result.
+    Never raises: for bad input (:class:`core.errors.InputError`) or a
+    cancelled run the Report view and ``obj.Status`` say what failed in one
+    line; any other exception is a bug, and the Report view shows its
+    traceback.  Either way the document keeps the previous result and the
+    parameters go back to the last values that worked.
     """
     if not deps.check(f"recomputing {obj.Label}"):
         obj.Status = "failed: Fabrickator's Python packages are missing (see the Report view)"
         return False
     try:
         result = run_core(obj)
-    except (InputError, ValueError, Cancelled) as exc:
+    except (InputError, Cancelled) as exc:
         reason = log.failure(f"{obj.Label}: recompute", exc)
         _restore_parameters(obj)
         obj.Status = f"failed, previous result kept: {reason.split('failed: ', 1)[-1]}"
+        return False
+    except Exception as exc:  # noqa: BLE001 - a bug: shown with its traceback, document kept
+        log.bug(f"{obj.Label}: recompute", exc)
+        _restore_parameters(obj)
+        obj.Status = (f"failed by a bug, previous result kept: {type(exc).__name__} "
+                      f"(the traceback is in the Report view)")
         return False
     obj.Status = "failed while updating the tree (see the Report view)"
     first = not obj.LayoutJson
@@ -141,56 +149,62 @@ def _ids(ids: list[int], shown: int = 12) -> str:
     return f"{len(ids)} brick(s): {listed}"
 
 
+def request(obj, path: str, boxes, solids, previous: str | None = None):
+    """The :class:`core.request.Request` of Fabrication ``obj`` for its Source written at
+    ``path``: its properties, the preferences' slicer profile, the regions (``boxes``,
+    ``solids``) and brush edits; ``previous`` an unpacked snapshot to iterate on.
+
+    The workbench sends all of its regions every time (``previous_regions``
+    off) and lays a moved Source out anew where it stands (``iterate_moved``
+    off), because its bricks stand at the Source.
+    """
+    scale = float(obj.Scale)
+    return core_request.Request(
+        model=path, scale=scale, seed=int(obj.Seed), parts=obj.BrickSet.strip() or None,
+        high_res=tuple(boxes), high_res_solids=tuple(solids),
+        part_edits=tuple({"op": e["op"], "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
+                         for e in edits(obj)),
+        stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value),
+        seconds_per_brick=float(obj.SecondsPerBrick),
+        seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
+        profile=preferences.get("SlicerProfile") or None, previous=previous,
+        previous_regions=False, iterate_moved=False).checked()
+
+
 def run_core(obj) -> Result:
     """The core's result for Fabrication ``obj`` (changes nothing in the document).
 
-    When only the Source changed since the last result (same parameters,
-    regions and edits) and ``KeepLayout`` is on, the new version is an
-    iteration on the previous result (:func:`core.iterate.iterate`: the old
-    layout is kept wherever the part did not change); otherwise the whole
-    pipeline runs (:func:`core.pipeline.run`).  Raises InputError (or
-    ValueError) for unusable inputs and :class:`Cancelled` when the user
-    stops it.
+    One run of the core's driver (:func:`core.pipeline.run`) on the
+    Fabrication's :func:`request`.  When only the Source changed since the
+    last result (same parameters, regions and edits) and ``KeepLayout`` is
+    on, the stored snapshot is the request's ``previous``: the run is an
+    iteration that keeps the old layout wherever the part did not change.
+    Raises InputError for unusable inputs and :class:`Cancelled` when the
+    user stops it.
     """
-    from core import build_order, pipeline
-
     source = obj.Source
     if source is None:
         raise InputError("no Source: link the part to build in the Source property")
     if bridge.source_kind(source) is None:
         raise InputError(f"the Source {source.Label} has no solid and no mesh")
-    scale = float(obj.Scale)
+    from core import pipeline
+
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj)}
+    marks = _last_inputs(obj) == inputs
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
             _slicer(bool(obj.SlicePrintTimes)), _progress(f"Fabrickator: {obj.Label}") as progress:
         path = bridge.write_source(source, work)
-        boxes, solids = region_inputs(obj, work, scale)
-        fab, changes = None, None
-        fitting = fit(obj)
-        marks = _last_inputs(obj) == inputs
-        if obj.KeepLayout and obj.IterationState and marks:
-            fab, changes = _iterate(obj, path, boxes, solids, work, progress, fitting)
-        if fab is None:
-            kwargs = dict(scale=scale, seed=int(obj.Seed), parts=obj.BrickSet.strip() or None,
-                          high_res=boxes, high_res_solids=solids,
-                          stud_fit=fitting.stud_fit, socket_fit=fitting.socket_fit,
-                          seconds_per_brick=float(obj.SecondsPerBrick), slice_parts=True,
-                          progress=progress, fit_grid=bool(obj.FitGrid))
-            kwargs["part_edits"] = [{"op": e["op"],
-                                     "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
-                                    for e in edits(obj)]
-            kwargs["profile"] = preferences.get("SlicerProfile") or None
-            fab = pipeline.run(path, **kwargs)
+        boxes, solids = region_inputs(obj, work, float(obj.Scale))
+        previous = _previous(obj, work) if obj.KeepLayout and marks else None
+        fab = pipeline.run(request(obj, path, boxes, solids, previous), progress=progress)
+        for note in fab.notes:
+            log.message(f"{obj.Label}: {note}")
         if not fab.layout.bricks:
             raise InputError("the layout has no bricks")
-        order = build_order.plan(fab.layout)
-        build_order.assign(fab.layout, order)
         report = pipeline.report(fab)
-        if changes is not None:
-            report["changes"] = changes
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
-        snapshot = _snapshot(fab, fitting)
-    return Result(fab, order, report, inputs, snapshot, marks)
+        snapshot = _snapshot(fab)
+    return Result(fab, fab.order, report, inputs, snapshot, marks)
 
 
 def region_signature(obj) -> str:
@@ -214,47 +228,32 @@ def _last_inputs(obj) -> dict | None:
         return None
 
 
-def _iterate(obj, path: str, boxes, solids, work: str, progress, fitting):
-    """The new Source as an iteration on the stored snapshot, with the stud and socket
-    fit ``fitting`` (a :class:`core.interfaces.Fit`): (core Fabrication, changes), or
-    (None, None) when the iteration does not apply (then the caller lays out anew)."""
-    from core import iterate, mesh_io, pipeline
+def _previous(obj, work: str) -> str | None:
+    """The stored snapshot of ``obj`` unpacked into ``work`` (a folder the core reads as
+    ``previous``), or None when there is none or it cannot be read (then, said in the
+    Report view, the layout is made anew)."""
+    from core import iterate
 
+    if not obj.IterationState:
+        return None
     folder = os.path.join(work, "previous")
     try:
         shutil.unpack_archive(obj.IterationState, folder, "zip")
-        previous = iterate.load_previous(folder)
-        model = mesh_io.load_model(path, scale=float(obj.Scale))
-        result = iterate.iterate(previous, model, parts=catalog.select(obj.BrickSet.strip() or None),
-                                 seed=int(obj.Seed), high_res=boxes, high_res_solids=solids,
-                                 scale=float(obj.Scale), fit=fitting,
-                                 progress=progress)
-    except Cancelled:
-        raise
-    except Exception as exc:
-        log.warning(f"{obj.Label}: could not keep the previous layout ({type(exc).__name__}: "
-                    f"{str(exc).splitlines()[0] if str(exc) else ''}); laying out anew")
-        return None, None
-    if not np.allclose(result.alignment.transform, np.eye(4), atol=1e-6):
-        log.message(f"{obj.Label}: the new Source is moved or turned against the previous one; "
-                    f"laying out anew where it stands")
-        return None, None
-    fab = iterate.to_fabrication(result, float(obj.SecondsPerBrick))
-    if fab.printed:
-        pipeline.print_times(fab)
-    return fab, result.changes
-
-
-def _snapshot(fab, fitting) -> str | None:
-    """A zip of the core's iteration snapshot of ``fab`` made with the Fit ``fitting`` (in
-    a temporary folder of its own, which the caller removes), or None when the core has
-    no iteration support."""
-    try:
-        from core import iterate
-    except ImportError:
+        iterate.load_previous(folder)
+    except (OSError, ValueError, InputError) as exc:
+        log.warning(f"{obj.Label}: the stored previous result cannot be read "
+                    f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); laying out anew")
         return None
+    return folder
+
+
+def _snapshot(fab) -> str:
+    """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
+    own, which the caller removes)."""
+    from core import iterate
+
     with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
-        iterate.snapshot(fab, folder, fit=fitting)
+        iterate.snapshot(fab, folder)
         holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
         return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)
 

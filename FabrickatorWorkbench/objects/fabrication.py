@@ -23,7 +23,7 @@ import FreeCAD as App
 from FabrickatorWorkbench import log
 from FabrickatorWorkbench.objects import fabricate, prototype, tree
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
-from FabrickatorWorkbench.preferences import fit_default
+from FabrickatorWorkbench.preferences import setting_default
 from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
 
 QT = App.Qt.QT_TRANSLATE_NOOP
@@ -42,27 +42,33 @@ PROPERTIES = (
     Prop("App::PropertyDistance", "StudFit", "Fabrication",
          QT("App::Property", "Printed studs are 4.8 mm + this across (signed; larger clamps "
                              "tighter); find your printer's value with the Calibration strip"),
-         partial(fit_default, "stud_fit")),
+         partial(setting_default, "stud_fit")),
     Prop("App::PropertyDistance", "SocketFit", "Fabrication",
          QT("App::Property", "Printed sockets are 4.8 mm + this between the walls a real stud "
                              "touches (signed; smaller clamps tighter); see the Calibration strip"),
-         partial(fit_default, "socket_fit")),
+         partial(setting_default, "socket_fit")),
     Prop("App::PropertyInteger", "Seed", "Fabrication",
-         QT("App::Property", "Seed of the layout: the same seed gives the same layout"), 0),
+         QT("App::Property", "Seed of the layout: the same seed gives the same layout"),
+         partial(setting_default, "seed")),
     Prop("App::PropertyFloat", "Scale", "Fabrication",
-         QT("App::Property", "Scale applied to the Source before it is built from LEGO"), 1.0),
+         QT("App::Property", "Scale applied to the Source before it is built from LEGO"),
+         partial(setting_default, "scale")),
     Prop("App::PropertyVector", "CellSize", "Fabrication",
          QT("App::Property", "Size of one 1x1 plate cell (stud pitch, pitch, plate height), mm"),
          None, READ_ONLY),
     Prop("App::PropertyFloat", "SecondsPerBrick", "Fabrication",
-         QT("App::Property", "Assembly estimate: seconds to place one brick or printed part"), 10.0),
+         QT("App::Property", "Assembly estimate: seconds to place one LEGO brick"),
+         partial(setting_default, "seconds_per_brick")),
+    Prop("App::PropertyFloat", "SecondsPerPart", "Fabrication",
+         QT("App::Property", "Assembly estimate: seconds to insert one printed part"),
+         partial(setting_default, "seconds_per_part")),
     Prop("App::PropertyBool", "SlicePrintTimes", "Fabrication",
          QT("App::Property", "Slice the whole part and the printed parts with PrusaSlicer on "
                              "recompute (slower); otherwise print times are estimated"), False),
     Prop("App::PropertyBool", "FitGrid", "Fabrication",
          QT("App::Property", "Shift the grid (up to one stud in x and y) so that the high-res "
                              "regions print the least; off: the grid is centred on the part"),
-         True),
+         partial(setting_default, "fit_grid")),
     Prop("App::PropertyBool", "KeepLayout", "Fabrication",
          QT("App::Property", "When only the Source changed, keep the previous layout wherever "
                              "the part did not change and reprint only changed printed parts"),
@@ -72,6 +78,8 @@ PROPERTIES = (
     Prop("App::PropertyLinkList", "Contents", "Fabrication",
          QT("App::Property", "Groups the Fabrication made: regions, printed parts, layers"),
          None, HIDDEN),
+    Prop("App::PropertyInteger", "NameSerial", "Fabrication",
+         QT("App::Property", "Counter of the object names given to new bricks"), 0, HIDDEN),
     Prop("App::PropertyString", "PartEdits", "Fabrication",
          QT("App::Property", "Merge and split brush edits (JSON)"), "[]", HIDDEN),
     Prop("App::PropertyString", "Status", "Result",

@@ -31,10 +31,9 @@ import json
 from collections import defaultdict
 
 import FreeCAD as App
-import numpy as np
 
 from core.catalog import BY_NUMBER
-from core.model import Brick, Grid, Layout
+from core.model import Grid, Layout
 from FabrickatorWorkbench import bridge
 from FabrickatorWorkbench.objects import prototype as prototypes_module
 from FabrickatorWorkbench.objects.printed_part import PrintedPart
@@ -173,17 +172,7 @@ def stored_layout(fab) -> Layout:
     :class:`core.model.Layout`, steps included; ValueError when it has none yet."""
     if not fab.LayoutJson:
         raise ValueError(f"{fab.Label} has no layout yet: recompute it")
-    data = json.loads(fab.LayoutJson)
-    filled = np.zeros(data["shape"], dtype=bool)
-    out = []
-    for b in data["bricks"]:
-        brick = Brick(b["id"], b["part"], tuple(b["size"]), tuple(b["cell"]), b["kind"],
-                      b["printed_part"], b["step"])
-        filled[brick.slices()] = True
-        out.append(brick)
-    grid = Grid(np.array(data["origin_mm"], dtype=float), np.array(data["cell_mm"], dtype=float),
-                filled)
-    return Layout(grid, out)
+    return Layout.from_json(json.loads(fab.LayoutJson))
 
 
 def placement(brick, grid: Grid) -> App.Placement:
@@ -228,7 +217,7 @@ def sync(fab, result) -> tuple[int, int]:
                            None)
         new = obj is None
         if new:
-            obj = doc.addObject("App::Link", "Brick")
+            obj = doc.addObject("App::Link", _unused_name(fab, "Brick"))
             ensure(obj, BRICK_PROPERTIES)
             made.append(obj)
             changed += 1
@@ -290,6 +279,23 @@ def clear_changes(fab) -> int:
         if "Touched" in obj.State:
             obj.purgeTouched()
     return len(marked)
+
+
+def _unused_name(fab, base: str) -> str:
+    """An object name for a new brick of ``fab`` that no object of the document has ever
+    had: ``<base>_<n>`` with ``fab``'s ``NameSerial`` counted up.
+
+    FreeCAD's recompute deletes, once the recompute ends, an object created in
+    it under the name of an object deleted in an earlier recompute (the first
+    new brick of an iteration that followed a fresh layout vanished that way);
+    names never used before avoid it.
+    """
+    doc = fab.Document
+    while True:
+        fab.NameSerial = fab.NameSerial + 1
+        name = f"{base}_{fab.Name}_{fab.NameSerial}"
+        if doc.getObject(name) is None:
+            return name
 
 
 def _brick_key(obj, by_id: bool):

@@ -34,7 +34,9 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
     lay = Layout(g, [Brick(0, "3003", (2, 2, 3), (0, 0, 0)), Brick(1, "3004", (1, 2, 3), (2, 0, 0)),
                      Brick(2, "3003", (2, 2, 3), (1, 1, 3))])
     parts = printed.build_parts(lay, [[0, 1], [2]], source)
-    names = export.export_parts(parts, tmp_path / "parts")
+    before = [(p.stl, p.step, p.pose) for p in parts]
+    names, parts = export.export_parts(parts, tmp_path / "parts")
+    assert before == [(None, None, None)] * 2, "export_parts must not change its input"
     assert names == ["P1.stl", "P1.step", "P2.stl", "P2.step", "plate.3mf"]
     outside_model = _manifold(model)
     for p in parts:
@@ -135,7 +137,7 @@ def test_parts_that_fill_a_bed_go_on_more_plates(tmp_path):
         boxes = [mesh.bounds for _, mesh, _ in plate]
         assert all(np.all(b[1][:2] <= 60 - export.SPACING_MM + 1e-9) for b in boxes)
         assert not any(_overlap(a, b) for n, a in enumerate(boxes) for b in boxes[n + 1:])
-    names = export.export_parts(parts, tmp_path / "parts", bed=(60, 60))
+    names, parts = export.export_parts(parts, tmp_path / "parts", bed=(60, 60))
     assert "plate.3mf" in names and "plate-2.3mf" in names
     on = {p.pose["plate"] for p in parts}
     assert on == {f"parts/{n}" for n in names if n.endswith(".3mf")}
@@ -210,7 +212,7 @@ def _overhanging_and_plain_parts():
 def test_plate_config_switches_supports_on_when_a_part_needs_them(tmp_path):
     arm, brick = _overhanging_and_plain_parts()
     export.export_parts([brick], tmp_path / "plain", slicer="none")
-    export.export_parts([arm, brick], tmp_path / "mixed", slicer="none")
+    _, (arm, brick) = export.export_parts([arm, brick], tmp_path / "mixed", slicer="none")
     assert not brick.pose["supports"] and arm.pose["supports"]
     configs = {}
     for name in ("plain", "mixed"):

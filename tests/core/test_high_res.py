@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import high_res
+from core import high_res, layout
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
@@ -53,7 +53,7 @@ def test_touched_bricks_and_groups():
 def test_lay_out_around_keeps_bricks_inside_or_outside_the_marked_cells():
     grid = _grid((6, 6, 6))
     cells = high_res.box_cells(grid, [[4, 4, 1], [20, 12, 10]])
-    lay = high_res.lay_out_around(grid, cells, seed=3)
+    lay = layout.lay_out_around(grid, cells, seed=3)
     lab = lay.labels()
     assert (lab >= 0).all() and [b.id for b in lay.bricks] == list(range(len(lay.bricks)))
     for n, b in enumerate(lay.bricks):

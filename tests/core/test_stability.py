@@ -8,7 +8,8 @@ import pytest
 
 from core.layout import lay_out
 from core.model import CELL_MM, Brick, Grid, Layout
-from core.stability import analyse, articulation_points, brick_graph, regions
+from core.connectivity import articulation_points, regions
+from core.stability import analyse, brick_graph
 
 
 def layout_of(shape, bricks) -> Layout:

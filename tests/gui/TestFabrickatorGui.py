@@ -395,7 +395,8 @@ class TestCommands(GuiTestCase):
         answer_modal(choose_path(out), "FabrickatorChooseFolder")
         Gui.runCommand("Fabrickator_Export")
         settle()
-        for name in ("P1.stl", "P1.step", "plate.3mf", "instructions.html", "report.json"):
+        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate.3mf", "instructions.html",
+                     "report.json", "layout.json", "layout.png"):
             self.assertTrue((out / name).is_file(), name)
 
     def test_calibration_strip_command_writes_and_shows_the_strip(self):
