@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import cadquery as cq
@@ -26,7 +25,7 @@ from scipy.spatial.transform import Rotation
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core import align, export, iterate, mesh_io, pipeline  # noqa: E402
+from core import align, export, mesh_io, pipeline, result  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 OUT = ROOT / "bench" / "out"
@@ -105,23 +104,20 @@ def run_case(name: str, previous_file: Path, new_file: Path, unmoved: Path, high
     still mark it) against the iteration of the moved new version on the previous one."""
     prev = pipeline.run(previous_file, high_res=high_res, slice_parts=False)
     folder = work / f"prev-{abs(hash(name))}"
-    iterate.snapshot(prev, folder)
-    previous = iterate.load_previous(folder)
-    start = time.perf_counter()
-    model = mesh_io.load_model(new_file)
-    load = time.perf_counter() - start
+    result.snapshot(prev, folder)
     full = pipeline.run(unmoved, high_res=high_res, slice_parts=False)
     full_s = sum(v for k, v in full.timings_s.items() if k != "load")
-    start = time.perf_counter()
-    it = iterate.iterate(previous, model)
-    iter_s = time.perf_counter() - start
-    ch = it.changes
+    it = pipeline.run(new_file, previous=folder, slice_parts=False)
     t = it.timings_s
+    iter_s = sum(v for k, v in t.items() if k != "load")
+    ch = it.iteration.changes
+    diff_s = t["legofy"] + t["high_res"]
     return {
-        "case": name, "triangles": model.triangles, "load new s": load,
+        "case": name, "triangles": it.model.triangles, "load new s": t["load"],
         "full run s": full_s, "iteration s": iter_s,
-        "align s": t["align"], "diff s": t["diff"], "layout s": t["layout"],
-        "printed s": t["printed_parts"], "align+diff+layout s": t["align"] + t["diff"] + t["layout"],
+        "align s": t["align"], "diff s": diff_s, "layout s": t["layout"],
+        "printed s": t.get("printed_parts", 0.0),
+        "align+diff+layout s": t["align"] + diff_s + t["layout"],
         "rotation °": ch["transform"]["rotation_deg"], "residual mm": ch["transform"]["residual_mm"],
         "cells +/-": f"+{ch['cells_added']}/-{ch['cells_removed']}",
         "bricks kept/off/on": f"{ch['bricks_kept']}/{ch['bricks_removed']}/{ch['bricks_changed']}",

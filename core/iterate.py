@@ -4,11 +4,8 @@ The paper's second key benefit ("Faster iteration through localized
 changes", "Calculating changes between design iterations"): the user edits
 the part, and only what changed is rebuilt and reprinted.
 
-* :func:`snapshot` writes into an output folder (``iteration/``) what a
-  later iteration needs: the model mesh (``model.ply``) and B-rep
-  (``model.brep``, binary OpenCascade), each printed part's mesh and B-rep,
-  and ``state.json`` (layout, stability, printed-part records).
-* :func:`load_previous` reads it back as a :class:`Previous`.
+* A previous result is read back by :func:`core.result.load_previous`
+  (:mod:`core.result` writes and reads the snapshot of every output).
 * The stages of the iteration branch of the driver (:func:`core.pipeline.run`
   runs them, in the same order as a fresh run's):
 
@@ -47,8 +44,8 @@ the part, and only what changed is rebuilt and reprinted.
   6. The ``changes`` document (:func:`changes`): transform, cells added/removed, bricks
      kept/added/taken off, parts reprinted, and the instructions diff.
 
-* :func:`changes_page` writes the self-contained HTML page of the
-  instructions diff: what to take off, what to add, what to reprint.
+* :func:`core.changes_page.changes_page` writes the self-contained HTML page
+  of the instructions diff: what to take off, what to add, what to reprint.
 
 Brick ids are stable: a kept brick keeps its id, new bricks get ids above
 the previous largest, so "take off brick 17" means the brick 17 of the
@@ -60,14 +57,9 @@ into it.
 from __future__ import annotations
 
 import dataclasses
-import html
-import json
-import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import trimesh
 from scipy import ndimage
 
 from core import align as align_stage
@@ -78,15 +70,9 @@ from core import stability as stability_stage
 from core.interfaces import Fit
 from core.catalog import BY_NUMBER, Part
 from core.connectivity import FACE_STRUCTURE
-from core.errors import InputError
 from core.model import Brick, Grid, Layout
+from core.result import Previous
 
-#: Folder inside an output folder that holds the iteration snapshot.
-SNAPSHOT_DIR = "iteration"
-#: Version of the snapshot format (2 records the high-res regions and the settings).
-SNAPSHOT_VERSION = 2
-#: Older snapshot versions that can still be read.
-READABLE_VERSIONS = (1, 2)
 #: Rings of LEGO bricks the re-laid-out neighbourhood may grow by.
 MAX_RINGS = 4
 #: Margin (mm) around a printed part's bricks within which a changed surface
@@ -94,179 +80,6 @@ MAX_RINGS = 4
 PART_MARGIN_MM = 0.5
 #: Distance (mm) within which triangles / faces of the two versions are the same.
 SAME_SURFACE_MM = diff_stage.SAME_SURFACE_MM
-
-
-# --------------------------------------------------------------------------- snapshot
-
-
-def snapshot(fab, folder: str | os.PathLike) -> Path:
-    """Write what a later iteration needs into ``folder/iteration/``; returns that folder.
-
-    ``fab`` is a :class:`core.pipeline.Fabrication`.  Written: ``model.ply``
-    (the repaired model mesh, mm), ``model.brep`` for B-rep input,
-    ``parts/<id>.ply`` (and ``.brep``) per printed part, ``regions/<n>.ply``
-    per high-res region solid, and ``state.json`` with the layout, its
-    stability, the brick set, seed, units and scale, the stud and socket fit,
-    the high-res region boxes and every printed part's record (bricks,
-    studs, tubes, clamp cells, engraving).  Reads ``fab`` only.
-    """
-    out = Path(folder) / SNAPSHOT_DIR
-    (out / "parts").mkdir(parents=True, exist_ok=True)
-    (out / "regions").mkdir(exist_ok=True)
-    model = fab.model
-    model.mesh.export(out / "model.ply", file_type="ply")
-    if model.brep is not None:
-        _write_brep(model.brep, out / "model.brep")
-    records = []
-    for p in fab.printed:
-        p.mesh.export(out / "parts" / f"{p.id}.ply", file_type="ply")
-        if p.solid is not None:
-            _write_brep(p.solid, out / "parts" / f"{p.id}.brep")
-        records.append(_part_record(p))
-    for n, (mesh, _) in enumerate(fab.regions.solids):
-        mesh.export(out / "regions" / f"{n}.ply", file_type="ply")
-    st = fab.stability
-    req = fab.request
-    state = {
-        "version": SNAPSHOT_VERSION,
-        "model": {"path": str(model.path), "format": model.format,
-                  "watertight": bool(model.watertight), "brep": model.brep is not None},
-        "layout": fab.layout.to_json(),
-        "stability": {"regions": st.regions, "components": st.components,
-                      "weak_points": list(st.weak_points)},
-        "brick_set": [p.number for p in fab.parts],
-        "seed": fab.seed,
-        "settings": {"units": req.units, "scale": float(req.scale), "seed": int(req.seed)},
-        "fit": dataclasses.asdict(req.fit),
-        "regions": {"boxes": [np.asarray(b, dtype=float).tolist() for b in fab.regions.boxes],
-                    "solids_closed": [bool(c) for _, c in fab.regions.solids]},
-        "printed": records,
-    }
-    (out / "state.json").write_text(json.dumps(state))
-    return out
-
-
-def _write_brep(shape, path: Path) -> None:
-    from OCP.BinTools import BinTools
-    BinTools.Write_s(shape, str(path))
-
-
-def _read_brep(path: Path):
-    from OCP.BinTools import BinTools
-    from OCP.TopoDS import TopoDS_Shape
-    shape = TopoDS_Shape()
-    BinTools.Read_s(shape, str(path))
-    return shape
-
-
-#: PrintedPart fields kept as grid-cell maps; they are stored as [i, j, k, value] rows.
-_CELL_MAPS = ("top_ok", "bottom_ok")
-
-
-def _part_record(p: printed_stage.PrintedPart) -> dict:
-    """A printed part as JSON: every field but its geometry (``solid``, ``mesh``)."""
-    out = {}
-    for f in dataclasses.fields(p):
-        value = getattr(p, f.name)
-        if f.name in ("solid", "mesh"):
-            continue
-        if f.name in _CELL_MAPS:
-            value = [[*map(int, c), bool(v)] for c, v in value.items()]
-        out[f.name] = value
-    return out
-
-
-@dataclass
-class Previous:
-    """An earlier output folder as the iteration sees it.
-
-    ``grid`` and ``layout`` as that run made them; ``mesh`` / ``brep`` its
-    model (mm, its frame); ``parts`` its printed parts by id (cells in its
-    grid); ``state`` the raw ``state.json``; ``regions`` its high-res
-    regions in its frame (None for a snapshot of version 1, which did not
-    record them).
-    """
-
-    folder: Path
-    grid: Grid
-    layout: Layout
-    mesh: trimesh.Trimesh
-    brep: object | None
-    watertight: bool
-    parts: dict[str, printed_stage.PrintedPart]
-    state: dict
-    regions: high_res.Regions | None = None
-
-    @property
-    def weak_points(self) -> set[int]:
-        return set(self.state["stability"]["weak_points"])
-
-    @property
-    def extra_components(self) -> int:
-        st = self.state["stability"]
-        return max(0, int(st["components"]) - int(st["regions"]))
-
-
-def load_previous(folder: str | os.PathLike) -> Previous:
-    """Read the snapshot of an earlier output folder (``--previous DIR``).
-
-    Raises :class:`InputError` when ``folder`` is missing, is not an output
-    folder, or was written without a snapshot (then it must be made again).
-    """
-    folder = Path(folder)
-    state_file = folder / SNAPSHOT_DIR / "state.json"
-    if not folder.is_dir():
-        raise InputError(f"--previous {folder}: no such folder")
-    if not state_file.is_file():
-        raise InputError(f"--previous {folder}: not an output folder with an iteration snapshot "
-                         f"({SNAPSHOT_DIR}/state.json is missing); fabricate that version again")
-    try:
-        state = json.loads(state_file.read_text())
-        if state.get("version") not in READABLE_VERSIONS:
-            raise InputError(f"--previous {folder}: snapshot version {state.get('version')} "
-                             f"is not {SNAPSHOT_VERSION}; fabricate that version again")
-        layout = Layout.from_json(state["layout"])
-        snap = folder / SNAPSHOT_DIR
-        mesh = trimesh.load(snap / "model.ply", file_type="ply", process=False, force="mesh")
-        brep = _read_brep(snap / "model.brep") if state["model"]["brep"] else None
-        parts = {}
-        for rec in state["printed"]:
-            part_mesh = trimesh.load(snap / "parts" / f"{rec['id']}.ply", file_type="ply",
-                                     process=False, force="mesh")
-            brep_file = snap / "parts" / f"{rec['id']}.brep"
-            parts[rec["id"]] = _part_from_record(rec, part_mesh,
-                                                 _read_brep(brep_file) if brep_file.exists() else None)
-        regions = _read_regions(state.get("regions"), snap)
-    except InputError:
-        raise
-    except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
-        raise InputError(f"--previous {folder}: the iteration snapshot cannot be read "
-                         f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from None
-    return Previous(folder, layout.grid, layout, mesh, brep,
-                    bool(state["model"]["watertight"]), parts, state, regions)
-
-
-def _read_regions(record: dict | None, snap: Path) -> high_res.Regions | None:
-    """The regions of a snapshot's ``state["regions"]`` (None when it has none)."""
-    if record is None:
-        return None
-    boxes = tuple(np.asarray(b, dtype=np.float64).reshape(2, 3) for b in record["boxes"])
-    solids = tuple((trimesh.load(snap / "regions" / f"{n}.ply", file_type="ply", process=False,
-                                 force="mesh"), bool(closed))
-                   for n, closed in enumerate(record["solids_closed"]))
-    return high_res.Regions(boxes, solids)
-
-
-def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> printed_stage.PrintedPart:
-    """The :class:`~core.printed.PrintedPart` of a record and its geometry (fields
-    the record lacks keep their defaults; fields it has that the class lacks are dropped)."""
-    names = {f.name for f in dataclasses.fields(printed_stage.PrintedPart)} - {"solid", "mesh"}
-    values = {k: v for k, v in rec.items() if k in names}
-    for key in _CELL_MAPS:
-        if key in values:
-            values[key] = {tuple(int(v) for v in c[:3]): bool(c[3]) for c in values[key]}
-    values["bricks"] = [int(i) for i in values.get("bricks", [])]
-    return printed_stage.PrintedPart(solid=solid, mesh=mesh, **values)
 
 
 def _shifted_part(part: printed_stage.PrintedPart, shift) -> printed_stage.PrintedPart:
@@ -705,131 +518,3 @@ def changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_st
         "reprint": reprint,
     }
 
-
-# --------------------------------------------------------------------------- page
-
-
-_PAGE_STYLE = """
-body{font-family:sans-serif;margin:1.5em;color:#222;max-width:70em}
-h1{font-size:1.4em}h2{font-size:1.15em;margin-top:1.6em}
-table{border-collapse:collapse;margin:.4em 0}td,th{border:1px solid #bbb;padding:.2em .5em;text-align:left}
-th{background:#eee}.off{color:#b00020}.on{color:#00703c}.print{color:#0050b0}
-.layers{display:flex;flex-wrap:wrap;gap:1em}.layer{border:1px solid #ccc;padding:.4em}
-.note{color:#555;font-size:.9em}
-"""
-
-
-def changes_page(changes: dict, layout: Layout, path: str | os.PathLike, title: str) -> Path:
-    """Write the instructions diff as one self-contained HTML file at ``path``.
-
-    Sections: what changed (alignment, cells); 1. take off: LEGO bricks (by
-    previous id, part, layer and stud position in the previous build, top
-    down) and printed parts to take out; 2. add: LEGO bricks (bottom up)
-    and printed parts to insert, with the bricks they replace; 3. print:
-    every printed part, whether it must be printed and why; then a top view
-    of every layer that changes (kept bricks grey, taken off red dashed,
-    added green, printed blue).  Returns the path written.
-    """
-    ch = changes
-    tr = ch["transform"]
-    name = f"{title}: changes since the previous version"
-    e = html.escape
-    rows = [f"<h1>{e(name)}</h1>",
-            f"<p>{e(tr['message'])}. Rotation {tr['rotation_deg']:.3g}°, translation "
-            f"{', '.join(f'{v:.3g}' for v in tr['translation_mm'])} mm.</p>",
-            f"<p>Cells: <span class='on'>+{ch['cells_added']}</span>, "
-            f"<span class='off'>-{ch['cells_removed']}</span>. Bricks: {ch['bricks_kept']} kept, "
-            f"<span class='off'>{ch['bricks_removed']} to take off</span>, "
-            f"<span class='on'>{ch['bricks_changed']} to add</span>; "
-            f"<span class='print'>{len(ch['parts_reprinted'])} part(s) to print</span>.</p>",
-            "<p class='note'>Layers count plate heights (3.2 mm) from the base; positions are "
-            "studs from the corner of the previous build (x, y).</p>"]
-    lego_off = [b for b in ch["take_off"] if b["kind"] != "printed"]
-    lego_on = [b for b in ch["add"] if b["kind"] != "printed"]
-    rows.append("<h2 class='off'>1. Take off</h2>")
-    rows.append(_brick_table(sorted(lego_off, key=lambda b: (-b["cell_previous"][2], b["id"])),
-                             "no LEGO bricks to take off", replaces=False))
-    if ch["parts_out"]:
-        rows.append(f"<p>Take out printed part(s): <b>{e(', '.join(ch['parts_out']))}</b>.</p>")
-    rows.append("<h2 class='on'>2. Add (bottom up)</h2>")
-    rows.append(_brick_table(sorted(lego_on, key=lambda b: (b["cell_previous"][2], b["id"])),
-                             "no LEGO bricks to add", replaces=True))
-    for p in ch["parts_in"]:
-        what = []
-        if p["replaces_part"]:
-            what.append(f"the old print of {p['replaces_part']}" if p["replaces_part"] == p["id"]
-                        else f"printed part {p['replaces_part']}")
-        if p["replaces_bricks"]:
-            what.append("LEGO brick(s) " + ", ".join(map(str, p["replaces_bricks"])))
-        rows.append(f"<p>Insert printed part <b>{e(p['id'])}</b>"
-                    + (f" in place of {e(' and '.join(what))}" if what else "") + ".</p>")
-    rows.append("<h2 class='print'>3. Print</h2>")
-    if ch["reprint"]:
-        rows.append("<table><tr><th>part</th><th>print</th><th>why</th></tr>")
-        for r in ch["reprint"]:
-            rows.append(f"<tr><td>{e(r['id'])}</td><td>{'yes' if r['reprint'] else 'no, keep'}</td>"
-                        f"<td>{e(r['reason'])}</td></tr>")
-        rows.append("</table>")
-    else:
-        rows.append("<p>no printed parts</p>")
-    if ch["parts_removed"]:
-        rows.append(f"<p>Printed part(s) no longer used: {e(', '.join(ch['parts_removed']))}.</p>")
-    rows.append("<h2>Layers that change</h2><div class='layers'>")
-    rows += _layer_views(changes, layout)
-    rows.append("</div>")
-    text = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>" + e(name) + "</title><style>"
-            + _PAGE_STYLE + "</style></head><body>" + "\n".join(rows) + "</body></html>\n")
-    path = Path(path)
-    path.write_text(text, encoding="utf-8")
-    return path
-
-
-def _brick_table(entries: list[dict], empty: str, replaces: bool) -> str:
-    """An HTML table of instruction-diff LEGO bricks."""
-    if not entries:
-        return f"<p>{html.escape(empty)}</p>"
-    head = "<tr><th>brick</th><th>part</th><th>layer</th><th>at (x, y)</th><th>size</th>"
-    head += "<th>replaces</th></tr>" if replaces else "</tr>"
-    out = ["<table>", head]
-    for b in entries:
-        x, y, k = b["cell_previous"]
-        row = (f"<tr><td>{b['id']}</td><td>{html.escape(b['part'] + ' ' + b['name'])}</td>"
-               f"<td>{k}</td><td>{x}, {y}</td>"
-               f"<td>{b['size'][0]} x {b['size'][1]} x {b['size'][2]}</td>")
-        if replaces:
-            row += f"<td>{', '.join(map(str, b['replaces'])) or '-'}</td>"
-        out.append(row + "</tr>")
-    out.append("</table>")
-    return "\n".join(out)
-
-
-def _layer_views(changes: dict, layout: Layout, px: int = 14) -> list[str]:
-    """One small SVG top view per changed layer, in previous-build coordinates:
-    kept bricks grey, taken off red (dashed), added LEGO green, added printed blue."""
-    ch = changes
-    offset = np.asarray(ch["grid_offset"])
-    first_new = ch["first_new_id"]
-    boxes = [(np.array(b.cell) + offset, b.size, "#ccc") for b in layout.bricks
-             if b.id < first_new]
-    boxes += [(b["cell_previous"], b["size"], "#d33") for b in ch["take_off"]]
-    boxes += [(b["cell_previous"], b["size"], "#36c" if b["kind"] == "printed" else "#2a2")
-              for b in ch["add"]]
-    layers = sorted({k for c, s, colour in boxes if colour != "#ccc" for k in range(c[2], c[2] + s[2])})
-    if not layers:
-        return ["<p>no layer changes</p>"]
-    lo = np.min([np.asarray(c[:2]) for c, _, _ in boxes], axis=0)
-    hi = np.max([np.asarray(c[:2]) + np.asarray(s[:2]) for c, s, _ in boxes], axis=0)
-    w, h = (hi - lo) * px
-    out = []
-    for k in layers:
-        shapes = []
-        for c, s, colour in boxes:
-            if not c[2] <= k < c[2] + s[2]:
-                continue
-            x, y = (c[0] - lo[0]) * px, (hi[1] - c[1] - s[1]) * px
-            style = "fill-opacity:0.25;stroke-dasharray:3,2" if colour == "#d33" else "fill-opacity:0.85"
-            shapes.append(f"<rect x='{x}' y='{y}' width='{s[0] * px}' height='{s[1] * px}' "
-                          f"style='fill:{colour};stroke:#333;stroke-width:1;{style}'/>")
-        out.append(f"<div class='layer'>layer {k}<br><svg xmlns='http://www.w3.org/2000/svg' "
-                   f"width='{w}' height='{h}' viewBox='0 0 {w} {h}'>{''.join(shapes)}</svg></div>")
-    return out

@@ -22,7 +22,8 @@ from typing import Callable
 import numpy as np
 
 from core import build_order, catalog, connectors as connectors_stage, grid_fit
-from core import high_res as high_res_stage, iterate as iterate_stage, layout as layout_stage
+from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
+from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
 from core import stability as stability_stage, voxelize
 from core.errors import InputError
@@ -114,7 +115,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     The stages, in order (each returns new data):
 
     1. **load** the model (:func:`core.mesh_io.load_model`); with
-       ``previous``, load that result (:func:`core.iterate.load_previous`) and
+       ``previous``, load that result (:func:`core.result.load_previous`) and
        align the model onto it (:func:`core.iterate.align_to`).  The run is
        then an *iteration*, unless the previous result cannot be reused
        (:func:`core.iterate.reusable`) or the model moved and
@@ -163,7 +164,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     notes: list[str] = []
     before = alignment = None
     if req.previous is not None:
-        before = timed("previous", 0.03, iterate_stage.load_previous, req.previous)
+        before = timed("previous", 0.03, result.load_previous, req.previous)
         why = iterate_stage.reusable(before, req.units, req.scale, req.seed)
         if why is None:
             alignment, aligned = timed("align", 0.05, iterate_stage.align_to, before, model)
@@ -295,11 +296,11 @@ def print_times(fab: Fabrication) -> Fabrication:
         sum(r.seconds for r in results),
         "; ".join(methods) if methods else "nothing to print: no printed part changed", None)
     seconds: dict[str, float] = {}
-    for items, result in zip(beds, results):
+    for items, sliced in zip(beds, results):
         weights = [pose.slicer_s or print_time_stage.estimate_seconds([m]) for _, m, pose in items]
         total = sum(weights) or 1.0
         for (index, _, _), w in zip(items, weights):
-            seconds[printing[index].id] = result.seconds * w / total
+            seconds[printing[index].id] = sliced.seconds * w / total
     printed = [dataclasses.replace(p, print_s=seconds[p.id]) if p.id in seconds else p
                for p in fab.printed]
     return dataclasses.replace(fab, printed=printed, print_full=full, print_parts=parts,
@@ -460,7 +461,7 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     so :func:`write_outputs` called with ``report=doc`` writes the same
     files a run writes.  Raises InputError when the snapshot cannot be read.
     """
-    before = iterate_stage.load_previous(folder)
+    before = result.load_previous(folder)
     state = before.state
     settings = state.get("settings") or {}
     fit = state.get("fit") or {}
@@ -528,14 +529,14 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
             from core import render
             render.render_layout(fab.layout, tmp / "layout.png",
                                  title=f"{title}: {len(fab.layout.bricks)} bricks")
-        iterate_stage.snapshot(fab, tmp)
+        result.snapshot(fab, tmp)
         doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
         for entry in doc["printed_parts"]:
             if entry["id"] in placed:
                 p = placed[entry["id"]]
                 entry.update(stl=p.stl, step=p.step, pose=p.pose)
         if doc.get("changes"):
-            iterate_stage.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
+            changes_page.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
         doc.setdefault("timings_s", {})["write"] = round(time.perf_counter() - start, 4)
         doc["assembly"] = assembly
         doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]

@@ -232,14 +232,14 @@ def _previous(obj, work: str) -> str | None:
     """The stored snapshot of ``obj`` unpacked into ``work`` (a folder the core reads as
     ``previous``), or None when there is none or it cannot be read (then, said in the
     Report view, the layout is made anew)."""
-    from core import iterate
+    from core import result
 
     if not obj.IterationState:
         return None
     folder = os.path.join(work, "previous")
     try:
         shutil.unpack_archive(obj.IterationState, folder, "zip")
-        iterate.load_previous(folder)
+        result.load_previous(folder)
     except (OSError, ValueError, InputError) as exc:
         log.warning(f"{obj.Label}: the stored previous result cannot be read "
                     f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); laying out anew")
@@ -250,10 +250,10 @@ def _previous(obj, work: str) -> str | None:
 def _snapshot(fab) -> str:
     """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
     own, which the caller removes)."""
-    from core import iterate
+    from core import result
 
     with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
-        iterate.snapshot(fab, folder)
+        result.snapshot(fab, folder)
         holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
         return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)
 

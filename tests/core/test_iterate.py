@@ -15,7 +15,7 @@ import trimesh
 from cadquery import exporters
 from scipy.spatial.transform import Rotation
 
-from core import align, export, high_res, iterate, mesh_io, pipeline
+from core import align, changes_page, export, high_res, iterate, pipeline, result
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -59,9 +59,9 @@ def _mesh(solid: m3.Manifold) -> trimesh.Trimesh:
     return trimesh.Trimesh(np.asarray(out.vert_properties)[:, :3], np.asarray(out.tri_verts))
 
 
-def _previous(fab, folder: Path) -> iterate.Previous:
-    iterate.snapshot(fab, folder)
-    return iterate.load_previous(folder)
+def _previous(fab, folder: Path) -> result.Previous:
+    result.snapshot(fab, folder)
+    return result.load_previous(folder)
 
 
 def _view(fab) -> types.SimpleNamespace:
@@ -72,13 +72,13 @@ def _view(fab) -> types.SimpleNamespace:
                                  model=fab.model, stability=fab.stability)
 
 
-def _iterate(previous: iterate.Previous, path: Path, **settings) -> types.SimpleNamespace:
+def _iterate(previous: result.Previous, path: Path, **settings) -> types.SimpleNamespace:
     """The driver's run of the model file ``path`` as an iteration on ``previous``."""
     return _view(pipeline.run(path, previous=previous.folder, slice_parts=False, **settings))
 
 
 def _page(it, path: Path) -> str:
-    return iterate.changes_page(it.changes, it.layout, path, "test").read_text()
+    return changes_page.changes_page(it.changes, it.layout, path, "test").read_text()
 
 
 def _save(workplane: cq.Workplane, path: Path) -> Path:
@@ -210,7 +210,7 @@ def openbot_step(tmp_path_factory):
     folder = tmp_path_factory.mktemp("openbot_step")
     fab = pipeline.run(path, slice_parts=False)
     assert not fab.printed
-    iterate.snapshot(fab, folder)
+    result.snapshot(fab, folder)
     return path, fab, folder
 
 
@@ -268,7 +268,7 @@ def test_printed_parts_are_kept_when_nothing_new_is_marked(openbot_step, tmp_pat
                              connectors=connectors)
         assert (first.marks["anchor_cells"] > 0) == connectors
         second_folder = tmp_path / f"first_{connectors}"
-        iterate.snapshot(first, second_folder)
+        result.snapshot(first, second_folder)
         again = pipeline.run(path, previous=second_folder, slice_parts=False, connectors=connectors)
         ch = again.iteration.changes
         assert again.marks == first.marks
@@ -300,7 +300,7 @@ def test_snapshot_round_trip(hmd_step):
         q = previous.parts[p.id]
         assert q.bricks == p.bricks and q.top_ok == p.top_ok and q.bottom_ok == p.bottom_ok
         assert q.studs == p.studs and np.isclose(q.mesh.volume, p.mesh.volume)
-        as_json = [json.loads(json.dumps(iterate._part_record(x))) for x in (p, q)]
+        as_json = [json.loads(json.dumps(result._part_record(x))) for x in (p, q)]
         assert as_json[0] == as_json[1]
 
 
@@ -416,11 +416,11 @@ def test_mesh_printed_part_reprinted_only_when_its_geometry_changes(tmp_path):
 
 def test_previous_folder_must_hold_a_snapshot(tmp_path):
     with pytest.raises(InputError, match="no such folder"):
-        iterate.load_previous(tmp_path / "missing")
+        result.load_previous(tmp_path / "missing")
     (tmp_path / "report.json").write_text("{}")
     with pytest.raises(InputError, match="iteration snapshot"):
-        iterate.load_previous(tmp_path)
+        result.load_previous(tmp_path)
     (tmp_path / "iteration").mkdir()
     (tmp_path / "iteration" / "state.json").write_text(json.dumps({"version": 1}))
     with pytest.raises(InputError, match="cannot be read"):
-        iterate.load_previous(tmp_path)
+        result.load_previous(tmp_path)
