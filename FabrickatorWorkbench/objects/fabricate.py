@@ -48,8 +48,8 @@ class Result:
     report: dict
     inputs: dict
     snapshot: str | None = None
-    #: Whether only the Source (or nothing) changed since the last result: then the tree
-    #: marks what changed (new bricks highlighted, removed ones as ghosts).
+    #: Whether the run was an iteration on the last result: then the tree marks what
+    #: changed (new bricks highlighted, removed ones as ghosts).
     marks: bool = True
 
 
@@ -120,13 +120,14 @@ def recompute(obj) -> bool:
 def change_lines(obj, first: bool, marks: bool = True) -> list[str]:
     """What the last recompute of Fabrication ``obj`` changed, one line per category:
     bricks to take off (the ghosts), bricks to add (the highlighted ones), printed
-    parts to reprint, and what stays.  Without ``marks`` (parameters, regions or
-    brush edits changed) one line says the layout was made for the new inputs."""
+    parts to reprint, and what stays.  Without ``marks`` (not an iteration: the
+    seed or scale changed, the Source moved, or KeepLayout is off) one line says
+    the layout was made anew."""
     parts = tree.printed_parts(obj)
     printing = [p.PartId for p in parts if p.Reprint]
     if first or not marks:
-        return [("first layout" if first else "new layout for the changed parameters, regions or "
-                 "brush edits") + f": {obj.Bricks} brick(s) to place"
+        return [("first layout" if first else "laid out anew (not an iteration on the previous "
+                 "layout)") + f": {obj.Bricks} brick(s) to place"
                 + (f", print {', '.join(printing)}" if printing else "")]
     changes = json.loads(obj.ReportJson).get("changes") if obj.ReportJson else None
     how = "iteration on the previous layout" if changes is not None else "laid out anew"
@@ -175,12 +176,13 @@ def run_core(obj) -> Result:
     """The core's result for Fabrication ``obj`` (changes nothing in the document).
 
     One run of the core's driver (:func:`core.pipeline.run`) on the
-    Fabrication's :func:`request`.  When only the Source changed since the
-    last result (same parameters, regions and edits) and ``KeepLayout`` is
-    on, the stored snapshot is the request's ``previous``: the run is an
-    iteration that keeps the old layout wherever the part did not change.
-    Raises InputError for unusable inputs and :class:`Cancelled` when the
-    user stops it.
+    Fabrication's :func:`request`.  With ``KeepLayout`` on, the stored
+    snapshot is the request's ``previous`` and the core decides whether the
+    run is an iteration (:func:`core.iterate.reusable`: not when the seed or
+    the scale changed, nor when the Source was moved): then it keeps the old
+    layout wherever the part and the regions did not change, as the command
+    line's ``--previous`` does.  Raises InputError for unusable inputs and
+    :class:`Cancelled` when the user stops it.
     """
     source = obj.Source
     if source is None:
@@ -190,12 +192,11 @@ def run_core(obj) -> Result:
     from core import pipeline
 
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj)}
-    marks = _last_inputs(obj) == inputs
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
             _slicer(bool(obj.SlicePrintTimes)), _progress(f"Fabrickator: {obj.Label}") as progress:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, float(obj.Scale))
-        previous = _previous(obj, work) if obj.KeepLayout and marks else None
+        previous = _previous(obj, work) if obj.KeepLayout else None
         fab = pipeline.run(request(obj, path, boxes, solids, previous), progress=progress)
         for note in fab.notes:
             log.message(f"{obj.Label}: {note}")
@@ -204,7 +205,7 @@ def run_core(obj) -> Result:
         report = pipeline.report(fab)
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
         snapshot = _snapshot(fab)
-    return Result(fab, fab.order, report, inputs, snapshot, marks)
+    return Result(fab, fab.order, report, inputs, snapshot, fab.iteration is not None)
 
 
 def region_signature(obj) -> str:

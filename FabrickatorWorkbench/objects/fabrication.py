@@ -70,8 +70,9 @@ PROPERTIES = (
                              "regions print the least; off: the grid is centred on the part"),
          partial(setting_default, "fit_grid")),
     Prop("App::PropertyBool", "KeepLayout", "Fabrication",
-         QT("App::Property", "When only the Source changed, keep the previous layout wherever "
-                             "the part did not change and reprint only changed printed parts"),
+         QT("App::Property", "Iterate on the previous result: keep its layout wherever the part "
+                             "and the regions did not change and reprint only changed printed "
+                             "parts (not when the seed or scale changed or the Source moved)"),
          True),
     Prop("App::PropertyLinkList", "Regions", "Fabrication",
          QT("App::Property", "High-res regions: what must be printed exactly"), None, READ_ONLY),

@@ -141,13 +141,17 @@ class TestParity(unittest.TestCase):
         f = fab().make_fabrication(body, slice_print_times=False)
         self.doc.recompute()
         self.assertTrue(f.Status.startswith("ok"), f.Status)
+        model40 = self.source_file(body, "v40")
+        plain = self.path("cli-plain")
+        self.assertEqual(bricks_of(f.LayoutJson), bricks_of(self.cli(model40, plain, [])["layout"]))
+
+        # brushing is an iteration on the plain layout, as --previous with --high-res is
         boxes = self.brushed(f)
         self.assertTrue(boxes)
         self.assertGreater(f.PrintedParts, 0)
-
-        model40 = self.source_file(body, "v40")
+        self.assertIn("changes", fab().report(f))
         out40 = self.path("cli40")
-        cli40 = self.cli(model40, out40, boxes)
+        cli40 = self.cli(model40, out40, boxes, previous=plain)
         self.assertEqual(bricks_of(f.LayoutJson), bricks_of(cli40["layout"]))
         self.assertEqual(fab().report(f)["bricks"], cli40["report"]["bricks"])
         wb_parts = {p["id"]: p for p in fab().report(f)["printed_parts"]}
