@@ -27,9 +27,12 @@ all: demo
 	fi
 	@touch $@
 
+# built afresh whenever requirements.txt changes: upgrading cadquery/OCP in place leaves
+# a broken VTK behind (cadquery 2.5 -> 2.6 did)
 $(VENV)/.installed: requirements.txt .apt.stamp
 	@echo "== building $(VENV) from $(SYSPY) with requirements.txt"
-	@[ -x $(PY) ] || $(SYSPY) -m venv $(VENV)
+	rm -rf $(VENV)
+	$(SYSPY) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -r requirements.txt
 	@touch $@
 

@@ -36,7 +36,6 @@ from FabrickatorWorkbench.objects.fabricate import edits
 from FabrickatorWorkbench.objects.fabrication import Fabrication, is_fabrication
 from FabrickatorWorkbench.objects.high_res_region import HighResRegion
 from FabrickatorWorkbench.objects.high_res_region import boxes as region_boxes
-from FabrickatorWorkbench.objects.tree import remove_owned
 from FabrickatorWorkbench.viewproviders import attach_missing
 
 #: Model formats Legofy reads from a file: B-rep ones become Part features,
@@ -65,7 +64,9 @@ def make_fabrication(source, doc=None, brick_set: str | None = None,
                      label: str | None = None):
     """A new Fabrication of ``source`` (an object with a solid, or a Mesh feature).
 
-    Unset parameters come from the preferences (``stud_fit``/``socket_fit``, mm,
+    The Source is hidden, as FreeCAD's own features hide their inputs (deleting
+    the Fabrication shows it again).  Unset parameters come from the preferences
+    (``stud_fit``/``socket_fit``, mm,
     signed: see :class:`core.interfaces.Fit`).  The result appears after
     the next ``doc.recompute()``.  Raises ValueError when ``source`` has no
     solid and no mesh.
@@ -87,6 +88,7 @@ def make_fabrication(source, doc=None, brick_set: str | None = None,
     obj.SlicePrintTimes = (slice_print_times if slice_print_times is not None
                            else preferences.get("SliceOnRecompute"))
     obj.Label = label or f"{source.Label} LEGO"
+    source.Visibility = False
     if App.GuiUp:
         attach_missing(obj)
     return obj
@@ -286,6 +288,13 @@ def export(fab, folder) -> list[str]:
     log.message(f"{fab.Label}: exported {len(doc.get('printed_parts', ()))} printed part(s) and "
                 f"the instructions to {folder}")
     return list(written["outputs"])
+
+
+def remove_owned(fab) -> None:
+    """Delete everything ``fab`` made (bricks, groups, printed parts) and show its Source
+    again unless another Fabrication builds it; the regions stay.  What deleting a
+    Fabrication in the tree does (delete ``fab`` itself afterwards)."""
+    fab.Proxy.remove_owned(fab)
 
 
 def clear_changes(fab) -> int:

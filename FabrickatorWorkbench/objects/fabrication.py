@@ -150,9 +150,15 @@ class Fabrication(FeatureProxy):
         fabricate.recompute(obj)
 
     def remove_owned(self, obj) -> None:
-        """Delete everything Fabrication ``obj`` made (:func:`.tree.remove_owned`): what
-        its view provider does when the user deletes it."""
+        """Delete everything Fabrication ``obj`` made (:func:`.tree.remove_owned`) and show
+        its Source again unless another Fabrication builds it: what its view provider
+        does when the user deletes it."""
         tree.remove_owned(obj)
+        source = obj.Source
+        others = [o for o in obj.Document.Objects
+                  if o.Name != obj.Name and is_fabrication(o) and o.Source == source]
+        if source is not None and not others:
+            source.Visibility = True
 
 
 #: The property older versions had instead of StudFit and SocketFit: one FDM clearance,

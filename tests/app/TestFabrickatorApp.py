@@ -45,7 +45,9 @@ def padded_body(doc, length=40.0, width=24.0, height=19.2):
     body = doc.addObject("PartDesign::Body", "Body")
     sketch = body.newObject("Sketcher::SketchObject", "Sketch")
     xy = [f for f in body.Origin.OriginFeatures if f.Role == "XY_Plane"][0]
-    sketch.Support = (xy, [""])
+    # FreeCAD 1.0 renamed Support to AttachmentSupport
+    setattr(sketch, "AttachmentSupport" if hasattr(sketch, "AttachmentSupport") else "Support",
+            (xy, [""]))
     sketch.MapMode = "FlatFace"
     corners = [(0, 0), (length, 0), (length, width), (0, width)]
     for n in range(4):
@@ -167,7 +169,7 @@ class TestDependencies(unittest.TestCase):
             f"sys.path.insert(0, {str(ROOT)!r})\n"
             f"exec(open({str(ROOT / 'Init.py')!r}).read())\n"
             "from FabrickatorWorkbench import deps\n"
-            "print('CHECK', deps.check('Legofy'))\n"
+            "print('CHECK', deps.check('Legofy'), flush=True)\n"
             "os._exit(0)\n")
         env = dict(os.environ, FABRICKATOR_VENV="/nonexistent/fabrickator-venv")
         run = subprocess.run(["freecadcmd", str(script)], capture_output=True, text=True,
@@ -917,4 +919,4 @@ class TestExamples(FabrickatorTestCase):
 
 
 # The parity tests (the command line and the workbench give the same result) run with these.
-from TestFabrickatorParity import TestParity  # noqa: E402,F401
+from TestFabrickatorParity import TestParity, TestSourceVisibility  # noqa: E402,F401

@@ -217,3 +217,28 @@ class TestParity(unittest.TestCase):
         self.assertEqual(job.parts, "all")
         self.assertEqual(job.replace(parts=None), type(job)(model=path, previous_regions=False,
                                                             iterate_moved=False).checked())
+
+
+class TestSourceVisibility(unittest.TestCase):
+    """Like FreeCAD's own features, a Fabrication hides its Source; deleting it shows it."""
+
+    def setUp(self):
+        self.doc = App.newDocument("FabrickatorVisibility")
+        self.doc.UndoMode = 1
+
+    def tearDown(self):
+        App.closeDocument(self.doc.Name)
+
+    def test_source_is_hidden_by_legofy_and_shown_when_the_fabrication_goes(self):
+        body, _ = pocketed_pad(self.doc, height=9.6)
+        self.assertTrue(body.Visibility)
+        first = fab().make_fabrication(body, slice_print_times=False)
+        second = fab().make_fabrication(body, slice_print_times=False)
+        self.doc.recompute()
+        self.assertFalse(body.Visibility)
+        fab().remove_owned(first)
+        self.doc.removeObject(first.Name)
+        self.assertFalse(body.Visibility, "another Fabrication still builds it")
+        fab().remove_owned(second)
+        self.doc.removeObject(second.Name)
+        self.assertTrue(body.Visibility)

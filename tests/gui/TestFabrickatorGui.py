@@ -226,7 +226,10 @@ class TestWorkbench(GuiTestCase):
         Gui.activateWorkbench("FemWorkbench")
         analysis = ObjectsFem.makeAnalysis(self.doc, "Analysis")
         Gui.Selection.addSelection(analysis)
-        solver = ObjectsFem.makeSolverCalculixCcxTools(self.doc)
+        # FreeCAD 1.0 renamed the factory (capital X)
+        make_solver = getattr(ObjectsFem, "makeSolverCalculiXCcxTools", None) or \
+            ObjectsFem.makeSolverCalculixCcxTools
+        solver = make_solver(self.doc)
         analysis.addObject(solver)
         self.doc.recompute()
         self.assertEqual(len(analysis.Group), 1)
