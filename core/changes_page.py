@@ -43,7 +43,8 @@ def changes_page(changes: dict, layout: Layout, path: str | os.PathLike, title: 
             f"<span class='off'>{ch['bricks_removed']} to take off</span>, "
             f"<span class='on'>{ch['bricks_changed']} to add</span>; "
             f"<span class='print'>{len(ch['parts_reprinted'])} part(s) to print</span>.</p>",
-            "<p class='note'>Layers count plate heights (3.2 mm) from the base; positions are "
+            "<p class='note'>Layers count plate heights (3.2 mm) from the base, layer 1 at "
+            "the bottom, as in the instructions; positions are "
             "studs from the corner of the previous build (x, y).</p>"]
     lego_off = [b for b in ch["take_off"] if b["kind"] != "printed"]
     lego_on = [b for b in ch["add"] if b["kind"] != "printed"]
@@ -95,7 +96,7 @@ def _brick_table(entries: list[dict], empty: str, replaces: bool) -> str:
     for b in entries:
         x, y, k = b["cell_previous"]
         row = (f"<tr><td>{b['id']}</td><td>{html.escape(b['part'] + ' ' + b['name'])}</td>"
-               f"<td>{k}</td><td>{x}, {y}</td>"
+               f"<td>{k + 1}</td><td>{x}, {y}</td>"
                f"<td>{b['size'][0]} x {b['size'][1]} x {b['size'][2]}</td>")
         if replaces:
             row += f"<td>{', '.join(map(str, b['replaces'])) or '-'}</td>"
@@ -131,6 +132,6 @@ def _layer_views(changes: dict, layout: Layout, px: int = 14) -> list[str]:
             style = "fill-opacity:0.25;stroke-dasharray:3,2" if colour == "#d33" else "fill-opacity:0.85"
             shapes.append(f"<rect x='{x}' y='{y}' width='{s[0] * px}' height='{s[1] * px}' "
                           f"style='fill:{colour};stroke:#333;stroke-width:1;{style}'/>")
-        out.append(f"<div class='layer'>layer {k}<br><svg xmlns='http://www.w3.org/2000/svg' "
+        out.append(f"<div class='layer'>layer {k + 1}<br><svg xmlns='http://www.w3.org/2000/svg' "
                    f"width='{w}' height='{h}' viewBox='0 0 {w} {h}'>{''.join(shapes)}</svg></div>")
     return out

@@ -194,7 +194,7 @@ def _why_split(filled: np.ndarray, region: np.ndarray, lab: np.ndarray, comp: np
     if layers.size == 1:
         xs, ys = np.nonzero(region[:, :, layers[0]])
         w, d = int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1
-        return (f"layer {k0 + int(layers[0])} is a single plate layer {w} x {d} studs with nothing "
+        return (f"layer {k0 + int(layers[0]) + 1} is a single plate layer {w} x {d} studs with nothing "
                 "above or below: no part can span it, so its plates cannot be joined")
     cl = np.where(region & (lab >= 0), comp[np.maximum(lab, 0)], -1)
     seam_layers: set[int] = set()
@@ -212,7 +212,7 @@ def _why_split(filled: np.ndarray, region: np.ndarray, lab: np.ndarray, comp: np
         across[:, :, 1:] |= both[:, :, :-1]
         spannable += int(np.count_nonzero(seam & across))
         seam_layers.update(k0 + int(k) for k in np.flatnonzero(seam.any(axis=(0, 1))))
-    where = ", ".join(str(k) for k in sorted(seam_layers)[:6]) + (" ..." if len(seam_layers) > 6 else "")
+    where = ", ".join(str(k + 1) for k in sorted(seam_layers)[:6]) + (" ..." if len(seam_layers) > 6 else "")
     if spannable == 0:
         return (f"its parts touch only side by side in layer(s) {where} with nothing "
                 "filled across the seam above or below: no part can span it")

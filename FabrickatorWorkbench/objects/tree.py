@@ -417,12 +417,12 @@ def _sync_layers(fab, by_layer: dict, made: list, grid: Grid) -> list:
     for k in sorted(by_layer):
         group = groups.pop(k, None)
         if group is None:
-            group = new_group(fab.Document, "Layer", LAYER_ROLE, f"Layer {k:02d}")
+            group = new_group(fab.Document, "Layer", LAYER_ROLE, f"Layer {k + 1}")
             group.addProperty("App::PropertyInteger", "Layer", "Layer", "Plate layer (k)")
             group.Layer = k
             group.setEditorMode("Layer", READ_ONLY)
             made.append(group)
-        label = f"Layer {k:02d} (z {grid.corner_mm((0, 0, k))[2]:.1f} mm)"
+        label = f"Layer {k + 1} (z {grid.corner_mm((0, 0, k))[2]:.1f} mm)"
         if group.Label != label:
             group.Label = label
         members = by_layer[k]

@@ -85,12 +85,12 @@ class AssemblyPanel:
             return "Start with an empty base plate."
         s = self.steps[step - 1]
         if s.get("printed_part"):
-            return f"Layer {s['layer']}: insert printed part {s['printed_part']}."
+            return f"Layer {s['layer'] + 1}: insert printed part {s['printed_part']}."
         counts: dict[str, int] = {}
         for obj in self.by_step.get(step, []):
             counts[obj.PartNumber] = counts.get(obj.PartNumber, 0) + 1
         items = ", ".join(f"{n} x {part}" for part, n in sorted(counts.items()))
-        return f"Layer {s['layer']}: place {items} (blue)."
+        return f"Layer {s['layer'] + 1}: place {items} (blue)."
 
     def _highlight(self, step: int) -> None:
         """Blue for the current step's bricks, the printed part's ID next to it."""

@@ -219,11 +219,12 @@ class TestParity(unittest.TestCase):
                                                             iterate_moved=False).checked())
 
 
-class TestSourceVisibility(unittest.TestCase):
-    """Like FreeCAD's own features, a Fabrication hides its Source; deleting it shows it."""
+class TestLikeFreeCAD(unittest.TestCase):
+    """Like FreeCAD's own features, a Fabrication hides its Source (deleting it shows it);
+    layers are numbered from 1 everywhere a user reads them, as in the instructions."""
 
     def setUp(self):
-        self.doc = App.newDocument("FabrickatorVisibility")
+        self.doc = App.newDocument("FabrickatorLikeFreeCAD")
         self.doc.UndoMode = 1
 
     def tearDown(self):
@@ -242,3 +243,10 @@ class TestSourceVisibility(unittest.TestCase):
         fab().remove_owned(second)
         self.doc.removeObject(second.Name)
         self.assertTrue(body.Visibility)
+
+    def test_layers_are_numbered_from_one_as_in_the_instructions(self):
+        body, _ = pocketed_pad(self.doc, height=9.6)
+        f = fab().make_fabrication(body, slice_print_times=False)
+        self.doc.recompute()
+        labels = sorted(g.Label for g in f.Contents if g.Label.startswith("Layer"))
+        self.assertEqual(labels, ["Layer 1 (z 0.0 mm)", "Layer 2 (z 3.2 mm)", "Layer 3 (z 6.4 mm)"])

@@ -106,7 +106,7 @@ def test_single_wide_plate_layer_cannot_be_joined():
     assert stab.regions == 1 and stab.components == 2
     [entry] = stab.unconnectable
     assert entry["region"] == 1 and entry["components"] == 2 and entry["cells"] == 24
-    assert "layer 0" in entry["reason"] and "12 x 2" in entry["reason"]
+    assert "layer 1 " in entry["reason"] and "12 x 2" in entry["reason"]  # layers count from 1
 
 
 def test_wide_sheet_beside_a_tower_cannot_be_joined():
@@ -118,7 +118,8 @@ def test_wide_sheet_beside_a_tower_cannot_be_joined():
     assert stab.regions == 1 and stab.components >= 2
     [entry] = stab.unconnectable
     assert entry["cells"] == 18
-    assert "layer(s) 5" in entry["reason"] and "no part can span" in entry["reason"]
+    # the sheet is cell layer k = 5: the sixth layer, counted from 1 as everywhere a user reads
+    assert "layer(s) 6" in entry["reason"] and "no part can span" in entry["reason"]
 
 
 def test_seam_a_part_could_have_spanned_is_reported_as_such():
