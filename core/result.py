@@ -141,11 +141,12 @@ class Previous:
         return max(0, int(st["components"]) - int(st["regions"]))
 
 
-def load_previous(folder: str | os.PathLike) -> Previous:
-    """Read the snapshot of an earlier output folder (``--previous DIR``).
+def snapshot_state(folder: str | os.PathLike) -> dict:
+    """The ``state.json`` of the snapshot in output folder ``folder``, read without its
+    geometry (a cheap check that the folder can be iterated on).
 
     Raises :class:`InputError` when ``folder`` is missing, is not an output
-    folder, or was written without a snapshot (then it must be made again).
+    folder, was written without a snapshot or by an unreadable version.
     """
     folder = Path(folder)
     state_file = folder / SNAPSHOT_DIR / "state.json"
@@ -156,9 +157,25 @@ def load_previous(folder: str | os.PathLike) -> Previous:
                          f"({SNAPSHOT_DIR}/state.json is missing); fabricate that version again")
     try:
         state = json.loads(state_file.read_text())
-        if state.get("version") not in READABLE_VERSIONS:
-            raise InputError(f"--previous {folder}: snapshot version {state.get('version')} "
-                             f"is not {SNAPSHOT_VERSION}; fabricate that version again")
+    except (OSError, ValueError) as err:
+        raise InputError(f"--previous {folder}: the iteration snapshot cannot be read "
+                         f"({type(err).__name__})") from None
+    if not isinstance(state, dict) or state.get("version") not in READABLE_VERSIONS:
+        version = state.get("version") if isinstance(state, dict) else None
+        raise InputError(f"--previous {folder}: snapshot version {version} "
+                         f"is not {SNAPSHOT_VERSION}; fabricate that version again")
+    return state
+
+
+def load_previous(folder: str | os.PathLike) -> Previous:
+    """Read the snapshot of an earlier output folder (``--previous DIR``).
+
+    Raises :class:`InputError` when ``folder`` is missing, is not an output
+    folder, or was written without a snapshot (then it must be made again).
+    """
+    folder = Path(folder)
+    state = snapshot_state(folder)
+    try:
         layout = Layout.from_json(state["layout"])
         snap = folder / SNAPSHOT_DIR
         mesh = trimesh.load(snap / "model.ply", file_type="ply", process=False, force="mesh")

@@ -240,7 +240,7 @@ def _previous(obj, work: str) -> str | None:
     folder = os.path.join(work, "previous")
     try:
         shutil.unpack_archive(obj.IterationState, folder, "zip")
-        result.load_previous(folder)
+        result.snapshot_state(folder)
     except (OSError, ValueError, InputError) as exc:
         log.warning(f"{obj.Label}: the stored previous result cannot be read "
                     f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); laying out anew")

@@ -71,6 +71,18 @@ def padded_body(doc, length=40.0, width=24.0, height=19.2):
     return body, sketch, pad
 
 
+def plate_with_hole(doc):
+    """A 48 x 32 x 9.6 mm Part box with a 10 mm bore through it at (36, 16): a Part::Cut."""
+    plate = doc.addObject("Part::Box", "Plate")
+    plate.Length, plate.Width, plate.Height = 48.0, 32.0, 9.6
+    hole = doc.addObject("Part::Cylinder", "Hole")
+    hole.Radius, hole.Height = 5.0, 9.6
+    hole.Placement.Base = App.Vector(36, 16, 0)
+    source = doc.addObject("Part::Cut", "Plate_with_hole")
+    source.Base, source.Tool = plate, hole
+    return source
+
+
 def cell_box(f, brick):
     """The brick's cell box (min, max corner) in mm."""
     o, c = f.GridOrigin, f.CellSize
@@ -322,13 +334,7 @@ class TestFabrication(FabrickatorTestCase):
         self.assertEqual(sorted(merged.BrickIds), sorted(ids))
 
     def test_regions_from_a_solid_and_from_faces_of_the_source(self):
-        plate = self.doc.addObject("Part::Box", "Plate")
-        plate.Length, plate.Width, plate.Height = 48.0, 32.0, 9.6
-        hole = self.doc.addObject("Part::Cylinder", "Hole")
-        hole.Radius, hole.Height = 5.0, 9.6
-        hole.Placement.Base = App.Vector(36, 16, 0)
-        source = self.doc.addObject("Part::Cut", "Plate_with_hole")
-        source.Base, source.Tool = plate, hole
+        source = plate_with_hole(self.doc)
         self.doc.recompute()
         f = fab().make_fabrication(source)
         bore = [n for n, face in enumerate(source.Shape.Faces, 1)
@@ -363,13 +369,7 @@ class TestFabrication(FabrickatorTestCase):
         from core.face_region import SKIN_MM
         from FabrickatorWorkbench.objects import high_res_region
 
-        plate = self.doc.addObject("Part::Box", "Plate")
-        plate.Length, plate.Width, plate.Height = 48.0, 32.0, 9.6
-        hole = self.doc.addObject("Part::Cylinder", "Hole")
-        hole.Radius, hole.Height = 5.0, 9.6
-        hole.Placement.Base = App.Vector(36, 16, 0)
-        source = self.doc.addObject("Part::Cut", "Plate_with_hole")
-        source.Base, source.Tool = plate, hole
+        source = plate_with_hole(self.doc)
         source.Placement = App.Placement(App.Vector(5, -3, 2), App.Rotation(App.Vector(0, 0, 1), 30))
         self.doc.recompute()
         names = [f"Face{n}" for n in range(1, len(source.Shape.Faces) + 1)]
