@@ -12,6 +12,11 @@ import FreeCAD
 from FabrickatorWorkbench import deps as _fabrickator_deps
 
 _fabrickator_deps.bootstrap()
+
+from FabrickatorWorkbench import undo as _fabrickator_undo  # noqa: E402
+
+_fabrickator_undo.install()
+
 _fabrickator_tests = os.path.join(_fabrickator_deps.ROOT, "tests", "app")
 if os.path.isdir(_fabrickator_tests):
     if _fabrickator_tests not in sys.path:

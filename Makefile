@@ -45,11 +45,31 @@ demo: examples/build/hmd.step
 	$(PY) -m core fabricate examples/build/hmd.step $(DEMO_HIGH_RES) --out $(DEMO_OUT)
 	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate.3mf), instructions.html, assembly.mpd, bom.csv, bricklink.xml"
 
-# the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb)
+# the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb),
+# on this machine's FreeCAD (0.20 on Debian 12), then all three again on FreeCAD 1.x
 test: $(VENV)/.installed
-	$(PY) -m pytest tests/core -q
+	$(MAKE) --no-print-directory test-core
 	$(MAKE) --no-print-directory test-app
 	$(MAKE) --no-print-directory test-gui
+	$(MAKE) --no-print-directory test-freecad1
+
+test-core: $(VENV)/.installed
+	$(PY) -m pytest tests/core -q
+
+# --- FreeCAD 1.x: a Debian 13 (trixie) root made with debootstrap, beside the host's apt
+# sources (which stay Debian 12); built once into FREECAD1_ROOT, the suites run on a copy
+# of this tree with a Python 3.13 venv of the root's own
+FREECAD1_ROOT ?= /var/tmp/fabrickator-trixie
+FREECAD1_MAKE := make --no-print-directory -o .apt.stamp VENV=/root/venv
+
+.PHONY: test-core test-freecad1 freecad1-root
+
+freecad1-root:
+	$(SUDO) sh tools/freecad1/root.sh $(FREECAD1_ROOT)
+
+test-freecad1: freecad1-root
+	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 's=0; $(FREECAD1_MAKE) test-core || s=1; \
+	  $(FREECAD1_MAKE) test-app || s=1; $(FREECAD1_MAKE) test-gui || s=1; exit $$s'
 
 bench: examples/build/hmd.step
 	$(PY) bench/bench.py

@@ -5,7 +5,7 @@
 A PartDesign Pad 100 x 60 x 40 mm with a through pocket gets a brushed
 high-res region (a column of bricks).  The workbench's fresh run, its
 iteration after the Pad grows to 48 mm and its export are compared with
-``python -m core fabricate`` run in a subprocess (the project's .venv) on the
+``python -m core fabricate`` run in a subprocess (the workbench's venv) on the
 same geometry with the same settings: the same bricks, printed parts and
 steps.  And the Pad 40 -> 48 case of issue 12: after the change, the bricks
 printed are those a fresh run with the same region prints (only the brushed
@@ -24,7 +24,15 @@ from pathlib import Path
 import FreeCAD as App
 
 ROOT = Path(__file__).resolve().parents[2]
-PYTHON = ROOT / ".venv" / "bin" / "python"
+
+def _venv_python() -> Path:
+    """The interpreter of the venv the workbench uses (``$FABRICKATOR_VENV`` or .venv)."""
+    from FabrickatorWorkbench import deps
+
+    return Path(deps.venv_dir()) / "bin" / "python"
+
+
+PYTHON = _venv_python()
 
 
 def fab():
