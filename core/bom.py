@@ -1,7 +1,8 @@
 """Bill of materials: what to get before building, as a CSV and a BrickLink wanted list.
 
 ``bom.csv`` has one row per LEGO design number and colour (kind ``lego``:
-design number, name, colour, count) and one row per printed part (kind
+design number, name, colour, count; the colour each brick is ordered in is
+:func:`core.colours.ordered_code`'s, the same in every display palette) and one row per printed part (kind
 ``printed``: its ID, bricks replaced, volume, print time and STL file).
 A printed part's print time is the slicer's share when the pipeline sliced
 (``PrintedPart.print_s``), else the calibrated estimate of
@@ -25,7 +26,7 @@ from xml.sax.saxutils import escape
 
 from core.catalog import BY_NUMBER
 from core.errors import InputError
-from core.ldraw import COLORS, LEGO_COLOR, PRINTED_COLOR
+from core import colours
 from core.model import Layout
 
 #: Columns of bom.csv, in order.
@@ -68,6 +69,17 @@ def lego_counts(layout: Layout) -> dict[str, int]:
     return counts
 
 
+def lego_colour_counts(layout: Layout) -> dict[tuple[str, int], int]:
+    """(design number, LDraw colour) -> number of LEGO bricks of it in ``layout``, in the
+    colour each is ordered in (:func:`core.colours.ordered_code`)."""
+    counts: dict[tuple[str, int], int] = {}
+    for b in layout.bricks:
+        if b.kind != "printed":
+            key = (b.part, colours.ordered_code(b))
+            counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
 def _part_name(number: str) -> str:
     part = BY_NUMBER.get(number)
     return part.name if part is not None else f"Part {number}"
@@ -82,19 +94,20 @@ def lines(layout: Layout, printed_parts=()) -> list[BomLine]:
     """
     from core.print_time import ESTIMATE_METHOD, estimate_seconds
 
-    counts = lego_counts(layout)
+    counts = lego_colour_counts(layout)
     order = {n: i for i, n in enumerate(BY_NUMBER)}
-    lego_name, bl_id, _, _ = COLORS[LEGO_COLOR]
-    out = [BomLine("lego", number, _part_name(number), lego_name, LEGO_COLOR, bl_id, count)
-           for number, count in sorted(counts.items(), key=lambda kv: (order.get(kv[0], 1e9), kv[0]))]
-    printed_name = COLORS[PRINTED_COLOR][0]
+    out = [BomLine("lego", number, _part_name(number), colours.name(code), code,
+                   colours.bricklink_id(code), count)
+           for (number, code), count in sorted(counts.items(),
+                                               key=lambda kv: (order.get(kv[0][0], 1e9), kv[0]))]
+    printed_name = colours.name(colours.PRINTED_COLOR)
     for p in printed_parts:
         if p.print_s is not None:
             seconds, method = float(p.print_s), "slicer (share of the plate)"
         else:
             seconds, method = estimate_seconds([p.mesh]), ESTIMATE_METHOD
         out.append(BomLine("printed", p.id, f"Printed part {p.id}", f"{printed_name} (display)",
-                           PRINTED_COLOR, None, 1, len(p.bricks), float(p.volume_mm3), seconds,
+                           colours.PRINTED_COLOR, None, 1, len(p.bricks), float(p.volume_mm3), seconds,
                            method, p.stl or f"parts/{p.id}.stl"))
     return out
 
@@ -130,7 +143,7 @@ def write_wanted_list(layout: Layout, path: str | os.PathLike, owned: dict[str, 
 
     ``remarks`` (e.g. the model name) goes into each item's ``REMARKS``.
     """
-    color = COLORS[LEGO_COLOR][1]
+    color = colours.bricklink_id(colours.BOM_COLOR)
     order = {n: i for i, n in enumerate(BY_NUMBER)}
     items = sorted(wanted(layout, owned).items(), key=lambda kv: (order.get(kv[0], 1e9), kv[0]))
     parts = ["<INVENTORY>"]

@@ -57,7 +57,7 @@ def _parser() -> argparse.ArgumentParser:
                help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
     _model_options(fab)
     request.add_options(fab, ("seconds_per_brick", "seconds_per_part", "previous", "connectors",
-                              "fit_grid", "picture"))
+                              "fit_grid", "picture", "palette"))
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
     wat = sub.add_parser("watch", help="fabricate every new version of a model saved into a folder",
                          description="Watch FOLDER for STL/OBJ/PLY/3MF/STEP files that appear or "
@@ -68,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("folder", metavar="FOLDER")
     wat.add_argument("--out", required=True, metavar="ROOT", help="folder for the outputs")
     request.add_options(wat, ("previous", "seconds_per_brick", "seconds_per_part", "connectors",
-                              "fit_grid", "picture"))
+                              "fit_grid", "picture", "palette"))
     wat.add_argument("--existing", action="store_true",
                help="also fabricate the files already in FOLDER")
     wat.add_argument("--timeout", type=float, default=None, metavar="S",

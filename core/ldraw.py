@@ -11,9 +11,11 @@ Conventions (LDraw file format 1.0.2 and the official parts library):
   body hangs down to y = 8 (plate) or 24 (brick), and its long side runs
   along X (3001 spans x -40..40, z -20..20).  A brick turned by 90° (long
   side along the model's y) gets the rotation that takes X to Z.
-* Colours: LEGO bricks are :data:`LEGO_COLOR` (71, Light Bluish Grey: the
-  neutral colour of most LEGO construction sets), printed parts
-  :data:`PRINTED_COLOR` (25, Orange) so that they stand out.
+* Colours: what :func:`core.colours.ordered_code` decides, the colours the
+  bill of materials orders (in every palette: a random display palette
+  does not change what is built): LEGO bricks :data:`LEGO_COLOR` (71,
+  Light Bluish Grey: the neutral colour of most LEGO construction sets),
+  printed parts :data:`PRINTED_COLOR` (25, Orange) so that they stand out.
 
 The file is an MPD (``assembly.mpd``): the main model with one line-type-1
 reference per LEGO brick and ``0 STEP`` between the assembly steps, then one
@@ -34,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core import colours
 from core.catalog import BY_NUMBER
 from core.errors import InputError
 from core.model import Layout
@@ -43,15 +46,13 @@ LDU_MM = 0.4
 #: LDU per stud and per plate layer.
 STUD_LDU = 20
 PLATE_LDU = 8
-#: LDraw colour of LEGO bricks and of printed parts, and the inherit colour.
-LEGO_COLOR = 71
-PRINTED_COLOR = 25
+#: LDraw colour of LEGO bricks and of printed parts (decided by :mod:`core.colours`:
+#: the colours the bill of materials orders), and the inherit colour.
+LEGO_COLOR = colours.BOM_COLOR
+PRINTED_COLOR = colours.PRINTED_COLOR
 MAIN_COLOR = 16
 #: LDraw colour code -> (LDraw name, BrickLink colour id, BrickLink name, RGB hex).
-COLORS = {
-    71: ("Light Bluish Grey", 86, "Light Bluish Gray", "#A0A5A9"),
-    25: ("Orange", 4, "Orange", "#FE8A18"),
-}
+COLORS = colours.COLORS
 #: Rotation taking a part's long side (X) to the model's y (LDraw Z).
 TURNED = np.array([[0, 0, -1], [0, 1, 0], [1, 0, 0]])
 #: Name of the main model inside the MPD.
@@ -60,7 +61,7 @@ MAIN_NAME = "assembly.ldr"
 
 def color_name(code: int) -> str:
     """LDraw name of colour ``code`` (one of :data:`COLORS`)."""
-    return COLORS[code][0]
+    return colours.name(code)
 
 
 def subfile_name(part_id: str) -> str:
@@ -162,11 +163,11 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
                                      f"{b.printed_part!r} was not given")
                 if b.printed_part not in inserted:
                     inserted.add(b.printed_part)
-                    lines.append(_ref(PRINTED_COLOR, (0, 0, 0), np.eye(3, dtype=int),
+                    lines.append(_ref(colours.ordered_code(b), (0, 0, 0), np.eye(3, dtype=int),
                                       subfile_name(b.printed_part)))
                 continue
             pos, rot = brick_placement(b.cell, b.size, shift)
-            lines.append(_ref(LEGO_COLOR, pos, rot, f"{b.part}.dat"))
+            lines.append(_ref(colours.ordered_code(b), pos, rot, f"{b.part}.dat"))
     missing = [b.id for b in layout.bricks if b.id not in seen]
     if missing:
         raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")

@@ -528,7 +528,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
             progress(0.95, "picture")
             from core import render
             render.render_layout(fab.layout, tmp / "layout.png",
-                                 title=f"{title}: {len(fab.layout.bricks)} bricks")
+                                 title=f"{title}: {len(fab.layout.bricks)} bricks",
+                                 palette=fab.request.palette)
         result.snapshot(fab, tmp)
         doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
         for entry in doc["printed_parts"]:

@@ -17,9 +17,11 @@ drawn with the empty cell above them.  Everything is one
 :class:`~matplotlib.collections.PolyCollection` built with numpy, and the
 figure is an Agg canvas, so pyplot's global state is never touched.
 
-Colours come from a small LEGO palette; a brick takes the colour its id
-hashes to unless a face-adjacent brick already took it, so neighbours
-differ.  Printed bricks are light grey and have no studs drawn.
+Colours are the ones :mod:`core.colours` decides for the ``palette``: with
+``"bom"`` (the default) every LEGO brick in the colour the bill of
+materials orders, with ``"random"`` a LEGO colour per brick, neighbours
+different.  Printed bricks are the printed parts' orange and have no studs
+drawn.
 """
 
 from __future__ import annotations
@@ -31,18 +33,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
+from core.colours import PRINTED_COLOR, rgb as colour_rgb
+from core.colours import brick_colours as decided_colours
 from core.model import Layout
 
-#: LEGO colours (RGB 0..1): red, blue, yellow, green, orange, medium azure,
-#: lime, dark red, tan, medium blue, bright pink, sand green.
-PALETTE = np.array([
-    (201, 26, 9), (0, 85, 191), (242, 205, 55), (35, 120, 65),
-    (254, 138, 24), (54, 174, 191), (187, 233, 11), (114, 14, 15),
-    (228, 205, 158), (90, 147, 219), (228, 173, 200), (160, 188, 172),
-]) / 255.0
-
-#: Colour of printed bricks (light bluish grey, lighter).
-PRINTED_RGB = np.array([0.86, 0.87, 0.88])
+#: Colour of printed bricks: the printed parts' colour of every output.
+PRINTED_RGB = np.array(colour_rgb(PRINTED_COLOR))
 
 #: Background and outline colours.
 BACKGROUND_RGB = (1.0, 1.0, 1.0)
@@ -92,33 +88,13 @@ def _pad(polys: np.ndarray) -> np.ndarray:
     return np.concatenate([polys, np.repeat(polys[:, -1:], extra, axis=1)], axis=1)
 
 
-def brick_colours(layout: Layout, labels: np.ndarray) -> np.ndarray:
-    """RGB (n_bricks, 3): palette colours, face-adjacent bricks different where possible."""
-    n = len(layout.bricks)
-    pairs = []
-    for axis in range(3):
-        a = np.moveaxis(labels, axis, 0)
-        lo, hi = a[:-1].ravel(), a[1:].ravel()
-        keep = (lo >= 0) & (hi >= 0) & (lo != hi)
-        pairs.append(np.stack([lo[keep], hi[keep]], axis=1))
-    pairs = np.unique(np.concatenate(pairs + [np.empty((0, 2), np.int64)]), axis=0)
-    pairs = np.concatenate([pairs, pairs[:, ::-1]])
-    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
-    start = np.searchsorted(pairs[:, 0], np.arange(n + 1))
-    m = len(PALETTE)
-    choice = np.full(n, -1, dtype=np.int64)
-    for b, brick in enumerate(layout.bricks):
-        taken = set(choice[pairs[start[b]:start[b + 1], 1]].tolist())
-        wish = (brick.id * 2654435761) % (2 ** 32) % m
-        free = [c for c in ((wish + s) % m for s in range(m)) if c not in taken]
-        choice[b] = free[0] if free else wish
-    rgb = PALETTE[choice]
-    printed = np.array([b.kind == "printed" for b in layout.bricks], dtype=bool)
-    rgb[printed] = PRINTED_RGB
-    return rgb
+def brick_colours(layout: Layout, labels: np.ndarray, palette: str = "bom") -> np.ndarray:
+    """RGB (n_bricks, 3) of the bricks as drawn with ``palette``: the colours
+    :func:`core.colours.brick_colours` decides (``labels`` is ``layout.labels()``)."""
+    return decided_colours(layout, palette, labels)
 
 
-def _scene(layout: Layout):
+def _scene(layout: Layout, palette: str = "bom"):
     """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
 
     kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.
@@ -126,7 +102,7 @@ def _scene(layout: Layout):
     cell = np.asarray(layout.grid.cell, dtype=float)
     labels = layout.labels()
     padded = np.pad(labels, 1, constant_values=-1)
-    rgb = brick_colours(layout, labels)
+    rgb = brick_colours(layout, labels, palette)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
     cells = np.argwhere(labels >= 0)
     own = labels[tuple(cells.T)]
@@ -188,11 +164,12 @@ def _scene(layout: Layout):
 
 
 def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
-                  title: str | None = None) -> None:
+                  title: str | None = None, palette: str = "bom") -> None:
     """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
 
     Bricks are shaded boxes with black outlines along brick edges and studs
-    on their exposed tops, printed bricks light grey; ``title`` goes above.
+    on their exposed tops, in the colours :mod:`core.colours` decides for
+    ``palette`` (printed bricks orange); ``title`` goes above.
     A layout without bricks gives a picture that says so.  Raises
     ValueError for a size that is not two integers from 16 to 20000 and
     FileNotFoundError for a path whose folder does not exist (the caller
@@ -225,7 +202,7 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
         fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
         return
 
-    polys, kinds, colours = _scene(layout)
+    polys, kinds, colours = _scene(layout, palette)
     lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
     span = np.maximum(hi - lo, 1e-9) * 1.04
     box_w, box_h = 0.98 * width, (top_margin - 0.01) * height

@@ -16,6 +16,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
+from core.colours import check_palette
 from core.errors import InputError
 from core.interfaces import Fit
 
@@ -92,6 +93,10 @@ class Request:
                                          "previous frame (else lay it out anew)")
     picture: bool = _setting(True, "render layout.png", "--no-picture",
                              off="do not render layout.png")
+    palette: str = _setting("bom", "brick colours of layout.png and the FreeCAD view: bom (the colour "
+                                   "the parts list orders) or random (a LEGO colour per brick, to "
+                                   "tell bricks apart; parts list, LDraw and instructions keep the "
+                                   "parts list's colour)", "--palette", "NAME")
 
     @property
     def fit(self) -> Fit:
@@ -111,6 +116,7 @@ class Request:
         Raises :class:`InputError` with one line naming the first setting
         out of range: scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
+        palette :func:`core.colours.check_palette` refuses, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
         where the model is loaded, :func:`core.mesh_io.load_model`).
         """
@@ -130,6 +136,7 @@ class Request:
                 raise InputError(f"--{name.replace('_', '-')} {getattr(self, name)!r} must be a "
                                  f"number of mm")
         self.fit.check()
+        check_palette(self.palette)
         return dataclasses.replace(
             self, model=os.fspath(self.model), scale=float(self.scale),
             high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),

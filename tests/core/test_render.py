@@ -84,7 +84,7 @@ def test_neighbouring_bricks_get_different_colours():
     bricks = [("3024", (1, 1, 1), (i, j, k)) for i in range(5) for j in range(4) for k in range(3)]
     order = rng.permutation(len(bricks))
     layout = layout_of([bricks[n] for n in order], (5, 4, 3))
-    rgb = brick_colours(layout, layout.labels())
+    rgb = brick_colours(layout, layout.labels(), palette="random")
     lab = layout.labels()
     for axis in range(3):
         a, b = np.moveaxis(lab, axis, 0)[:-1], np.moveaxis(lab, axis, 0)[1:]

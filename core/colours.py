@@ -1,0 +1,156 @@
+"""The one place that decides a brick's colour, for every output that shows or orders it.
+
+Two palettes (the ``palette`` setting of :class:`core.request.Request`, the
+workbench's "Brick colours" preference):
+
+* ``"bom"`` (the default): every LEGO brick is drawn in the colour the bill
+  of materials orders, :data:`BOM_COLOR` (LDraw 71, Light Bluish Grey, the
+  neutral colour of most LEGO construction sets).  The FreeCAD 3D view,
+  ``layout.png``, ``instructions.html``, ``bom.csv``, ``bricklink.xml`` and
+  ``assembly.mpd`` all show what the user orders.
+* ``"random"``: a *display aid* to tell bricks apart.  The 3D view and
+  ``layout.png`` draw each LEGO brick in a colour of :data:`RANDOM_CODES`
+  (real LEGO colours), face-adjacent bricks different where possible.  What
+  the user orders and builds does not change: the bill of materials, the
+  BrickLink list, the LDraw model and the instructions stay in
+  :data:`BOM_COLOR` (one colour is cheaper and easier to buy and sort than
+  a dozen; nobody expects a display setting to change a shopping list).
+
+Printed parts keep their own colour everywhere: :data:`PRINTED_COLOR`
+(LDraw 25, Orange), which is also what LDraw and the instructions use.
+
+A colour is an LDraw colour code; :data:`COLORS` gives its LDraw name, its
+BrickLink colour id and name and its RGB, so that every output names and
+draws the same colour.  :func:`delta_e` measures how far apart two colours
+look (CIE76 on CIELAB), used to keep highlights away from the palette and
+from FreeCAD's selection colours.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.errors import InputError
+
+#: LDraw colour code -> (LDraw name, BrickLink colour id, BrickLink name, RGB hex)
+#: (LDraw's LDConfig.ldr and BrickLink's colour guide).
+COLORS = {
+    71: ("Light Bluish Grey", 86, "Light Bluish Gray", "#A0A5A9"),
+    25: ("Orange", 4, "Orange", "#FE8A18"),
+    4: ("Red", 5, "Red", "#C91A09"),
+    1: ("Blue", 7, "Blue", "#0055BF"),
+    14: ("Yellow", 3, "Yellow", "#F2CD37"),
+    2: ("Green", 6, "Green", "#237841"),
+    322: ("Medium Azure", 156, "Medium Azure", "#36AEBF"),
+    27: ("Lime", 34, "Lime", "#BBE90B"),
+    320: ("Dark Red", 59, "Dark Red", "#720E0F"),
+    19: ("Tan", 2, "Tan", "#E4CD9E"),
+    73: ("Medium Blue", 42, "Medium Blue", "#5A93DB"),
+    29: ("Bright Pink", 104, "Bright Pink", "#E4ADC8"),
+    151: ("Sand Green", 48, "Sand Green", "#A0BCAC"),
+}
+
+#: The colour the bill of materials orders for every LEGO brick (Light Bluish Grey).
+BOM_COLOR = 71
+#: The colour of printed parts (Orange), in every palette.
+PRINTED_COLOR = 25
+#: Colours of the random palette: real LEGO colours, neither the BOM grey nor the
+#: printed orange, so that printed parts still stand out.
+RANDOM_CODES = (4, 1, 14, 2, 322, 27, 320, 19, 73, 29, 151)
+
+#: Palette name -> what the preferences page calls it.
+PALETTES = {"bom": "BOM colours", "random": "random colours"}
+
+
+def check_palette(palette: str) -> str:
+    """``palette`` if it is one of :data:`PALETTES`, else InputError naming the choices."""
+    if palette not in PALETTES:
+        raise InputError(f"--palette {palette!r} must be one of {', '.join(PALETTES)}")
+    return palette
+
+
+def rgb(code: int) -> tuple[float, float, float]:
+    """RGB (0..1) of LDraw colour ``code`` (one of :data:`COLORS`)."""
+    text = COLORS[code][3].lstrip("#")
+    return tuple(int(text[i:i + 2], 16) / 255.0 for i in (0, 2, 4))
+
+
+def name(code: int) -> str:
+    """LDraw name of colour ``code`` (one of :data:`COLORS`)."""
+    return COLORS[code][0]
+
+
+def bricklink_id(code: int) -> int:
+    """BrickLink colour id of LDraw colour ``code`` (one of :data:`COLORS`)."""
+    return COLORS[code][1]
+
+
+def ordered_code(brick) -> int:
+    """The LDraw colour a brick is ordered and built in: :data:`PRINTED_COLOR` for a
+    printed brick, :data:`BOM_COLOR` for a LEGO brick (in every palette)."""
+    return PRINTED_COLOR if brick.kind == "printed" else BOM_COLOR
+
+
+def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+    """LDraw colour code (n_bricks,) each brick of ``layout`` is drawn in with ``palette``.
+
+    ``"bom"``: :func:`ordered_code`.  ``"random"``: LEGO bricks take a colour
+    of :data:`RANDOM_CODES` that their id hashes to unless a face-adjacent
+    brick already took it (then the next free one), so neighbours differ
+    where the palette allows; the same layout always gets the same colours.
+    Printed bricks are :data:`PRINTED_COLOR` in both.  ``labels`` is
+    ``layout.labels()`` when the caller has it.  InputError for an unknown
+    palette.
+    """
+    check_palette(palette)
+    n = len(layout.bricks)
+    codes = np.array([ordered_code(b) for b in layout.bricks], dtype=np.int64).reshape(n)
+    if palette == "bom" or n == 0:
+        return codes
+    labels = layout.labels() if labels is None else labels
+    pairs = []
+    for axis in range(3):
+        a = np.moveaxis(labels, axis, 0)
+        lo, hi = a[:-1].ravel(), a[1:].ravel()
+        keep = (lo >= 0) & (hi >= 0) & (lo != hi)
+        pairs.append(np.stack([lo[keep], hi[keep]], axis=1))
+    pairs = np.unique(np.concatenate(pairs + [np.empty((0, 2), np.int64)]), axis=0)
+    pairs = np.concatenate([pairs, pairs[:, ::-1]])
+    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    start = np.searchsorted(pairs[:, 0], np.arange(n + 1))
+    m = len(RANDOM_CODES)
+    choice = np.full(n, -1, dtype=np.int64)
+    for b, brick in enumerate(layout.bricks):
+        if brick.kind == "printed":
+            continue
+        taken = set(choice[pairs[start[b]:start[b + 1], 1]].tolist())
+        wish = (brick.id * 2654435761) % (2 ** 32) % m
+        free = [c for c in ((wish + s) % m for s in range(m)) if c not in taken]
+        choice[b] = free[0] if free else wish
+    lego = choice >= 0
+    codes[lego] = np.asarray(RANDOM_CODES)[choice[lego]]
+    return codes
+
+
+def brick_colours(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+    """RGB (n_bricks, 3), 0..1, each brick of ``layout`` is drawn in with ``palette``
+    (the colours of :func:`display_codes`)."""
+    codes = display_codes(layout, palette, labels)
+    table = {c: rgb(c) for c in set(codes.tolist())}
+    return np.array([table[c] for c in codes.tolist()], dtype=float).reshape(len(codes), 3)
+
+
+def _lab(colour) -> np.ndarray:
+    """CIELAB (D65) of an sRGB colour (0..1)."""
+    c = np.asarray(colour, dtype=float)[:3]
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    m = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
+    xyz = m @ lin / np.array([0.95047, 1.0, 1.08883])
+    f = np.where(xyz > (6 / 29) ** 3, np.cbrt(xyz), xyz / (3 * (6 / 29) ** 2) + 4 / 29)
+    return np.array([116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])])
+
+
+def delta_e(a, b) -> float:
+    """How different two sRGB colours (0..1) look: the CIE76 colour difference (about
+    2.3 is just noticeable; above about 40 they are different colours at a glance)."""
+    return float(np.linalg.norm(_lab(a) - _lab(b)))
