@@ -5,7 +5,9 @@ are edited on the preferences page (:class:`PreferencePage`, the form
 ``resources/ui/preferences.ui``).  New Fabrications take their defaults
 from here; each Fabrication then keeps its own values as properties.
 
-The stud and socket fit and the seconds per brick default to the core's one
+The brick colours ("Palette": :data:`core.colours.PALETTES`, BOM colours
+or random colours, see :mod:`core.colours`) say how bricks are drawn in the
+3D view; the stud and socket fit and the seconds per brick default to the core's one
 table of defaults, :data:`core.request.DEFAULTS` (the CLI's options, these
 preferences and the Fabrication's properties all read it): an unset
 preference follows that table, so a change of the table reaches every user
@@ -18,6 +20,7 @@ import os
 
 import FreeCAD as App
 
+from core.colours import PALETTES
 from core.interfaces import Fit
 from core.request import DEFAULTS as DEFAULTS_TABLE
 
@@ -36,16 +39,18 @@ DEFAULTS = {
     "SlicerProfile": ("String", ""),
     "SecondsPerBrick": ("Float", None),
     "SliceOnRecompute": ("Bool", False),
+    "Palette": ("String", None),
 }
 
 #: Preferences whose default is a setting of :data:`core.request.DEFAULTS`.
 TABLE_FIELDS = {"StudFit": "stud_fit", "SocketFit": "socket_fit",
-                "SecondsPerBrick": "seconds_per_brick"}
+                "SecondsPerBrick": "seconds_per_brick", "Palette": "palette"}
 
 #: Widget (object name in preferences.ui) of each preference on the page.
 WIDGETS = {"BrickSet": "brickSet", "StudFit": "studFit", "SocketFit": "socketFit",
            "SecondsPerBrick": "secondsPerBrick", "SlicerPath": "slicerPath",
-           "SlicerProfile": "slicerProfile", "SliceOnRecompute": "sliceOnRecompute"}
+           "SlicerProfile": "slicerProfile", "SliceOnRecompute": "sliceOnRecompute",
+           "Palette": "palette"}
 
 
 def group():
@@ -96,6 +101,13 @@ def values() -> dict:
     return {name: get(name) for name in DEFAULTS}
 
 
+def palette() -> str:
+    """The brick colours of the 3D view: a key of :data:`core.colours.PALETTES`
+    (a stored value that is none of them counts as the default)."""
+    value = get("Palette")
+    return value if value in PALETTES else default("Palette")
+
+
 def fit():
     """The :class:`core.interfaces.Fit` of the preferences: their stud and socket fit,
     everything else Fit's defaults (not checked: :meth:`Fit.check` says what is wrong)."""
@@ -118,6 +130,9 @@ class PreferencePage:
         path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "resources", "ui",
                             "preferences.ui")
         self.form = Gui.PySideUic.loadUi(path)
+        combo = self.widget("Palette")
+        for key, text in PALETTES.items():
+            combo.addItem(App.Qt.translate("Fabrickator", text), key)
         self.shown: dict = {}
 
     def widget(self, name: str):
@@ -141,10 +156,13 @@ class PreferencePage:
 
 
 def _set_widget(widget, value) -> None:
-    """Show ``value`` in a QLineEdit, QDoubleSpinBox, QCheckBox or Gui::FileChooser."""
+    """Show ``value`` in a QLineEdit, QDoubleSpinBox, QCheckBox, QComboBox (the item whose
+    data is ``value``) or Gui::FileChooser."""
     from PySide import QtGui
 
-    if isinstance(widget, QtGui.QCheckBox):
+    if isinstance(widget, QtGui.QComboBox):
+        widget.setCurrentIndex(max(0, widget.findData(value)))
+    elif isinstance(widget, QtGui.QCheckBox):
         widget.setChecked(bool(value))
     elif isinstance(widget, QtGui.QDoubleSpinBox):
         widget.setValue(float(value))
@@ -158,6 +176,8 @@ def _widget_value(widget, kind: str):
     """The value ``widget`` shows, as a preference of FreeCAD parameter kind ``kind``."""
     from PySide import QtGui
 
+    if isinstance(widget, QtGui.QComboBox):
+        return str(widget.currentData())
     if isinstance(widget, QtGui.QCheckBox):
         return bool(widget.isChecked())
     if isinstance(widget, QtGui.QDoubleSpinBox):

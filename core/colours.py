@@ -91,6 +91,12 @@ def ordered_code(brick) -> int:
     return PRINTED_COLOR if brick.kind == "printed" else BOM_COLOR
 
 
+def palette_codes(palette: str) -> tuple[int, ...]:
+    """The colours ``palette`` may draw a LEGO brick in: (:data:`BOM_COLOR`,) or
+    :data:`RANDOM_CODES`.  InputError for an unknown palette."""
+    return RANDOM_CODES if check_palette(palette) == "random" else (BOM_COLOR,)
+
+
 def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
     """LDraw colour code (n_bricks,) each brick of ``layout`` is drawn in with ``palette``.
 

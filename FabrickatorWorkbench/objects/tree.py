@@ -38,7 +38,9 @@ from FabrickatorWorkbench import bridge
 from FabrickatorWorkbench.objects import prototype as prototypes_module
 from FabrickatorWorkbench.objects.printed_part import PrintedPart
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
-from FabrickatorWorkbench.objects.prototype import HIGHLIGHT_COLOUR, make_prototype, rgb_key
+from FabrickatorWorkbench import preferences
+from FabrickatorWorkbench.objects.prototype import (HIGHLIGHT_COLOUR, hide_link_properties,
+                                                    make_prototype, rgb_key)
 from FabrickatorWorkbench.viewproviders import attach_missing
 from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
 
@@ -52,25 +54,31 @@ PROTOTYPES_ROLE = "Prototypes"
 GHOST_ROLE = "RemovedBrick"
 GHOSTS_GROUP_ROLE = "RemovedBricks"
 
+#: Property group of a brick's own properties.  FreeCAD's property view orders groups
+#: by name (PropertyModel::buildUp, 0.20 and 1.x), and App::Link's ~11 properties are
+#: in " Link": the leading space puts this group above them.
+BRICK_GROUP = " Brick"
+
 BRICK_PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base", QT("App::Property", "Fabrickator object role"),
          BRICK_ROLE, HIDDEN),
-    Prop("App::PropertyString", "PartNumber", "Brick", QT("App::Property", "LEGO design number")),
-    Prop("App::PropertyIntegerList", "Cell", "Brick",
+    Prop("App::PropertyString", "PartNumber", BRICK_GROUP,
+         QT("App::Property", "LEGO design number")),
+    Prop("App::PropertyIntegerList", "Cell", BRICK_GROUP,
          QT("App::Property", "Min cell (i, j, k) in the grid")),
-    Prop("App::PropertyIntegerList", "Size", "Brick",
+    Prop("App::PropertyIntegerList", "Size", BRICK_GROUP,
          QT("App::Property", "Extent in cells along x, y, z")),
-    Prop("App::PropertyInteger", "Layer", "Brick",
+    Prop("App::PropertyInteger", "Layer", BRICK_GROUP,
          QT("App::Property", "Lowest plate layer (k)")),
-    Prop("App::PropertyString", "Kind", "Brick",
+    Prop("App::PropertyString", "Kind", BRICK_GROUP,
          QT("App::Property", "lego, or printed (part of a printed part)")),
-    Prop("App::PropertyInteger", "Step", "Brick",
+    Prop("App::PropertyInteger", "Step", BRICK_GROUP,
          QT("App::Property", "Assembly step that places the brick")),
-    Prop("App::PropertyString", "PrintedPart", "Brick",
+    Prop("App::PropertyString", "PrintedPart", BRICK_GROUP,
          QT("App::Property", "ID of the printed part the brick belongs to, if printed")),
-    Prop("App::PropertyInteger", "BrickId", "Brick",
+    Prop("App::PropertyInteger", "BrickId", BRICK_GROUP,
          QT("App::Property", "Brick id in the layout")),
-    Prop("App::PropertyBool", "Changed", "Brick",
+    Prop("App::PropertyBool", "Changed", BRICK_GROUP,
          QT("App::Property", "New or changed in the last recompute")),
 )
 
@@ -198,11 +206,13 @@ def sync(fab, result) -> tuple[int, int]:
     bricks" group; otherwise (the first layout, or new parameters, regions or
     brush edits) nothing is marked.  Either way the previous marks go.
     """
-    from core.render import brick_colours
+    from core.colours import brick_colours, palette_codes, rgb as code_rgb
 
     doc = fab.Document
     layout = result.fab.layout
-    colours = brick_colours(layout, layout.labels())
+    palette = preferences.palette()
+    colours = brick_colours(layout, palette, layout.labels())
+    shown = {rgb_key(code_rgb(code)) for code in palette_codes(palette)}
     had_layout = bool(fab.LayoutJson) and getattr(result, "marks", True)
     by_id = result.report.get("changes") is not None
     existing = {}
@@ -225,8 +235,9 @@ def sync(fab, result) -> tuple[int, int]:
             kept += 1
         highlight = had_layout and new
         proto = (protos.get(brick.part, HIGHLIGHT_COLOUR) if highlight
-                 else _lego_prototype(obj, brick, protos, tuple(float(c) for c in rgb)))
+                 else _lego_prototype(obj, brick, protos, tuple(float(c) for c in rgb), shown))
         _update_brick(obj, brick, proto, placement(brick, layout.grid), changed=highlight)
+        hide_link_properties(obj)
         by_layer[brick.cell[2]].append(obj)
     removed = list(existing.values())
     ghost_group = _sync_ghosts(fab, removed if had_layout else [], layout.grid, made)
@@ -257,14 +268,15 @@ def sync(fab, result) -> tuple[int, int]:
 def clear_changes(fab) -> int:
     """Take the marks of the last recompute away: highlighted bricks get their LEGO
     colour back and the ghosts go.  Returns how many bricks were highlighted."""
-    from core.render import brick_colours
+    from core.colours import brick_colours
 
     marked = [b for b in bricks(fab) if b.Changed]
     protos_touched = []
     if marked:
         layout = stored_layout(fab)
         rgb = {b.id: tuple(float(c) for c in colour)
-               for b, colour in zip(layout.bricks, brick_colours(layout, layout.labels()))}
+               for b, colour in zip(layout.bricks, brick_colours(layout, preferences.palette(),
+                                                                 layout.labels()))}
         protos = Prototypes(fab.Document)
         for obj in marked:
             obj.Changed = False
@@ -309,13 +321,14 @@ def _key(part, cell, size, kind, brick_id=0, by_id: bool = False):
     return (str(part), tuple(int(c) for c in cell), tuple(int(s) for s in size), str(kind))
 
 
-def _lego_prototype(obj, brick, protos, rgb: tuple):
+def _lego_prototype(obj, brick, protos, rgb: tuple, shown: set):
     """The prototype a kept or new brick links to: a kept LEGO brick keeps its colour
-    (so unchanged bricks look the same after a recompute), else the layout's colour."""
+    when it is one the palette draws (``shown``: rgb keys; so unchanged bricks look the
+    same after a recompute), else the layout's colour (a palette change applies)."""
     linked = obj.LinkedObject if obj.TypeId == "App::Link" else None
     if (brick.kind == "lego" and linked is not None and role(linked) == "Prototype"
             and linked.PartNumber == brick.part and obj.Kind == "lego"
-            and rgb_key(linked.Color) != rgb_key(HIGHLIGHT_COLOUR)):
+            and rgb_key(linked.Color) in shown):
         return linked
     return protos.get(brick.part, rgb)
 

@@ -707,3 +707,4 @@ class TestHeadlessDocument(GuiTestCase):
             shown.saveImage(str(ARTIFACTS / "headless_reopened.png"), 800, 600, "White")
         finally:
             App.closeDocument(doc.Name)
+from TestFabrickatorLook import TestLook  # noqa: E402,F401
