@@ -13,7 +13,10 @@ from FabrickatorWorkbench import deps as _fabrickator_deps
 
 _fabrickator_deps.bootstrap()
 
+from FabrickatorWorkbench import llvm as _fabrickator_llvm  # noqa: E402
 from FabrickatorWorkbench import undo as _fabrickator_undo  # noqa: E402
+
+_fabrickator_llvm.isolate()
 
 _fabrickator_undo.install()
 
