@@ -921,3 +921,4 @@ class TestExamples(FabrickatorTestCase):
 # The parity tests (the command line and the workbench give the same result) run with these.
 from TestFabrickatorParity import TestLikeFreeCAD, TestParity  # noqa: E402,F401
 from TestFabrickatorUndo import TestUndo  # noqa: E402,F401
+from TestFabrickatorLookApp import TestLookApp  # noqa: E402,F401
