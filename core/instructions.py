@@ -5,8 +5,11 @@ every brick is drawn once, as the three visible faces of its box (top, -x
 and -y side; view from the front left, above, as :mod:`core.render`), and a
 little script shows one step at a time by switching each brick's class:
 bricks of earlier steps grey, the step's bricks blue (dropping in when
-played), later bricks hidden.  Printed parts are orange boxes with their ID
-written on top.  Studs are an SVG pattern per layer on the top faces (a
+played), later bricks hidden.  Printed parts are drawn as what they are,
+their meshes shaded in orange (:mod:`core.picture`), with their ID written
+on top; the one being inserted is bright with its outline drawn over
+everything (so it shows where it goes even behind other bricks), those in
+place are pale.  Studs are an SVG pattern per layer on the top faces (a
 pattern's affine transform maps the stud lattice of the plane z = top onto
 the picture), so a 3,000-brick model stays a file of a few hundred kB and
 is written in well under a second.
@@ -26,7 +29,7 @@ order is exact.
 The page needs no network: CSS, script, pictures and data are inline.
 Keys: right/down/PageDown/Enter = next step, left/up/PageUp = previous,
 Home/End, space = play/pause; a swipe left or right on a touch screen; a
-slider and buttons.  A panel shows the step's parts (part picture, count,
+slider and buttons; ``instructions.html#17`` opens at step 17.  A panel shows the step's parts (part picture, count,
 design number, name, colour), the layer being built and the time estimate.
 
 :func:`write_assembly` is the pipeline's entry point: it orders the steps
@@ -48,14 +51,11 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import bom, build_order, ldraw
+from core import bom, build_order, ldraw, picture
 from core.catalog import BY_NUMBER
+from core.picture import SQ2, SQ6, VIEW, fmt, screen
 from core.model import Layout
 
-#: Picture directions: screen right and screen down of a model vector (mm).
-SQ2, SQ6 = np.sqrt(2.0), np.sqrt(6.0)
-#: View direction towards the scene (far side = larger depth).
-VIEW = np.array([1.0, 1.0, -1.0]) / np.sqrt(3.0)
 #: Stud radius and height (mm) as drawn.
 STUD_R_MM = 2.4
 STUD_H_MM = 1.7
@@ -63,18 +63,16 @@ STUD_H_MM = 1.7
 LEGO_DONE = ("#c9cdd1", "#8d9398", "#a9aeb3", "#979da2", "#dde0e3")
 LEGO_NOW = ("#5c9be6", "#245aa8", "#3673c7", "#2f66b5", "#8bbcf2")
 PRINTED = ("#fe9a3c", "#b85f0a", "#dc7a18")
+#: A printed part already in place: paler, as built LEGO is grey, so the part
+#: being inserted (PRINTED) stands out.
+PRINTED_DONE = ("#f4d3b2", "#b99479", "#d9b495")
+#: Outline of the printed part being inserted, drawn over everything.
+INSERT_OUTLINE = "#1d4e9e"
 #: Seconds between steps in play mode.
 PLAY_MS = 1400
 
 FILES = {"instructions": "instructions.html", "ldraw": "assembly.mpd",
          "bom": "bom.csv", "bricklink": "bricklink.xml"}
-
-
-def screen(points_mm: np.ndarray) -> np.ndarray:
-    """Picture coordinates (..., 2), x right and y down, of model points (..., 3) in mm."""
-    p = np.asarray(points_mm, dtype=float)
-    return np.stack([(p[..., 0] - p[..., 1]) / SQ2,
-                     -(p[..., 0] + p[..., 1] + 2.0 * p[..., 2]) / SQ6], axis=-1)
 
 
 def brick_boxes(layout: Layout) -> np.ndarray:
@@ -198,12 +196,6 @@ def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return boxes, owner, order, int(split.sum())
 
 
-def _f(v: float) -> str:
-    """A picture coordinate with one decimal (mm), no trailing zeros."""
-    s = f"{v:.1f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
 def _face_paths(lo, hi) -> tuple[str, str, str]:
     """SVG path data of the top, -x and -y faces of the box ``lo``..``hi`` (mm)."""
     ex = screen(np.array([1.0, 0, 0]))
@@ -214,8 +206,8 @@ def _face_paths(lo, hi) -> tuple[str, str, str]:
     base = screen(np.asarray(lo, float))
 
     def pair(p) -> str:
-        y = _f(p[1])
-        return _f(p[0]) + ("" if y.startswith("-") else " ") + y
+        y = fmt(p[1])
+        return fmt(p[0]) + ("" if y.startswith("-") else " ") + y
 
     def path(start, u, v) -> str:
         return f"M{pair(start)}l{pair(u)}l{pair(v)}l{pair(-u)}z"
@@ -256,7 +248,7 @@ def _column_paths(lo, hi, brick_lo, brick_hi) -> tuple[list[tuple[str, str]], st
     if on["y1"]:
         segments.append(((x0, y1, z1), (x1, y1, z1)))
     pts = screen(np.array(segments, dtype=float).reshape(-1, 2, 3)) if segments else np.zeros((0, 2, 2))
-    edges = "".join(f"M{_f(a[0])} {_f(a[1])}L{_f(b[0])} {_f(b[1])}" for a, b in pts)
+    edges = "".join(f"M{fmt(a[0])} {fmt(a[1])}L{fmt(b[0])} {fmt(b[1])}" for a, b in pts)
     return faces, edges
 
 
@@ -270,13 +262,13 @@ def _stud_pattern(pid: str, z_mm: float, cell, colors) -> str:
     n = np.array([1.0, -1.0]) / SQ2 * r
     quad = [(mx + n[0], my + n[1]), (mx + h + n[0], my + h + n[1]),
             (mx + h - n[0], my + h - n[1]), (mx - n[0], my - n[1])]
-    pts = " ".join(f"{_f(x)},{_f(y)}" for x, y in quad)
-    return (f'<pattern id="{pid}" patternUnits="userSpaceOnUse" width="{_f(cx)}" height="{_f(cy)}" '
+    pts = " ".join(f"{fmt(x)},{fmt(y)}" for x, y in quad)
+    return (f'<pattern id="{pid}" patternUnits="userSpaceOnUse" width="{fmt(cx)}" height="{fmt(cy)}" '
             f'patternTransform="matrix({a:.6f} {b:.6f} {c:.6f} {d:.6f} 0 {f:.4f})">'
-            f'<rect width="{_f(cx)}" height="{_f(cy)}" fill="{colors[0]}"/>'
-            f'<circle cx="{_f(mx)}" cy="{_f(my)}" r="{_f(r)}" fill="{colors[3]}"/>'
+            f'<rect width="{fmt(cx)}" height="{fmt(cy)}" fill="{colors[0]}"/>'
+            f'<circle cx="{fmt(mx)}" cy="{fmt(my)}" r="{fmt(r)}" fill="{colors[3]}"/>'
             f'<polygon points="{pts}" fill="{colors[3]}"/>'
-            f'<circle cx="{_f(mx + h)}" cy="{_f(my + h)}" r="{_f(r)}" fill="{colors[4]}" '
+            f'<circle cx="{fmt(mx + h)}" cy="{fmt(my + h)}" r="{fmt(r)}" fill="{colors[4]}" '
             f'stroke="{colors[1]}" stroke-width="0.25"/></pattern>')
 
 
@@ -294,33 +286,41 @@ def _icon(number: str, cell) -> str:
     for i in range(d):
         for j in range(w):
             cxy = screen(np.array([(i + 0.5) * cell[0], (j + 0.5) * cell[1], hi[2]]))
-            studs.append(f'<ellipse cx="{_f(cxy[0])}" cy="{_f(cxy[1])}" rx="{_f(rx)}" ry="{_f(ry)}" class="ss"/>'
-                         f'<rect x="{_f(cxy[0] - rx)}" y="{_f(cxy[1] - hs)}" width="{_f(2 * rx)}" '
-                         f'height="{_f(hs)}" class="ss" stroke="none"/>'
-                         f'<ellipse cx="{_f(cxy[0])}" cy="{_f(cxy[1] - hs)}" rx="{_f(rx)}" ry="{_f(ry)}" class="st"/>')
+            studs.append(f'<ellipse cx="{fmt(cxy[0])}" cy="{fmt(cxy[1])}" rx="{fmt(rx)}" ry="{fmt(ry)}" class="ss"/>'
+                         f'<rect x="{fmt(cxy[0] - rx)}" y="{fmt(cxy[1] - hs)}" width="{fmt(2 * rx)}" '
+                         f'height="{fmt(hs)}" class="ss" stroke="none"/>'
+                         f'<ellipse cx="{fmt(cxy[0])}" cy="{fmt(cxy[1] - hs)}" rx="{fmt(rx)}" ry="{fmt(ry)}" class="st"/>')
     corners = screen(np.array([[x, y, z] for x in (0, hi[0]) for y in (0, hi[1])
                                for z in (0, hi[2] + STUD_H_MM)]))
     (x0, y0), (x1, y1) = corners.min(axis=0) - 1, corners.max(axis=0) + 1
     # far studs (larger i + j) first
     studs = [s for _, s in sorted(zip([-(i + j) for i in range(d) for j in range(w)], studs),
                                   key=lambda t: t[0])]
-    return (f'<symbol id="i{number}" viewBox="{_f(x0)} {_f(y0)} {_f(x1 - x0)} {_f(y1 - y0)}">'
+    return (f'<symbol id="i{number}" viewBox="{fmt(x0)} {fmt(y0)} {fmt(x1 - x0)} {fmt(y1 - y0)}">'
             f'<path class="l" d="{left}"/><path class="f" d="{front}"/><path class="t" d="{top}"/>'
             + "".join(studs) + "</symbol>")
 
 
-def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1) -> tuple[str, dict]:
+def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
+                printed_parts=()) -> tuple[str, dict]:
     """The model picture as an ``<svg>`` element, with every brick's group classed for step
-    ``current``, and facts about it (``pieces`` drawn, ``split_bricks``, ``view_box``).
+    ``current``, and facts about it (``pieces`` drawn, ``split_bricks``, ``view_box``,
+    ``meshed_parts``: ids of the printed parts drawn from their meshes).
 
     Each brick is one ``<g class="b ...">`` with ``data-s`` (its step) and
     ``data-id``, or one such group per column where :func:`drawing_pieces`
-    split it."""
+    split it.  A brick of a printed part in ``printed_parts`` (objects with
+    ``id``, ``bricks`` and ``mesh``) draws the part's mesh inside it
+    (:func:`core.picture.part_faces`), not a box; each such part also has
+    its outline (:func:`core.picture.outline`) in ``<g id="outlines">``,
+    drawn over everything, which the page shows while the part is being
+    inserted.  Printed bricks of other parts are orange boxes."""
     grid = layout.grid
     cell = np.asarray(grid.cell, dtype=float)
     boxes = brick_boxes(layout)
     pieces, owner, order_idx, split = drawing_pieces(layout)
     step_of = order.step_of()
+    meshed = _meshed_parts(layout, printed_parts, pieces, owner)
     corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
     nx, ny, nz = grid.shape
     extent = np.array([nx, ny, nz]) * cell + [0, 0, STUD_H_MM]
@@ -334,7 +334,7 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1)
     defs += [_stud_pattern(f"n{k}", k * cell[2], cell, LEGO_NOW) for k in tops]
     base = screen(np.array([[0, 0, 0], [nx * cell[0], 0, 0], [nx * cell[0], ny * cell[1], 0],
                             [0, ny * cell[1], 0]]))
-    ground = " ".join(f"{_f(x)},{_f(y)}" for x, y in base)
+    ground = " ".join(f"{fmt(x)},{fmt(y)}" for x, y in base)
     groups = []
     for piece in order_idx:
         n = int(owner[piece])
@@ -344,7 +344,10 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1)
         printed = b.kind == "printed"
         top_class = "t" if printed else f"t z{int(b.cell[2] + b.size[2])}"
         head = f'<g class="b{" pp" if printed else ""} {state}" data-s="{s}" data-id="{b.id}">'
-        if np.array_equal(pieces[piece], boxes[n]):
+        if printed and b.printed_part in meshed:
+            body = "".join(f'<path class="{c}" d="{d}"/>' for c, d in meshed[b.printed_part][1].get(int(piece), ()))
+            groups.append(f'{head}{body}</g>')
+        elif np.array_equal(pieces[piece], boxes[n]):
             top, left, front = _face_paths(boxes[n, 0], boxes[n, 1])
             groups.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'
                           f'<path class="{top_class}" d="{top}"/></g>')
@@ -365,16 +368,46 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1)
         xy = screen(np.array([centre[0, 0], centre[0, 1], top_z]))
         s = step_of.get(layout.bricks[members[0]].id, 0)
         state = "done" if s < current else "now" if s == current else "todo"
-        labels.append(f'<text class="lbl {state}" data-s="{s}" x="{_f(xy[0])}" y="{_f(xy[1])}" '
-                      f'font-size="{_f(font)}">{html.escape(pid)}</text>')
+        labels.append(f'<text class="lbl {state}" data-s="{s}" x="{fmt(xy[0])}" y="{fmt(xy[1])}" '
+                      f'font-size="{fmt(font)}">{html.escape(pid)}</text>')
+    outlines = []
+    for pid, (members, _, path) in meshed.items():
+        s = step_of.get(layout.bricks[members[0]].id, 0)
+        state = "done" if s < current else "now" if s == current else "todo"
+        outlines.append(f'<path class="ol {state}" data-s="{s}" data-part="{html.escape(pid)}" '
+                        f'd="{path}"/>')
     css = "".join(f"#model .done .t.z{k}{{fill:url(#d{k})}}#model .now .t.z{k}{{fill:url(#n{k})}}"
                   for k in tops)
-    svg = (f'<svg id="model" xmlns="http://www.w3.org/2000/svg" viewBox="{" ".join(_f(v) for v in vb)}" '
+    svg = (f'<svg id="model" xmlns="http://www.w3.org/2000/svg" viewBox="{" ".join(fmt(v) for v in vb)}" '
            f'preserveAspectRatio="xMidYMid meet" role="img" aria-label="model picture">'
            f'<style>{css}</style><defs>{"".join(defs)}</defs>'
            f'<polygon class="ground" points="{ground}"/>'
-           f'<g id="bricks">{"".join(groups)}</g><g id="labels">{"".join(labels)}</g></svg>')
-    return svg, {"pieces": len(groups), "split_bricks": split, "view_box": vb}
+           f'<g id="bricks">{"".join(groups)}</g><g id="outlines">{"".join(outlines)}</g>'
+           f'<g id="labels">{"".join(labels)}</g></svg>')
+    return svg, {"pieces": len(groups), "split_bricks": split, "view_box": vb,
+                 "meshed_parts": sorted(meshed)}
+
+
+def _meshed_parts(layout: Layout, printed_parts, pieces: np.ndarray, owner: np.ndarray) -> dict:
+    """Per printed part with a mesh: its brick indices, its faces per drawing piece
+    (:func:`core.picture.part_faces`) and its outline path data."""
+    index = {b.id: n for n, b in enumerate(layout.bricks)}
+    cell = np.asarray(layout.grid.cell, float)
+    out = {}
+    for part in printed_parts:
+        mesh = getattr(part, "mesh", None)
+        members = [index[i] for i in part.bricks if i in index]
+        if mesh is None or len(mesh.faces) == 0 or not members:
+            continue
+        piece_of_cell = np.full(layout.grid.shape, -1, np.int64)
+        for piece in np.flatnonzero(np.isin(owner, members)):
+            lo = np.rint(pieces[piece, 0] / cell).astype(int)
+            hi = np.rint(pieces[piece, 1] / cell).astype(int)
+            piece_of_cell[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = piece
+        cells = np.argwhere(piece_of_cell >= 0)
+        out[part.id] = (members, picture.part_faces(mesh, layout.grid.origin, cell, piece_of_cell, cells),
+                        picture.outline(mesh, layout.grid.origin))
+    return out
 
 
 def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> list[dict]:
@@ -411,7 +444,7 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
     missing = [b.id for b in layout.bricks if b.id not in step_of]
     if missing:
         raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
-    svg, facts = svg_picture(layout, order, current=1)
+    svg, facts = svg_picture(layout, order, current=1, printed_parts=printed_parts)
     used = sorted({b.part for b in layout.bricks if b.kind != "printed" and b.part in BY_NUMBER})
     icons = "".join(_icon(n, layout.grid.cell) for n in used)
     rows = bom.lines(layout, printed_parts)
@@ -568,6 +601,10 @@ details td{border-bottom:1px solid #eceff2;padding:.15em .3em;vertical-align:mid
 #model .pp path.cf.t{stroke:@pt@}#model .pp path.cf.l{stroke:@pl@}#model .pp path.cf.f{stroke:@pf@}
 #model .b path.e{fill:none;stroke:#2b3036;stroke-width:.3}
 #model .pp path.e{stroke:#7a3f06;stroke-width:.15}#model .pp.now path.e{stroke:#1d4e9e;stroke-width:.5}
+#model .pp path.me{fill:none;stroke:#6b3604;stroke-width:.25;stroke-linecap:round}
+#model .pp.done path.me{stroke:#9a7a60}
+#model .ol{display:none;fill:none;stroke:@io@;stroke-width:.8;stroke-linejoin:round;pointer-events:none}
+#model .ol.now{display:inline}
 #model .lbl{font-weight:700;fill:#5a2a00;stroke:#fff;stroke-width:.8;paint-order:stroke;
  text-anchor:middle;dominant-baseline:middle;font-family:sans-serif}
 #model .lbl.now{fill:#0d3a80}
@@ -588,17 +625,21 @@ def _css() -> str:
     colors = {"dt": LEGO_DONE[0], "dl": LEGO_DONE[1], "df": LEGO_DONE[2], "ds": LEGO_DONE[3],
               "dst": LEGO_DONE[4], "nt": LEGO_NOW[0], "nl": LEGO_NOW[1], "nf": LEGO_NOW[2],
               "pt": PRINTED[0], "pl": PRINTED[1], "pf": PRINTED[2]}
+    colors["io"] = INSERT_OUTLINE
     text = _CSS_TEMPLATE
     for key, value in colors.items():
         text = text.replace(f"@{key}@", value)
-    return text
+    shades = [(state, picture.shade_colours(*palette))
+              for state, palette in (("now", PRINTED), ("done", PRINTED_DONE))]
+    return text + "".join(f"#model .pp.{state} path.m{level}{{fill:{c};stroke:{c};stroke-width:.2}}"
+                          for state, colours in shades for level, c in enumerate(colours))
 
 
 _JS = r"""
 (function(){
 const D = JSON.parse(document.getElementById('data').textContent);
 const N = D.steps.length;
-const groups = Array.from(document.querySelectorAll('#bricks > g, #labels > text'));
+const groups = Array.from(document.querySelectorAll('#bricks > g, #outlines > path, #labels > text'));
 const stepOf = groups.map(g => +g.getAttribute('data-s'));
 const state = groups.map(g => g.classList.contains('now') ? 1 : g.classList.contains('done') ? 0 : 2);
 const el = id => document.getElementById(id);
@@ -678,7 +719,9 @@ el('next').addEventListener('click', () => go(1));
 el('prev').addEventListener('click', () => go(-1));
 el('play').addEventListener('click', () => play());
 window.fabrickator = {show: s => show(s, false), current: () => cur, steps: N, playing: () => !!timer};
-show(1, false);
+const linked = () => { const m = /^#(?:step=)?(\d+)$/.exec(location.hash); return m ? +m[1] : null; };
+window.addEventListener('hashchange', () => { if (linked()) show(linked(), false); });
+show(linked() || 1, false);
 })();
 """
 

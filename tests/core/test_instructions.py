@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core import build_order, instructions, layout as layout_stage, ldraw, pipeline
+from core import build_order, instructions, layout as layout_stage, ldraw, picture, pipeline
 from core.errors import InputError
 from core.model import Grid
 
@@ -174,3 +174,140 @@ def test_screen_projection_matches_the_view():
     assert np.allclose(instructions.screen(p), instructions.screen(p + 2.5 * VIEW))
     # up in the model is up in the picture (SVG y grows downwards)
     assert instructions.screen(np.array([0, 0, 1.0]))[1] < 0
+
+
+def test_split_triangles_keeps_area_and_winding():
+    tri = np.array([[[0.0, 0, 0], [4, 0, 0], [0, 4, 1]], [[0.0, 0, 5], [1, 0, 5], [0, 1, 5]]])
+    shade = np.array([3, 7])
+    out, keep = picture.split_triangles(tri, 0, 1.5, shade)
+    area = lambda t: np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1) / 2
+    normal = lambda t: np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    assert len(out) == 4                                 # the first crosses x = 1.5, the second not
+    assert area(out).sum() == pytest.approx(area(tri).sum())
+    crossing = keep == 3
+    assert np.all(normal(out[crossing]) @ normal(tri[:1])[0] > 0)   # same winding as the original
+    for t in out[crossing]:                              # each piece lies on one side of the plane
+        assert np.all(t[:, 0] <= 1.5 + 1e-9) or np.all(t[:, 0] >= 1.5 - 1e-9)
+
+
+def _areas(path: str) -> list[float]:
+    """Signed shoelace areas of the closed sub-paths of absolute M/L path data."""
+    out = []
+    for sub in re.findall(r"M([^z]*)z", path):
+        pts = np.array([[float(v) for v in re.findall(r"-?[\d.]+", p)] for p in sub.split("L")])
+        x, y = pts[:, 0], pts[:, 1]
+        out.append(0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    return out
+
+
+def test_outline_of_a_ring_seen_along_its_axis_has_its_hole():
+    import trimesh
+
+    ring = trimesh.creation.annulus(r_min=6.0, r_max=10.0, height=3.0, sections=96)
+    ring.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], -VIEW / np.linalg.norm(VIEW)))
+    areas = sorted(abs(a) for a in _areas(picture.outline(ring, origin=np.zeros(3))))
+    assert len(areas) == 2                               # the rim and the hole
+    assert areas[1] == pytest.approx(np.pi * 10.0 ** 2, rel=0.03)
+    assert areas[0] == pytest.approx(np.pi * 6.0 ** 2, rel=0.03)
+
+
+def test_printed_parts_are_drawn_from_their_meshes(hmd):
+    fab, out, _ = hmd
+    text = (out / "instructions.html").read_text(encoding="utf-8")
+    _, facts = instructions.svg_picture(fab.layout, build_order.plan(fab.layout), printed_parts=fab.printed)
+    assert facts["meshed_parts"] == sorted(p.id for p in fab.printed)
+    groups = dict(re.findall(r'<g class="b pp [a-z]+" data-s="\d+" data-id="(\d+)">(.*?)</g>', text))
+    assert set(groups) == {str(b) for p in fab.printed for b in p.bricks}
+    assert all(not re.search(r'class="[lft]"', body) for body in groups.values())   # no box faces
+    assert sum(bool(re.search(r'class="m\d"', body)) for body in groups.values()) > len(groups) / 2
+    for p in fab.printed:                                # one outline per part, at the part's step
+        step = next(b.step for b in fab.layout.bricks if b.id == p.bricks[0])
+        assert re.search(rf'<path class="ol [a-z]+" data-s="{step}" data-part="{p.id}" d="M', text)
+
+
+def test_inserted_part_is_highlighted_with_its_hole_showing(hmd, tmp_path):
+    """The step that inserts the lens mount P1, as Chromium shows it: where the part's
+    own surface is in front, the pixels carry the inserted part's colours; through the
+    lens bore they do not, where a block would have covered it."""
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed")
+    if not (Path("/usr/bin/chromium").exists() and Path("/usr/bin/chromedriver").exists()):
+        pytest.skip("chromium and chromedriver are not installed (apt-get install chromium chromium-driver)")
+    import io
+
+    import trimesh
+    from PIL import Image
+    from selenium.webdriver.chrome.service import Service
+
+    fab, out, _ = hmd
+    part = next(p for p in fab.printed if p.mesh.bounds[0][0] < 0)      # the left lens mount
+    step = next(b.step for b in fab.layout.bricks if b.id == part.bricks[0])
+    options = webdriver.ChromeOptions()
+    options.binary_location = "/usr/bin/chromium"
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1600,1200",
+                f"--user-data-dir={tmp_path / 'profile'}", "--force-device-scale-factor=1"):
+        options.add_argument(arg)
+    driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    try:
+        driver.get((out / "instructions.html").as_uri() + f"#{step}")
+        assert driver.execute_script("return window.fabrickator.current()") == step
+        ctm = driver.execute_script("const m = document.getElementById('model').getScreenCTM();"
+                                    "return [m.a, m.b, m.c, m.d, m.e, m.f];")
+        shown = driver.execute_script(
+            "return Array.from(document.querySelectorAll('#outlines path'))"
+            ".filter(p => getComputedStyle(p).display !== 'none').map(p => p.dataset.part)")
+        image = np.asarray(Image.open(io.BytesIO(driver.get_screenshot_as_png())).convert("RGB"), float)
+    finally:
+        driver.quit()
+    assert shown == [part.id]                            # only the inserted part's outline is drawn
+
+    def pixel(points_mm):
+        xy = instructions.screen(np.asarray(points_mm, float) - fab.layout.grid.origin)
+        a, b, c, d, e, f = ctm
+        px = np.rint(np.stack([a * xy[:, 0] + c * xy[:, 1] + e, b * xy[:, 0] + d * xy[:, 1] + f], 1))
+        return image[px[:, 1].astype(int), px[:, 0].astype(int)]
+
+    hexes = lambda colours: np.array([[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in colours], float)
+    now = hexes(picture.shade_colours(*instructions.PRINTED))
+    done = hexes(picture.shade_colours(*instructions.PRINTED_DONE))
+    near = lambda rgb, palette: np.min(np.linalg.norm(rgb[:, None] - palette[None], axis=2), axis=1)
+
+    # view rays through a lattice of points on the part's front: first hits on the part
+    lo, hi = part.mesh.bounds
+    u, w = np.meshgrid(np.linspace(lo[0] + 2, hi[0] - 2, 40), np.linspace(lo[2] + 2, hi[2] - 2, 40))
+    targets = np.column_stack([u.ravel(), np.full(u.size, lo[1]), w.ravel()])
+    view = VIEW / np.linalg.norm(VIEW)
+    origins = targets - 200.0 * view
+    rays = trimesh.ray.ray_triangle.RayMeshIntersector(part.mesh)
+    hit = rays.intersects_any(origins, np.tile(view, (len(origins), 1)))
+    plo, phi = fab.layout.boxes_mm()
+    built = np.array([b.step < step for b in fab.layout.bricks])
+    blo, bhi = plo[built], phi[built]
+
+    def blocked(points):
+        """Does a brick built before the step lie on the view ray in front of each point?"""
+        t0 = (blo[None] - points[:, None]) / -view
+        t1 = (bhi[None] - points[:, None]) / -view
+        near_t = np.minimum(t0, t1).max(axis=2)
+        far_t = np.maximum(t0, t1).min(axis=2)
+        return ((near_t < far_t) & (far_t > 0)).any(axis=1)
+
+    locations, index, _ = rays.intersects_location(origins[hit], np.tile(view, (hit.sum(), 1)),
+                                                   multiple_hits=False)
+    first = np.full((hit.sum(), 3), np.nan)
+    first[index] = locations
+    on_part = first[~np.isnan(first[:, 0])]
+    on_part = on_part[~blocked(on_part - 0.5 * view)]
+    assert len(on_part) > 50
+    colours = pixel(on_part)
+    assert np.mean(near(colours, now) < 30) > 0.75       # the inserted part's bright shades (else edges)
+    assert np.mean(near(colours, done) < near(colours, now)) < 0.1
+
+    # the lens bore: rays through it miss the part although they pass inside its bricks
+    members = [n for n, b in enumerate(fab.layout.bricks) if b.id in part.bricks]
+    inside = np.zeros(len(targets), bool)
+    for n in members:
+        inside |= np.all((targets >= plo[n]) & (targets <= phi[n]), axis=1)
+    hole = targets[~hit & inside]
+    hole = hole[~blocked(hole)]
+    assert len(hole) > 20                                # a block would cover all of these
+    assert np.mean(near(pixel(hole), now) > 60) > 0.9

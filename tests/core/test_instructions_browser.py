@@ -121,13 +121,13 @@ def test_highlight_colours_and_printed_part_step(page, assembly):
     assert f"Insert printed part {part.id}" in s["callout"]
     fills = page.execute_script("""
         const f = sel => { const e = document.querySelector(sel); return e ? getComputedStyle(e).fill : null; };
-        return {now_side: f('#bricks > g.now .l'), done_side: f('#bricks > g.done:not(.pp) .l'),
+        return {now_side: f('#bricks > g.now path.m0'), done_side: f('#bricks > g.done:not(.pp) .l'),
                 done_top: f('#bricks > g.done:not(.pp) .t'),
                 label: getComputedStyle(Array.from(document.querySelectorAll('#labels text'))
                     .find(t => t.textContent === arguments[0])).display};
     """, part.id)
     hexrgb = lambda h: "rgb({}, {}, {})".format(*(int(h[i:i + 2], 16) for i in (1, 3, 5)))
-    assert fills["now_side"] == hexrgb(instructions.PRINTED[1])
+    assert fills["now_side"] == hexrgb(instructions.PRINTED[1])   # its mesh's darkest shade
     assert fills["done_side"] == hexrgb(instructions.LEGO_DONE[1])
     assert fills["done_top"].startswith("url(")          # studs pattern on built tops
     assert fills["label"] != "none"
