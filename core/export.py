@@ -33,8 +33,10 @@ from core import print_time
 from core.print_time import Pose
 from core.printed import PrintedPart
 
-#: Gap (mm) between parts on a plate, and between the parts and the bed's edge.
-SPACING_MM = 5.0
+#: Gap (mm) between parts on a plate, and between the parts and the bed's edge:
+#: the slicer's least gap (supports spread beyond their part; PrusaSlicer 2.9
+#: refuses supported parts 6 mm apart).
+SPACING_MM = print_time.ARRANGE_GAP_MM
 
 #: Extra cost (fraction of the pose's print time) of printing a part with
 #: studs or sockets in any pose but upright: its clamping features then print
@@ -67,12 +69,12 @@ def print_pose(mesh: trimesh.Trimesh, studs: bool = True, clamping: bool = True,
     When the part has studs or sockets (``clamping``), any pose but
     upright costs SIDEWAYS_PENALTY more: printed upright, the clamping
     sides lie in the layers and come out round.  ``profile`` (default:
-    the bundled one) is sliced with; slices go under ``workdir`` (a
+    the presets of the slicer's vendor bundle) is sliced with; slices go under ``workdir`` (a
     temporary folder when None).
     """
     keep_up = ([((0.0, 0.0, 1.0), STUDS_DOWN_Z)] if studs else []) + \
         ([(tuple(engraving_normal), ENGRAVING_DOWN_Z)] if engraving_normal is not None else [])
-    return print_time.fastest_pose(mesh, workdir, profile or print_time.DEFAULT_PROFILE, slicer,
+    return print_time.fastest_pose(mesh, workdir, profile, slicer,
                                    keep_up=keep_up, prefer_upright=SIDEWAYS_PENALTY if clamping else 0.0)
 
 
@@ -115,7 +117,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     overlap.
     """
     size = np.asarray(bed if bed is not None else
-                      print_time.build_volume(print_time.load_profile(profile or print_time.DEFAULT_PROFILE))[:2],
+                      print_time.build_volume(print_time.load_profile(profile, slicer))[:2],
                       dtype=float)
     laid = []
     for index, part in enumerate(parts):
@@ -288,8 +290,8 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
         name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
         for index, _, pose in items:
             files[parts[index].id]["pose"] = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
-        config = print_time.plate_config(profile or print_time.DEFAULT_PROFILE,
-                                         supports=any(pose.supports for _, _, pose in items))
+        config = print_time.plate_config(profile, supports=any(pose.supports for _, _, pose in items),
+                                         slicer=slicer)
         (folder / name).write_bytes(print_time.plate_3mf([mesh for _, mesh, _ in items], config,
                                                          names=[parts[index].id for index, _, _ in items]))
         written.append(name)

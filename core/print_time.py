@@ -1,10 +1,14 @@
 """How long parts take to print, and the pose that prints them fastest.
 
 :func:`print_time` puts all given meshes on one plate, slices them with the
-``prusa-slicer`` command line and the flat profile kept in ``core/data``
-(MK3S, 0.20 mm QUALITY, Prusament PLA; made by
-``tools/make_prusa_profile.py``), and reads the slicer's own estimate from
-the G-code.  Supports are switched on (:data:`SUPPORT_SETTINGS`:
+``prusa-slicer`` command line and the MK3S, 0.20 mm QUALITY, Prusament PLA
+presets resolved from the vendor bundle installed with that slicer
+(:mod:`core.slicer_profile`: PrusaSlicer 2.5's and 2.9's bundles alike; the
+committed fallback profile where none is found), and reads the slicer's
+own estimate from the G-code.  The parts are placed apart on the bed here
+(:func:`arrange`) and sliced with ``--dont-arrange``, which every version
+honours alike (PrusaSlicer 2.9 does not arrange a project's objects and
+crashes on ones that overlap).  Supports are switched on (:data:`SUPPORT_SETTINGS`:
 PrusaSlicer's automatic supports, none under bridges) exactly when a part
 on the plate needs them (:func:`needs_supports`); a plate the slicer still
 refuses for want of support is sliced again with supports, then with
@@ -45,10 +49,12 @@ import numpy as np
 import trimesh
 from scipy.optimize import nnls
 
+from core import slicer_profile
 from core.errors import InputError
 
-#: The flat PrusaSlicer config sliced with by default.
-DEFAULT_PROFILE = Path(__file__).resolve().parent / "data" / "prusa_mk3s_0.20mm_quality_pla.ini"
+#: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
+#: (:mod:`core.slicer_profile`); a ``profile`` of None means the bundle's presets.
+FALLBACK_PROFILE = slicer_profile.FALLBACK_PROFILE
 
 #: Environment variable naming the slicer binary, or ``none`` to disable it.
 SLICER_ENV = "FABRICKATOR_SLICER"
@@ -67,7 +73,7 @@ ESTIMATE_LAYER_MM = 0.2
 #: Coefficients of :func:`estimate_seconds`, multiplying the plate's
 #: (volume mm^3, surface area mm^2, layers, part-layers, 1).  Fitted with
 #: :func:`fit_estimate` (least squares on relative error, coefficients >= 0)
-#: against prusa-slicer 2.5.0 with DEFAULT_PROFILE on the calibration plates
+#: against prusa-slicer 2.5.0 with FALLBACK_PROFILE (its bundle) on the calibration plates
 #: of tests/core/test_print_time.py (boxes, cylinders, a tube, a cup, a
 #: sphere, LEGO-like studded parts, multi-part plates and six models of
 #: /work/shared/models), 21 plates from 20 min to 5 h, sliced without
@@ -102,6 +108,12 @@ RETRY_SETTINGS = (
 #: :func:`print_time` slices such a mesh as it stands and with the
 #: supports the mark says; any other mesh it poses first.
 POSE_KEY = "fabrickator_print_pose"
+
+#: Least gap (mm) between parts on a plate (:func:`arrange`).  Supports
+#: spread a few mm beyond their part: PrusaSlicer 2.9 finds "gcode path
+#: conflicts" between two supported lens mounts 6 mm apart (and then crashes
+#: on the command line), none at 8 mm.
+ARRANGE_GAP_MM = 10.0
 
 #: Where PrusaSlicer reads a 3MF's project settings from.
 SLIC3R_CONFIG = "Metadata/Slic3r_PE.config"
@@ -286,11 +298,25 @@ def gcode_seconds(gcode: str | os.PathLike) -> float:
     return parse_duration(match[1])
 
 
-def load_profile(profile: str | os.PathLike = DEFAULT_PROFILE) -> dict[str, str]:
-    """The ``key = value`` pairs of a flat PrusaSlicer ini, values verbatim.
+def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = "auto") -> dict[str, str]:
+    """The settings to slice with: the ``key = value`` pairs of a flat PrusaSlicer ini, values verbatim.
 
-    Raises InputError when the file cannot be read.
+    ``profile`` None is the default: the presets resolved from the vendor
+    bundle installed with the slicer ``slicer`` names (as in
+    :func:`resolve_slicer`; :func:`core.slicer_profile.bundle_profile`), or
+    FALLBACK_PROFILE when there is no slicer, no bundle beside it, or the
+    bundle lacks the presets.  Raises InputError when a given file cannot
+    be read.
     """
+    if profile is None:
+        binary, _ = resolve_slicer(slicer)
+        bundle = slicer_profile.find_bundle(binary)
+        if bundle is not None:
+            try:
+                return slicer_profile.bundle_profile(bundle)
+            except (OSError, UnicodeError, slicer_profile.BundleError):
+                pass
+        profile = FALLBACK_PROFILE
     try:
         text = Path(profile).read_text(encoding="utf-8")
     except OSError as exc:
@@ -364,7 +390,7 @@ def estimate_seconds(meshes, coeffs=ESTIMATE_COEFFS) -> float:
     """Estimated print time in seconds of all ``meshes`` on one plate, no slicer needed.
 
     ``coeffs`` . :func:`estimate_features`; the default coefficients are
-    calibrated for DEFAULT_PROFILE (see ESTIMATE_COEFFS).  An empty plate
+    calibrated for FALLBACK_PROFILE (see ESTIMATE_COEFFS).  An empty plate
     takes 0 s.
     """
     if len(meshes) == 0:
@@ -470,10 +496,12 @@ def plate_supports(meshes, overhang_deg: float = OVERHANG_DEG) -> bool:
                else needs_supports(m, overhang_deg) for m in as_meshes(meshes))
 
 
-def plate_config(profile: str | os.PathLike = DEFAULT_PROFILE, supports: bool = False) -> dict[str, str]:
-    """The settings a plate is sliced with: the profile's, SUPPORT_SETTINGS over them
-    when ``supports``.  Raises InputError when the profile cannot be read."""
-    return {**load_profile(profile), **(SUPPORT_SETTINGS if supports else {})}
+def plate_config(profile: str | os.PathLike | None = None, supports: bool = False,
+                 slicer: str | None = "auto") -> dict[str, str]:
+    """The settings a plate is sliced with: the profile's (:func:`load_profile`, for
+    ``slicer``), SUPPORT_SETTINGS over them when ``supports``.  Raises InputError
+    when the profile cannot be read."""
+    return {**load_profile(profile, slicer), **(SUPPORT_SETTINGS if supports else {})}
 
 
 def bed_contact(mesh: trimesh.Trimesh) -> float:
@@ -549,7 +577,7 @@ def _slice_or_reason(mesh: trimesh.Trimesh, workdir, profile, slicer: str, suppo
 
 
 def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None,
-                 profile: str | os.PathLike = DEFAULT_PROFILE, slicer: str | None = "auto",
+                 profile: str | os.PathLike | None = None, slicer: str | None = "auto",
                  keep_up=(), prefer_upright: float = 0.0, sliced: int = POSES_SLICED) -> Pose:
     """The pose ``mesh`` (model mm) prints fastest in, with the supports it needs.
 
@@ -577,9 +605,11 @@ def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None
     or when every slice fails, the cheapest estimate wins and
     ``chosen_by`` says why.  Ties go to the pose the estimate ranks first,
     and among poses the estimate ties, to the earlier candidate (upright
-    first).  Raises InputError for an unreadable profile.
+    first).  ``profile`` is as in :func:`load_profile` (None: the slicer's
+    bundle).  Raises InputError for an unreadable profile.
     """
-    config = load_profile(profile)
+    binary, reason = resolve_slicer(slicer)
+    config = load_profile(profile, binary)
     overhang = support_threshold(config)
     rules = [(np.asarray(d, float) / np.linalg.norm(d), float(z)) for d, z in keep_up]
     allowed = [(name, rotation) for name, rotation in candidate_poses(mesh)
@@ -598,7 +628,6 @@ def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None
     volume = build_volume(config)
     fitting = [w for w in resting if np.all(w[1].extents <= volume + 1e-6)] or resting
     ranked = sorted(fitting, key=lambda w: w[0].cost)
-    binary, reason = resolve_slicer(slicer)
     if binary is None:
         return replace(ranked[0][0], chosen_by=f"by the estimate ({reason})")
     kept = ranked[:sliced]
@@ -619,16 +648,18 @@ def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None
     return replace(best, chosen_by=f"the fastest of {len(timed)} sliced poses")
 
 
-def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike = DEFAULT_PROFILE,
+def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike | None = None,
                 slicer: str | None = None, supports: bool | None = None) -> PrintEstimate:
     """Slice all ``meshes`` on one plate with PrusaSlicer; the time from its G-code.
 
     Writes the plate as a 3MF carrying its settings (:func:`plate_3mf`,
     the file ``core.export`` writes for the user) and the G-code into a new
     folder under ``workdir``, and slices it as a user would
-    (``prusa-slicer --export-gcode plate.3mf``); the slicer arranges the
-    parts on the bed, each part keeps its orientation.  The settings are
-    the profile's (:func:`plate_config`), with SUPPORT_SETTINGS when
+    (``prusa-slicer --dont-arrange --export-gcode plate.3mf``), the parts
+    where :func:`arrange` puts them (as given when they lie apart on the
+    bed, as ``core.export``'s plates do), each in its orientation.  The
+    settings are the profile's (:func:`plate_config`; ``profile`` None: the
+    slicer's own bundle), with SUPPORT_SETTINGS when
     ``supports`` is True, or, for None, when :func:`plate_supports` says a
     part needs them.  When PrusaSlicer
     refuses the plate for want of support ("no extrusions in the first
@@ -644,14 +675,18 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
     slicer = slicer or slicer_path()
     if not slicer:
         raise _SlicerFailed("no slicer")
-    parts = as_meshes(meshes)
-    config = load_profile(profile)
+    config = load_profile(profile, slicer)
     volume = build_volume(config)
+    parts = as_meshes(meshes)
     for index, mesh in enumerate(parts):
         if np.any(mesh.extents > volume + 1e-6):
             size = " x ".join(f"{v:.0f}" for v in mesh.extents)
             bed = " x ".join(f"{v:.0f}" for v in volume)
             raise _SlicerFailed(f"part {index} ({size} mm) exceeds the build volume {bed} mm")
+    try:
+        parts = arrange(parts, config)
+    except ValueError as exc:
+        raise _SlicerFailed(str(exc)) from None
     if supports is None:
         supports = plate_supports(parts, support_threshold(config))
     attempts = RETRY_SETTINGS[1:] if supports else RETRY_SETTINGS
@@ -662,7 +697,8 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
         suffix = f"-{attempt}" if attempt else ""
         gcode, plate = folder / f"plate{suffix}.gcode", folder / f"plate{suffix}.3mf"
         plate.write_bytes(plate_3mf(parts, {**config, **settings}))
-        command = [slicer, "--loglevel", "1", "--export-gcode", "--output", str(gcode), str(plate)]
+        command = [slicer, "--loglevel", "1", "--dont-arrange", "--export-gcode", "--output", str(gcode),
+                   str(plate)]
         try:
             run = subprocess.run(command, cwd=folder, capture_output=True, text=True,
                                  timeout=SLICER_TIMEOUT_S, stdin=subprocess.DEVNULL)
@@ -691,6 +727,66 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike =
                          supports=settings.get("support_material") == "1")
 
 
+def bed_rectangle(config: dict[str, str]) -> np.ndarray:
+    """The bed's min and max corner (2x2, mm) from the profile's ``bed_shape``.
+
+    Raises InputError when the profile has no valid bed_shape.
+    """
+    try:
+        corners = np.array([[float(v) for v in point.split("x")]
+                            for point in config["bed_shape"].split(",")])
+    except (KeyError, ValueError) as exc:
+        raise InputError(f"slicer profile: no valid bed_shape ({exc})") from None
+    return np.array([corners.min(axis=0), corners.max(axis=0)])
+
+
+def _apart(meshes: list[trimesh.Trimesh], bed: np.ndarray) -> bool:
+    """Whether every footprint lies on ``bed`` and they are ARRANGE_GAP_MM or more apart."""
+    boxes = [m.bounds[:, :2] for m in meshes]
+    if any(np.any(b[0] < bed[0] - 1e-6) or np.any(b[1] > bed[1] + 1e-6) for b in boxes):
+        return False
+    gap = ARRANGE_GAP_MM - 1e-6
+    return not any(np.all(a[0] < b[1] + gap) and np.all(b[0] < a[1] + gap)
+                   for n, a in enumerate(boxes) for b in boxes[n + 1:])
+
+
+def arrange(meshes, config: dict[str, str]) -> list[trimesh.Trimesh]:
+    """The plate's meshes where they are sliced: each standing on the bed (min z = 0),
+    their footprints on the profile's bed and apart.
+
+    Meshes whose footprints already lie on the bed, ARRANGE_GAP_MM or
+    more apart, keep their x and y (a plate ``core.export`` laid out).
+    Otherwise they are set in rows, deepest footprint (y) first, left to
+    right ARRANGE_GAP_MM apart, each mesh in its orientation, and the rows
+    are centred on the bed, as PrusaSlicer's own arrange would centre
+    them.  Returns copies (metadata kept); raises ValueError saying the
+    parts could not fit the bed when the rows do not.
+    """
+    parts = [m.copy() for m in as_meshes(meshes)]
+    for m in parts:
+        m.apply_translation((0.0, 0.0, -m.bounds[0][2]))
+    bed = bed_rectangle(config)
+    if _apart(parts, bed):
+        return parts
+    room = bed[1] - bed[0]
+    spots, x, y, row = {}, 0.0, 0.0, 0.0
+    for index in sorted(range(len(parts)), key=lambda i: (-parts[i].extents[1], i)):
+        w, d = parts[index].extents[:2]
+        if x > 0 and x + w > room[0] + 1e-6:
+            x, y, row = 0.0, y + row + ARRANGE_GAP_MM, 0.0
+        spots[index] = (x, y)
+        x, row = x + w + ARRANGE_GAP_MM, max(row, d)
+    used = np.array([max(spots[i][0] + parts[i].extents[0] for i in spots), y + row])
+    if np.any(used > room + 1e-6):
+        size = " x ".join(f"{v:.0f}" for v in room)
+        raise ValueError(f"the {len(parts)} parts could not fit the {size} mm bed together")
+    corner = bed[0] + (room - used) / 2
+    for index, (px, py) in spots.items():
+        part = parts[index]
+        part.apply_translation((corner[0] + px - part.bounds[0][0], corner[1] + py - part.bounds[0][1], 0.0))
+    return parts
+
+
 def plate_3mf(meshes, config: dict[str, str], names=None) -> bytes:
     """A 3MF of ``meshes`` as they stand (named ``names``, default ``part_000`` ...)
     with ``config`` as its PrusaSlicer project settings (SLIC3R_CONFIG), which
@@ -712,14 +808,21 @@ def config_text(config: dict[str, str], prefix: str = "") -> str:
 
 
 def _last_message(run: subprocess.CompletedProcess) -> str:
-    """The slicer's last meaningful output line (its error), or its exit status."""
-    lines = [line.strip() for line in (run.stderr + "\n" + run.stdout).splitlines()]
-    lines = [line.removeprefix("what():").strip() for line in lines
-             if line and not line.startswith("[") and not line[:1].isdigit()]
-    return lines[-1] if lines else f"exit status {run.returncode}"
+    """The slicer's last meaningful output line (its error: a plain line or the text of
+    an ``[error]`` log line), or its exit status; with the status when it crashed."""
+    messages = []
+    for line in (line.strip() for line in (run.stderr + "\n" + run.stdout).splitlines()):
+        if "[error]" in line:
+            messages.append(line.split("[error]", 1)[1].strip())
+        elif line and not line.startswith("[") and not line[:1].isdigit():
+            messages.append(line.removeprefix("what():").strip())
+    status = f"exit status {run.returncode}"
+    if not messages:
+        return status
+    return f"{messages[-1]} ({status})" if run.returncode < 0 else messages[-1]
 
 
-def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike = DEFAULT_PROFILE,
+def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike | None = None,
                slicer: str | None = "auto", pose_search: bool = True) -> PrintEstimate:
     """Print time of all ``meshes`` (Trimesh objects or mesh files) on ONE plate.
 
@@ -744,8 +847,8 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike = 
     parts = as_meshes(meshes)
     if not parts:
         return PrintEstimate(0.0, "nothing to print", None)
-    config = load_profile(profile)
     binary, reason = resolve_slicer(slicer)
+    config = load_profile(profile, binary)
     poses = [fastest_pose(m, workdir, profile, binary or slicer) if pose_search and POSE_KEY not in m.metadata else None
              for m in parts]
     parts = [m if p is None else posed(m, p) for m, p in zip(parts, poses)]

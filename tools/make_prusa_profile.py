@@ -1,130 +1,44 @@
-"""Resolve PrusaSlicer's vendor bundle into one flat ini for ``--load``.
+"""Write the flat PrusaSlicer profile resolved from a vendor bundle.
 
 Usage::
 
     python tools/make_prusa_profile.py [BUNDLE.ini] [OUT.ini]
 
-Defaults: ``/usr/share/PrusaSlicer/profiles/PrusaResearch.ini`` (Debian's
-prusa-slicer 2.5) and ``core/data/prusa_mk3s_0.20mm_quality_pla.ini``.
+Defaults: the bundle installed with the ``prusa-slicer`` on PATH (Debian:
+``/usr/share/PrusaSlicer/profiles/PrusaResearch.ini``) and
+``core/data/prusa_mk3s_0.20mm_quality_pla.ini``, the fallback profile the
+core uses where no bundle is installed.
 
-The bundle holds presets as sections ``[TYPE:NAME]`` (TYPE is ``printer``,
-``print`` or ``filament``; a NAME in ``*stars*`` is abstract).  A preset's
-``inherits = A; B`` lists parents of the same TYPE: the keys of A, then B
-override them, then the preset's own keys override all.  This script
-resolves one printer, one print and one filament preset that way and writes
-their union, sorted by key, as the single config file the command line
-accepts.  It was run once; its output is committed, so slicing never needs
-the bundle.
+Slicing does not need this: the core resolves the presets from the
+installed bundle at run time (:mod:`core.slicer_profile`).  The committed
+fallback was written from PrusaSlicer 2.5's bundle (config_version 1.5.1);
+the estimate's coefficients were fitted with it.  The output is also a
+config file for ``prusa-slicer --load``.
 """
 
 from __future__ import annotations
 
-import re
+import shutil
 import sys
 from pathlib import Path
 
-BUNDLE = Path("/usr/share/PrusaSlicer/profiles/PrusaResearch.ini")
-OUT = Path(__file__).resolve().parents[1] / "core" / "data" / "prusa_mk3s_0.20mm_quality_pla.ini"
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-PRESETS = {
-    "printer": "Original Prusa i3 MK3S & MK3S+",
-    "print": "0.20mm QUALITY @MK3",
-    "filament": "Prusament PLA",
-}
-
-#: Keys that only steer the bundle's preset browser; they mean nothing to a
-#: flat config (and print and filament would disagree on them).
-BUNDLE_ONLY = {
-    "inherits", "renamed_from", "alias",
-    "compatible_printers", "compatible_printers_condition",
-    "compatible_prints", "compatible_prints_condition",
-}
-
-SECTION = re.compile(r"^\[(?P<type>[^:\]]+):(?P<name>[^\]]+)\]\s*$")
-
-
-def parse_bundle(text: str) -> dict[tuple[str, str], dict[str, str]]:
-    """Sections ``(type, name) -> {key: raw value}`` of a vendor bundle.
-
-    Lines starting with ``#`` or ``;`` are comments; values are kept
-    verbatim (escaped ``\\n`` and quotes as PrusaSlicer wrote them); a key
-    repeated in one section keeps its last value.  Sections without a
-    ``type:name`` header (``[vendor]``) are skipped.
-    """
-    sections: dict[tuple[str, str], dict[str, str]] = {}
-    current: dict[str, str] | None = None
-    for line in text.splitlines():
-        stripped = line.strip()
-        if not stripped or stripped[0] in "#;":
-            continue
-        if stripped.startswith("["):
-            match = SECTION.match(stripped)
-            current = None
-            if match:
-                current = sections.setdefault((match["type"], match["name"]), {})
-            continue
-        if current is not None and "=" in stripped:
-            key, value = stripped.split("=", 1)
-            current[key.strip()] = value.strip()
-    return sections
-
-
-def resolve(sections: dict[tuple[str, str], dict[str, str]], kind: str, name: str,
-            _seen: tuple[str, ...] = ()) -> dict[str, str]:
-    """All keys of preset ``[kind:name]`` with its ``inherits`` chain applied.
-
-    Parents are applied left to right, then the preset's own keys; raises
-    KeyError for a missing preset and ValueError for an inheritance cycle.
-    """
-    if name in _seen:
-        raise ValueError(f"inheritance cycle through {kind}:{name}")
-    own = sections[(kind, name)]
-    merged: dict[str, str] = {}
-    for parent in (p.strip() for p in own.get("inherits", "").split(";")):
-        if parent:
-            merged.update(resolve(sections, kind, parent, _seen + (name,)))
-    merged.update(own)
-    return merged
-
-
-def flat_profile(sections: dict[tuple[str, str], dict[str, str]],
-                 presets: dict[str, str] = PRESETS) -> dict[str, str]:
-    """The union of the resolved presets, minus bundle-only keys.
-
-    Also sets ``print_settings_id``, ``filament_settings_id`` and
-    ``printer_settings_id`` to the preset names, as the GUI does (the MK3
-    start and end G-code test them).  Raises ValueError when two presets
-    give one key different values.
-    """
-    flat: dict[str, str] = {}
-    for kind, name in presets.items():
-        values = {k: v for k, v in resolve(sections, kind, name).items() if k not in BUNDLE_ONLY}
-        values[f"{kind}_settings_id"] = name
-        for key, value in values.items():
-            if key in flat and flat[key] != value:
-                raise ValueError(f"{kind}:{name} sets {key} = {value!r}, another preset {flat[key]!r}")
-            flat[key] = value
-    return flat
-
-
-def render(flat: dict[str, str], bundle: Path, version: str, presets: dict[str, str] = PRESETS) -> str:
-    """The flat ini text: a header naming its origin, then ``key = value`` sorted by key."""
-    header = [
-        f"# generated by tools/make_prusa_profile.py from {bundle} (config_version {version})",
-        *(f"# {kind}: {name}" for kind, name in presets.items()),
-    ]
-    return "\n".join(header + [f"{key} = {flat[key]}" for key in sorted(flat)]) + "\n"
+from core import slicer_profile  # noqa: E402
 
 
 def main(argv: list[str]) -> int:
-    """Write the flat profile; returns the process exit status."""
-    bundle = Path(argv[0]) if argv else BUNDLE
-    out = Path(argv[1]) if len(argv) > 1 else OUT
+    """Write the flat profile; returns the process exit status (2 when there is no bundle)."""
+    bundle = Path(argv[0]) if argv else slicer_profile.find_bundle(shutil.which("prusa-slicer"))
+    if bundle is None:
+        print("no PrusaSlicer vendor bundle found: name one (BUNDLE.ini)", file=sys.stderr)
+        return 2
+    out = Path(argv[1]) if len(argv) > 1 else slicer_profile.FALLBACK_PROFILE
     text = bundle.read_text(encoding="utf-8")
-    version = re.search(r"^config_version\s*=\s*(\S+)", text, re.M)
-    flat = flat_profile(parse_bundle(text))
+    flat = slicer_profile.flat_profile(slicer_profile.parse_bundle(text))
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(render(flat, bundle, version[1] if version else "?"), encoding="utf-8")
+    out.write_text(slicer_profile.render(flat, bundle, slicer_profile.config_version(text)),
+                   encoding="utf-8")
     print(f"wrote {out}: {len(flat)} keys")
     return 0
 

@@ -231,9 +231,10 @@ def test_the_plate_prints_in_prusaslicer_as_timed(tmp_path):
     (items,) = export.plates(parts)
     timed = print_time.print_time([mesh for _, mesh, _ in items], tmp_path / "work")
     assert timed.supports and timed.method.endswith("; with supports)") and timed.pose is None
-    # Open the written plate as a user would: its own settings, nothing loaded besides.
+    # Open the written plate as a user would: its own settings, nothing loaded besides, the
+    # parts where the plate puts them (the GUI keeps them; the command line needs --dont-arrange).
     gcode = tmp_path / "opened.gcode"
-    run = subprocess.run([print_time.slicer_path(), "--export-gcode", "--output", str(gcode),
+    run = subprocess.run([print_time.slicer_path(), "--dont-arrange", "--export-gcode", "--output", str(gcode),
                           str(tmp_path / "parts" / "plate.3mf")], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-500:]
     assert "; support_material = 1" in gcode.read_text(errors="replace")

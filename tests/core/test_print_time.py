@@ -1,4 +1,4 @@
-"""Print time: PrusaSlicer's estimate from the flat profile, and the fallback model.
+"""Print time: PrusaSlicer's estimate with the presets of its vendor bundle, and the fallback model.
 
 Tests that slice skip when prusa-slicer is not installed (Debian package
 ``prusa-slicer``); tests on real models skip when ../shared/models is absent.
@@ -8,8 +8,9 @@ core/print_time.py was fitted on.
 
 from __future__ import annotations
 
-import importlib.util
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ import pytest
 import trimesh
 
 from core import print_time as pt
+from core import slicer_profile
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -121,47 +123,189 @@ def test_flat_profile_is_resolved():
     assert pt.profile_label(config) == "MK3S, 0.20mm QUALITY, PLA"
 
 
-def load_tool():
-    """tools/make_prusa_profile.py as a module (tools/ is not a package)."""
-    path = ROOT / "tools" / "make_prusa_profile.py"
-    spec = importlib.util.spec_from_file_location("make_prusa_profile", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    return tool
+#: A small vendor bundle in PrusaSlicer's format: abstract presets, multiple and
+#: chained inheritance, a comment, a vendor section, browser-only keys.
+FAKE_BUNDLE = """# a vendor bundle
+[vendor]
+name = Fake Research
+config_version = 9.9.9
+
+[print:*common*]
+layer_height = 0.3
+perimeters = 3
+fill_density = 20%
+compatible_printers_condition = printer_model=="MK3S"
+
+[print:*0.20mm*]
+inherits = *common*
+layer_height = 0.2
+
+[print:*MK3*]
+; a comment
+perimeters = 2
+fill_pattern = gyroid
+
+[print:0.20mm QUALITY @MK3]
+inherits = *0.20mm*; *MK3*
+fill_density = 15%
+
+[filament:*PLA*]
+filament_type = PLA
+temperature = 210
+
+[filament:Prusament PLA]
+inherits = *PLA*
+temperature = 215
+renamed_from = "Prusament PLA old"
+
+[printer:*common*]
+printer_technology = FFF
+bed_shape = 0x-4,250x-4,250x210,0x210
+max_print_height = 200
+nozzle_diameter = 0.4
+
+[printer:Original Prusa i3 MK3]
+inherits = *common*
+printer_model = MK3
+max_print_height = 210
+
+[printer:Original Prusa i3 MK3S & MK3S+]
+inherits = Original Prusa i3 MK3
+printer_model = MK3S
+"""
+
+
+def fake_slicer(root: Path, bundle: str = FAKE_BUNDLE, place: str = "share/PrusaSlicer/profiles") -> Path:
+    """A PrusaSlicer-like install under ``root``: bin/prusa-slicer (a script that is never
+    run here) and the vendor bundle at ``place``."""
+    binary = root / "bin" / "prusa-slicer"
+    binary.parent.mkdir(parents=True, exist_ok=True)
+    binary.write_text("#!/bin/sh\nexit 1\n")
+    binary.chmod(0o755)
+    (root / place).mkdir(parents=True, exist_ok=True)
+    (root / place / "PrusaResearch.ini").write_text(bundle)
+    return binary
 
 
 def test_inheritance_order():
-    tool = load_tool()
-    sections = tool.parse_bundle("""
-[vendor]
-name = X
-[print:*a*]
-k = a
-ka = 1
-[print:*b*]
-# comment
-k = b
-kb = 2
-[print:P]
-inherits = *a*; *b*
-own = 3
-[print:Q]
-inherits = P
-k = q
-""")
-    assert tool.resolve(sections, "print", "P") == {"k": "b", "ka": "1", "kb": "2",
-                                                    "inherits": "*a*; *b*", "own": "3"}
-    assert tool.resolve(sections, "print", "Q")["k"] == "q"
-    assert tool.resolve(sections, "print", "Q")["own"] == "3"
+    sections = slicer_profile.parse_bundle(FAKE_BUNDLE)
+    assert ("vendor", "name") not in sections and len(sections) == 9
+    quality = slicer_profile.resolve(sections, "print", "0.20mm QUALITY @MK3")
+    # *common* under *0.20mm*, then *MK3* over both, then the preset's own keys
+    assert {k: quality[k] for k in ("layer_height", "perimeters", "fill_density", "fill_pattern")} == \
+        {"layer_height": "0.2", "perimeters": "2", "fill_density": "15%", "fill_pattern": "gyroid"}
+    printer = slicer_profile.resolve(sections, "printer", "Original Prusa i3 MK3S & MK3S+")
+    assert printer["printer_model"] == "MK3S" and printer["max_print_height"] == "210"
+    assert printer["bed_shape"] == "0x-4,250x-4,250x210,0x210"
+
+
+def test_the_default_profile_is_resolved_from_the_bundle_beside_the_slicer(tmp_path):
+    binary = fake_slicer(tmp_path / "usr")
+    link = tmp_path / "path" / "prusa-slicer"
+    link.parent.mkdir()
+    link.symlink_to(binary)
+    assert slicer_profile.find_bundle(link) == (tmp_path / "usr/share/PrusaSlicer/profiles/PrusaResearch.ini")
+    config = pt.load_profile(slicer=str(link))
+    assert config["layer_height"] == "0.2" and config["temperature"] == "215"
+    assert config["print_settings_id"] == "0.20mm QUALITY @MK3"
+    assert not slicer_profile.BUNDLE_ONLY & set(config)
+    assert np.allclose(pt.build_volume(config), (250, 214, 210))
+    assert np.allclose(pt.bed_rectangle(config), [[0, -4], [250, 210]])
+    # the AppImage / Windows layout: resources/profiles beside the binary's folder
+    other = fake_slicer(tmp_path / "app", FAKE_BUNDLE.replace("temperature = 215", "temperature = 220"),
+                        "resources/profiles")
+    assert pt.load_profile(slicer=str(other))["temperature"] == "220"
+    # a given profile file wins over the bundle
+    assert pt.load_profile(pt.FALLBACK_PROFILE, slicer=str(link)) == pt.load_profile(pt.FALLBACK_PROFILE)
+
+
+def test_a_bundle_without_the_presets_falls_back_to_the_committed_profile(tmp_path):
+    broken = FAKE_BUNDLE.replace("[printer:Original Prusa i3 MK3]", "[printer:Original Prusa i3 MK2]")
+    binary = fake_slicer(tmp_path, broken)
+    with pytest.raises(slicer_profile.BundleError, match=r"Original Prusa i3 MK3\] \(inherited by"):
+        slicer_profile.bundle_profile(slicer_profile.find_bundle(binary))
+    assert pt.load_profile(slicer=str(binary)) == pt.load_profile(pt.FALLBACK_PROFILE)
+    looped = FAKE_BUNDLE.replace("[print:*common*]", "[print:*common*]\ninherits = 0.20mm QUALITY @MK3")
+    with pytest.raises(slicer_profile.BundleError, match="cycle"):
+        slicer_profile.flat_profile(slicer_profile.parse_bundle(looped))
+    # no slicer at all: the fallback too
+    assert pt.load_profile(slicer="none") == pt.load_profile(pt.FALLBACK_PROFILE)
+
+
+def test_the_installed_bundle_gives_the_presets():
+    bundle = slicer_profile.find_bundle(pt.slicer_path())
+    if bundle is None:
+        pytest.skip("no PrusaSlicer vendor bundle installed beside prusa-slicer (apt-get install prusa-slicer)")
+    text = bundle.read_text(encoding="utf-8")
+    config = slicer_profile.bundle_profile(bundle)
+    assert config == pt.load_profile()
+    assert config["printer_model"] == "MK3S" and config["printer_technology"] == "FFF"
+    assert "inherits" not in config and not any("*" in v for k, v in config.items() if k.endswith("_settings_id"))
+    assert np.allclose(pt.build_volume(config), (250, 210, 210))
+    assert slicer_profile.config_version(text) != "?"
 
 
 def test_profile_generator_matches_committed_profile(tmp_path):
-    bundle = Path("/usr/share/PrusaSlicer/profiles/PrusaResearch.ini")
-    if not bundle.exists():
-        pytest.skip(f"{bundle} absent (Debian package prusa-slicer not installed)")
+    bundle = slicer_profile.find_bundle(pt.slicer_path())
+    committed = pt.FALLBACK_PROFILE.read_text()
+    if bundle is None:
+        pytest.skip("no PrusaSlicer vendor bundle installed beside prusa-slicer")
+    version = slicer_profile.config_version(bundle.read_text(encoding="utf-8"))
+    if f"(config_version {version})" not in committed.splitlines()[0]:
+        pytest.skip(f"the installed bundle is version {version}; the fallback was made from another")
     out = tmp_path / "flat.ini"
-    assert load_tool().main([str(bundle), str(out)]) == 0
-    assert out.read_text() == pt.DEFAULT_PROFILE.read_text()
+    tool = ROOT / "tools" / "make_prusa_profile.py"
+    run = subprocess.run([sys.executable, str(tool), str(bundle), str(out)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert out.read_text() == committed
+
+
+def test_arrange_sets_overlapping_parts_apart_on_the_bed():
+    config = pt.load_profile(pt.FALLBACK_PROFILE)
+    cube = trimesh.creation.box((20, 20, 20))              # centred on the origin: off the bed
+    laid = pt.arrange([cube, cube.copy(), trimesh.creation.box((30, 40, 5))], config)
+    bed = pt.bed_rectangle(config)
+    boxes = [m.bounds for m in laid]
+    assert all(np.all(b[0, :2] >= bed[0]) and np.all(b[1, :2] <= bed[1]) and b[0, 2] == 0 for b in boxes)
+    for n, a in enumerate(boxes):
+        for b in boxes[n + 1:]:
+            assert not (np.all(a[0, :2] < b[1, :2] + pt.ARRANGE_GAP_MM - 1e-6)
+                        and np.all(b[0, :2] < a[1, :2] + pt.ARRANGE_GAP_MM - 1e-6))
+    centre = (np.min([b[0, :2] for b in boxes], axis=0) + np.max([b[1, :2] for b in boxes], axis=0)) / 2
+    assert np.allclose(centre, bed.mean(axis=0))
+    assert cube.bounds[0, 0] == -10                         # the input is not changed
+    # parts already apart on the bed (a plate core.export laid out) stay where they are
+    apart = [trimesh.creation.box((20, 20, 20)).apply_translation((20, 20, 10)),
+             trimesh.creation.box((20, 20, 20)).apply_translation((60, 20, 10))]
+    assert all(np.allclose(a.bounds, b.bounds) for a, b in zip(apart, pt.arrange(apart, config)))
+    with pytest.raises(ValueError, match="could not fit"):
+        pt.arrange([trimesh.creation.box((200, 150, 5))] * 2, config)
+
+
+def test_the_slicer_is_run_without_its_own_arrange_on_parts_set_apart(tmp_path, monkeypatch):
+    # A stand-in slicer records its arguments and the plate's objects, and writes a time.
+    log = tmp_path / "argv.txt"
+    binary = tmp_path / "bin" / "prusa-slicer"
+    binary.parent.mkdir()
+    binary.write_text(f"""#!{sys.executable}
+import sys, shutil
+args = sys.argv[1:]
+open({str(log)!r}, "w").write("\\n".join(args))
+shutil.copy(args[-1], {str(tmp_path / "seen.3mf")!r})
+out = args[args.index("--output") + 1]
+open(out, "w").write("; generated by PrusaSlicer 2.9.2+UNKNOWN\\n"
+                     "; estimated printing time (normal mode) = 1h 2m 3s\\n")
+""")
+    binary.chmod(0o755)
+    cube = trimesh.creation.box((20, 20, 20))
+    result = pt.slice_plate([cube, cube.copy()], tmp_path / "work", slicer=str(binary), supports=False)
+    assert result.seconds == 3723 and result.method.startswith("prusa-slicer 2.9.2 (")
+    assert "--dont-arrange" in log.read_text().split("\n") and "--merge" not in log.read_text()
+    seen = trimesh.load(tmp_path / "seen.3mf")
+    boxes = [g.bounds for g in seen.dump()]
+    assert len(boxes) == 2 and all(b[0, 2] >= -1e-9 for b in boxes)
+    assert boxes[0][1, 0] + pt.ARRANGE_GAP_MM - 1e-6 <= boxes[1][0, 0] or \
+        boxes[1][1, 0] + pt.ARRANGE_GAP_MM - 1e-6 <= boxes[0][0, 0]
 
 
 def test_missing_profile_is_an_input_error(tmp_path):
