@@ -12,6 +12,13 @@ A ``Part::FeaturePython`` in one of three modes:
 
 Its Shape shows the region; the Fabrication hands boxes to the core as
 boxes and the other modes as a region solid file.
+
+A region shows in the 3D view only while a brush panel is open on its
+Fabrication, or always when its ``ShowAlways`` is true (:func:`show`): it
+is hidden when made, when its document opens and when the brush panel
+closes, so that it neither floats over the assembly nor tints the printed
+parts.  Showing or hiding it by hand (Space) works as for any object until
+the next of these.
 """
 
 from __future__ import annotations
@@ -41,6 +48,9 @@ PROPERTIES = (
          QT("App::Property", "Solid mode: the object whose solid (or mesh) is the region")),
     Prop("App::PropertyLinkSubList", "Faces", "Region",
          QT("App::Property", "Faces mode: faces of the Source that must be exact")),
+    Prop("App::PropertyBool", "ShowAlways", "Region",
+         QT("App::Property", "Show the region in the 3D view also when no brush panel is open "
+                             "(a brush panel shows it anyway)"), False),
 )
 
 
@@ -49,8 +59,28 @@ class HighResRegion(FeatureProxy):
 
     PROPERTIES = PROPERTIES
 
+    def __init__(self, obj):
+        super().__init__(obj)
+        show(obj)
+
+    def onDocumentRestored(self, obj):
+        super().onDocumentRestored(obj)
+        show(obj)
+
+    def onChanged(self, obj, prop):
+        if prop == "ShowAlways" and "Restore" not in obj.State:
+            show(obj)
+
     def execute(self, obj):
         obj.Shape = region_shape(obj)
+
+
+def show(obj, brushing: bool = False) -> None:
+    """Show region ``obj`` when ``brushing`` (a brush panel is open on its Fabrication) or
+    when its ``ShowAlways`` is true, hide it otherwise."""
+    visible = brushing or bool(getattr(obj, "ShowAlways", False))
+    if bool(obj.Visibility) != visible:
+        obj.Visibility = visible
 
 
 def boxes(obj) -> list[tuple[float, ...]]:

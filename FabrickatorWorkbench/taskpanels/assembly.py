@@ -2,10 +2,12 @@
 
 Step n shows every brick of steps 1..n; the bricks of step n (the ones to
 place now) are highlighted in blue, later ones are hidden.  A printed part
-appears at the step that inserts it, highlighted, with its ID written next
-to it in the 3D view.  Next / Previous / the slider / Play move through the
-steps (step 0 is the empty base).  Closing the panel shows the whole model
-again exactly as it was shown before.
+appears at the step that inserts it, highlighted, with its ID above it in
+the 3D view: white on a dark frame (FreeCAD's ``SoFrameLabel``), drawn over
+everything else and sized for the view.  Next / Previous / the slider / Play
+move through the steps (step 0 is the empty base).  The high-res regions are
+hidden meanwhile.  Closing the panel shows the whole model again exactly as
+it was shown before.
 """
 
 from __future__ import annotations
@@ -20,8 +22,12 @@ from FabrickatorWorkbench import make
 
 #: Colour of the bricks to place in the current step.
 NEXT_COLOUR = (0.1, 0.35, 1.0)
-#: Size (points) of the printed parts' ID labels in the 3D view.
-LABEL_FONT_SIZE = 20
+#: Size (pixels) of the printed parts' ID labels: a 32nd of the 3D view's height, within
+#: these bounds.
+LABEL_SIZE_RANGE = (16, 32)
+#: Text and frame colour of the ID labels.
+LABEL_TEXT = (1.0, 1.0, 1.0)
+LABEL_BACKGROUND = (0.08, 0.08, 0.12)
 #: Milliseconds between steps while playing.
 PLAY_INTERVAL_MS = 700
 
@@ -43,6 +49,9 @@ class AssemblyPanel:
             self.by_step.setdefault(int(obj.Step), []).append(obj)
         self.shown = {o.Name: bool(o.Visibility) for o in self.bricks + self.parts}
         self.colours = {p.Name: tuple(p.ViewObject.ShapeColor) for p in self.parts}
+        self.regions = {r.Name: bool(r.Visibility) for r in fab.Regions}
+        for region in fab.Regions:
+            region.Visibility = False
         self.highlighted: list = []
         self.labels = None
         self.current = len(self.steps)
@@ -115,31 +124,25 @@ class AssemblyPanel:
             obj.ViewObject.OverrideMaterial = False
 
     def _label(self, parts: list) -> None:
-        """Write the IDs of ``parts`` at their centres in the 3D view (replacing earlier ones)."""
-        graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
+        """Write the IDs of ``parts`` above their centres in the 3D view (replacing earlier
+        ones): white on a dark frame, over all geometry (an ``SoAnnotation``)."""
+        view = Gui.ActiveDocument.ActiveView
+        graph = view.getSceneGraph()
         if self.labels is not None:
             graph.removeChild(self.labels)
             self.labels = None
         if not parts:
             return
-        self.labels = coin.SoSeparator()
+        self.labels = coin.SoAnnotation()
         self.labels.setName("FabrickatorAssemblyLabels")
-        colour = coin.SoBaseColor()
-        colour.rgb = (0.0, 0.0, 0.0)
-        font = coin.SoFont()
-        font.size = LABEL_FONT_SIZE
-        self.labels.addChild(colour)
-        self.labels.addChild(font)
+        size = label_size(view.getSize()[1])
         for part in parts:
             node = coin.SoSeparator()
             move = coin.SoTranslation()
-            centre = part.Shape.BoundBox.Center
-            move.translation = (centre.x, centre.y, part.Shape.BoundBox.ZMax + 4.0)
-            text = coin.SoText2()
-            text.string = part.PartId
-            text.justification = coin.SoText2.CENTER
+            box = part.Shape.BoundBox
+            move.translation = (box.Center.x, box.Center.y, box.ZMax + 4.0)
             node.addChild(move)
-            node.addChild(text)
+            node.addChild(id_label(part.PartId, size))
             self.labels.addChild(node)
         graph.addChild(self.labels)
 
@@ -178,7 +181,27 @@ class AssemblyPanel:
         for obj in self.bricks + self.parts:
             if self.doc.getObject(obj.Name) is not None and bool(obj.Visibility) != self.shown[obj.Name]:
                 obj.Visibility = self.shown[obj.Name]
+        for name, visible in self.regions.items():
+            region = self.doc.getObject(name)
+            if region is not None and bool(region.Visibility) != visible:
+                region.Visibility = visible
         proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
         if getattr(proxy, "panel", None) is self:
             proxy.panel = None
         Gui.Control.closeDialog()
+
+
+def label_size(view_height: int) -> int:
+    """Pixel size of the ID labels in a 3D view ``view_height`` pixels high."""
+    low, high = LABEL_SIZE_RANGE
+    return max(low, min(high, int(round(view_height / 32))))
+
+
+def id_label(text: str, size: int):
+    """A label node for ``text``: FreeCAD's ``SoFrameLabel``, white text of ``size`` pixels
+    on a dark frame, centred on the point where it stands."""
+    node = coin.SoType.fromName("SoFrameLabel").createInstance()
+    node.set(f'string "{text}" textColor {" ".join(map(str, LABEL_TEXT))} '
+             f'backgroundColor {" ".join(map(str, LABEL_BACKGROUND))} '
+             f'justification CENTER size {size} frame TRUE')
+    return node

@@ -9,6 +9,10 @@ will be printed), in the other modes painted bricks show as coloured boxes.
 OK applies the change and recomputes, as one undo step; Cancel drops it.
 The panel holds the painted bricks itself; the document only changes on OK
 (the preview object it shows meanwhile is removed again either way).
+
+The Fabrication's high-res regions show while the panel is open (a click
+goes through them to the bricks) and hide again when it closes, unless a
+region's ``ShowAlways`` says otherwise (:func:`.high_res_region.show`).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from PySide import QtCore, QtGui
 
 from core import picking
 from FabrickatorWorkbench import log, make
+from FabrickatorWorkbench.objects import high_res_region
 
 #: Modes and their preview colours.
 MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
@@ -31,6 +36,12 @@ MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
 #: Transaction names per mode.
 TITLES = {"high-res": "High-res brush", "merge": "Merge brush", "split": "Split brush",
           "unmark": "Unmark brush"}
+
+#: What each mode does, shown below the modes.
+HELP = {"high-res": "Paint bricks that must be exact: they are printed.",
+        "merge": "Paint printed parts to join them into one part.",
+        "split": "Paint printed bricks to print them as parts of their own.",
+        "unmark": "Paint marked bricks to make them LEGO again."}
 
 #: Milliseconds the exact preview waits for the mouse to pause.
 PREVIEW_DELAY_MS = 120
@@ -53,6 +64,7 @@ class BrushPanel:
         for button in self.buttons.values():
             button.toggled.connect(self.on_mode)
         self.form.clear.clicked.connect(self.clear)
+        self.form.modeHelp.setText(HELP[mode])
         #: the stored layout (the core's view of the bricks) and the brick objects by id
         self.layout = make.layout(fab)
         self.bricks = {b.BrickId: b for b in make.bricks(fab)}
@@ -68,9 +80,8 @@ class BrushPanel:
         self.hidden: dict[str, bool] = {}
         self.pressed = False
         self.doc.openTransaction(TITLES[mode])
-        self.regions = {r.Name: bool(r.Visibility) for r in fab.Regions}
         for region in fab.Regions:
-            region.Visibility = False
+            high_res_region.show(region, brushing=True)
         self.preview = self.doc.addObject("Part::Feature", "BrushPreview")
         self.preview.Label = "Brush preview"
         self.timer = QtCore.QTimer()
@@ -94,6 +105,7 @@ class BrushPanel:
     def on_mode(self, checked: bool) -> None:
         if checked:
             self.form.setWindowTitle(TITLES[self.mode])
+            self.form.modeHelp.setText(HELP[self.mode])
             self.refresh()
 
     def clear(self) -> None:
@@ -110,8 +122,8 @@ class BrushPanel:
             parts.append(f"{len(self.faces)} face(s)")
         if self.solids:
             parts.append(f"{len(self.solids)} region solid(s)")
-        self.form.status.setText(", ".join(parts) + f" ({self.mode}). "
-                                 "Press and drag over bricks in the 3D view; OK applies.")
+        self.form.status.setText(", ".join(parts) + ". Press and drag over bricks in the "
+                                 "3D view; OK applies.")
 
     # --- mouse ----------------------------------------------------------------------
 
@@ -284,15 +296,15 @@ class BrushPanel:
             if obj is not None:
                 obj.Visibility = visible
         self.hidden.clear()
-        for name, visible in self.regions.items():
-            obj = self.doc.getObject(name)
-            if obj is not None:
-                obj.Visibility = visible
         if self.doc.getObject(self.preview.Name) is not None:
             self.doc.removeObject(self.preview.Name)
         Gui.Selection.clearSelection()
 
     def close(self) -> None:
+        """Close the panel (after its transaction ended: an aborted one would show the
+        regions again) and hide the Fabrication's regions."""
+        for region in self.fab.Regions:
+            high_res_region.show(region)
         proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
         if getattr(proxy, "panel", None) is self:
             proxy.panel = None

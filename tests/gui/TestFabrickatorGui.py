@@ -708,3 +708,4 @@ class TestHeadlessDocument(GuiTestCase):
         finally:
             App.closeDocument(doc.Name)
 from TestFabrickatorLook import TestLook  # noqa: E402,F401
+from TestFabrickatorFeel import TestAssemblyLabels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401

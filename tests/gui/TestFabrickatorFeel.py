@@ -1,0 +1,266 @@
+"""GUI tests that the workbench feels like FreeCAD (issue 13), run by run_gui_tests.py through
+TestFabrickatorGui:
+
+* the task panels fit FreeCAD's default Combo View (264 px): every button and
+  label lies inside its panel and is as wide as it asks to be (no clipped or
+  hidden widget, no horizontal scrolling), and the panels grow with the view;
+* high-res regions show only while the brush panel is open, or when their
+  ShowAlways says so, also after saving and reopening;
+* the printed parts' ID labels in the assembly view are white on a dark frame;
+* Esc stops a long recompute (FreeCAD's own question "Do you really want to
+  abort the operation?" answered Yes) and the document keeps its layout; the
+  progress bar in the status bar shows while it runs.
+"""
+
+from __future__ import annotations
+
+import time
+
+import FreeCAD as App
+import FreeCADGui as Gui
+from PySide import QtCore, QtGui
+
+from TestFabrickatorGui import ARTIFACTS, GuiTestCase, fab, fit, mouse, settle, top_centre
+
+#: FreeCAD's default width of the Combo View, px.
+COMBO_WIDTH = 264
+
+
+def combo_view():
+    """FreeCAD's Combo View dock."""
+    mw = Gui.getMainWindow()
+    return next(d for d in mw.findChildren(QtGui.QDockWidget) if d.objectName() == "Combo View")
+
+
+def set_combo_width(width: int) -> None:
+    """Lay the Combo View out ``width`` pixels wide, as a user dragging its edge would."""
+    dock = combo_view()
+    dock.show()
+    Gui.getMainWindow().resizeDocks([dock], [width], QtCore.Qt.Horizontal)
+    settle(0.3)
+
+
+def task_scroll_area(form):
+    """The task view's scroll area that holds ``form``."""
+    return next(s for s in combo_view().findChildren(QtGui.QScrollArea) if s.isAncestorOf(form))
+
+
+def clipped_widgets(form) -> list[str]:
+    """The visible buttons and labels of ``form`` that are clipped: outside the form, outside
+    the visible part of the task view, or narrower than their size hint (a wrapping label:
+    lower than its text needs at its width).  Empty when everything shows whole."""
+    viewport = task_scroll_area(form).viewport()
+    form_left = form.mapTo(viewport, QtCore.QPoint(0, 0)).x()
+    bad = []
+    if form_left < 0 or form_left + form.width() > viewport.width():
+        bad.append(f"form spans x {form_left}..{form_left + form.width()} of a {viewport.width()} "
+                   f"px view")
+    for widget in form.findChildren(QtGui.QWidget):
+        if not widget.isVisible() or not isinstance(widget, (QtGui.QAbstractButton, QtGui.QLabel)):
+            continue
+        name = f"{type(widget).__name__} {widget.objectName()!r}"
+        rect = QtCore.QRect(widget.mapTo(form, QtCore.QPoint(0, 0)), widget.size())
+        if not form.rect().contains(rect):
+            bad.append(f"{name} at {rect.getRect()} outside the form {form.rect().getRect()}")
+        if isinstance(widget, QtGui.QLabel) and widget.wordWrap():
+            if widget.height() < widget.heightForWidth(widget.width()):
+                bad.append(f"{name} {widget.height()} px high, needs "
+                           f"{widget.heightForWidth(widget.width())}")
+        elif widget.width() < widget.sizeHint().width():
+            bad.append(f"{name} {widget.width()} px wide, needs {widget.sizeHint().width()}")
+    return bad
+
+
+class TestPanelsFit(GuiTestCase):
+    def tearDown(self):
+        set_combo_width(COMBO_WIDTH)
+        super().tearDown()
+
+    def check_panel(self, name: str, form) -> None:
+        """``form`` shows whole at 264 px and grows with a wider Combo View."""
+        set_combo_width(COMBO_WIDTH)
+        self.assertEqual(combo_view().width(), COMBO_WIDTH)
+        self.assertLessEqual(form.minimumSizeHint().width(), 215)
+        self.assertEqual(clipped_widgets(form), [])
+        self.assertFalse(task_scroll_area(form).horizontalScrollBar().isVisible())
+        ARTIFACTS.mkdir(parents=True, exist_ok=True)
+        combo_view().grab().save(str(ARTIFACTS / f"{name}_264px.png"))
+        narrow = form.width()
+        set_combo_width(400)
+        self.assertEqual(clipped_widgets(form), [])
+        self.assertGreater(form.width(), narrow + 100)
+
+    def test_assembly_panel_fits_the_combo_view(self):
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_Assembly")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        panel.go(f.Steps)
+        panel.form.slider.setValue(f.Steps - 1)
+        self.assertEqual(panel.form.stepLabel.text(), f"Step {f.Steps - 1} / {f.Steps}")
+        self.check_panel("assembly_panel", panel.form)
+        set_combo_width(COMBO_WIDTH)
+        wide = panel.form.next.width()
+        set_combo_width(400)
+        self.assertGreater(panel.form.next.width(), wide)   # the step buttons take the width
+        panel.reject()
+
+    def test_brush_panel_fits_the_combo_view(self):
+        f = self.fabrication()
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_SplitBrush")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        self.assertIn("own", panel.form.modeHelp.text())
+        panel.form.modeHighRes.setChecked(True)
+        self.assertIn("printed", panel.form.modeHelp.text())
+        self.check_panel("brush_panel", panel.form)
+        panel.reject()
+
+
+def view_point(point) -> QtCore.QPointF:
+    """Where the 3D ``point`` is in the 3D view's viewport, in Qt widget coordinates, also
+    when Coin's viewport and the widget differ in size (the view then scales the mouse
+    positions it gets by their ratio, as it does its drawing)."""
+    view = Gui.ActiveDocument.ActiveView
+    x, y = view.getPointOnScreen(point)
+    width, height = view.getSize()
+    qt = view.graphicsView().viewport().size()
+    return QtCore.QPointF(x * qt.width() / width, qt.height() - y * qt.height() / height)
+
+
+class TestRegionsShowWhileBrushing(GuiTestCase):
+    def open_brush(self, f):
+        Gui.Selection.clearSelection()
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_HighResBrush")
+        settle()
+        return f.ViewObject.Proxy.panel
+
+    def test_regions_show_only_while_the_brush_panel_is_open(self):
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        fab().clear_changes(f)
+        region = f.Regions[0]
+        self.assertFalse(region.Visibility)
+        panel = self.open_brush(f)
+        self.assertTrue(region.Visibility)
+        panel.reject()
+        settle()
+        self.assertFalse(region.Visibility)
+        panel = self.open_brush(f)
+        self.assertTrue(region.Visibility)
+        top = [b for b in fab().bricks(f) if b.Kind == "lego" and b.Cell[2] + b.Size[2] == 6]
+        point = view_point(top_centre(top[-1]))
+        mouse("press", point)
+        mouse("release", point)
+        self.assertEqual([b.Name for b in panel.painted_bricks()], [top[-1].Name])
+        panel.accept()
+        settle()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(len(f.Regions), 2)
+        self.assertEqual([r.Visibility for r in f.Regions], [False, False])
+
+    def test_a_region_painted_over_is_brushed_through(self):
+        """A shown region lies over its bricks: a click there paints the brick below it."""
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        fab().clear_changes(f)
+        panel = self.open_brush(f)
+        printed = [b for b in fab().bricks(f) if b.Kind == "printed"]
+        self.assertTrue(printed)
+        # a corner of the printed part's top face, where the region's box has its top too
+        point = view_point(App.Vector(1.0, 1.0, 19.2))
+        mouse("press", point)
+        mouse("release", point)
+        self.assertTrue(set(b.Name for b in panel.painted_bricks()) & {b.Name for b in printed})
+        panel.reject()
+
+    def test_show_always_shows_a_region_also_after_reopening(self):
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        shown, hidden = f.Regions[0], fab().mark_high_res(f, box=(24, 0, 12.8, 32, 8, 19.2))
+        self.doc.recompute()
+        shown.ShowAlways = True
+        self.assertTrue(shown.Visibility)
+        self.assertFalse(hidden.Visibility)
+        panel = self.open_brush(f)
+        self.assertTrue(hidden.Visibility)
+        panel.reject()
+        settle()
+        self.assertEqual((shown.Visibility, hidden.Visibility), (True, False))
+        # an older document: its regions have no ShowAlways and were saved shown
+        hidden.removeProperty("ShowAlways")
+        hidden.Visibility = True
+        path = self.tmp / "regions.FCStd"
+        self.doc.saveAs(str(path))
+        names = (shown.Name, hidden.Name)
+        App.closeDocument(self.doc.Name)
+        self.doc = App.openDocument(str(path))
+        settle()
+        shown, hidden = (self.doc.getObject(n) for n in names)
+        self.assertTrue(shown.ShowAlways)
+        self.assertFalse(hidden.ShowAlways)
+        self.assertEqual((shown.Visibility, hidden.Visibility), (True, False))
+        self.doc.recompute()
+        self.assertEqual((shown.Visibility, hidden.Visibility), (True, False))
+        shown.ShowAlways = False
+        self.assertFalse(shown.Visibility)
+
+    def test_the_assembly_hides_even_regions_shown_always(self):
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        region = f.Regions[0]
+        region.ShowAlways = True
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_Assembly")
+        settle()
+        self.assertFalse(region.Visibility)
+        f.ViewObject.Proxy.panel.reject()
+        settle()
+        self.assertTrue(region.Visibility)
+
+
+class TestAssemblyLabels(GuiTestCase):
+    def test_printed_part_ids_are_white_on_a_dark_frame(self):
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_Assembly")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        part = fab().printed_parts(f)[0]
+        panel.go(part.Step)
+        fit()
+        labels = panel.labels
+        from pivy import coin
+
+        self.assertTrue(labels.isOfType(coin.SoAnnotation.getClassTypeId()))
+        label = labels.getChild(0).getChild(1)
+        self.assertEqual(label.getTypeId(), coin.SoType.fromName("SoFrameLabel"))
+        view = Gui.ActiveDocument.ActiveView
+        width, height = view.getSize()
+        ARTIFACTS.mkdir(parents=True, exist_ok=True)
+        images = {}
+        graph = view.getSceneGraph()
+        for name in ("assembly_label", "assembly_without_label"):
+            settle()
+            view.saveImage(str(ARTIFACTS / f"{name}.png"), width, height, "White")
+            images[name] = QtGui.QImage(str(ARTIFACTS / f"{name}.png"))
+            graph.removeChild(labels)
+        graph.addChild(labels)
+        shown, plain = images["assembly_label"], images["assembly_without_label"]
+        self.assertEqual((shown.width(), shown.height()), (width, height))
+        box = part.Shape.BoundBox
+        cx, cy = view.getPointOnScreen(App.Vector(box.Center.x, box.Center.y, box.ZMax + 4.0))
+        cy = height - 1 - cy
+        near = [(x, y) for x in range(max(0, cx - 80), min(width, cx + 80))
+                for y in range(max(0, cy - 50), min(height, cy + 50))]
+        label = [QtGui.QColor(shown.pixel(x, y)).lightness() for x, y in near
+                 if shown.pixel(x, y) != plain.pixel(x, y)]
+        white = sum(1 for g in label if g > 230)
+        dark = sum(1 for g in label if g < 60)
+        # the label: a few hundred pixels, white text on a frame darker than the bricks
+        self.assertGreater(len(label), 300)
+        self.assertGreater(white, 30, "no white text in the label")
+        self.assertGreater(dark, 2 * white, "no dark frame around the text")
+        self.assertGreater(white + dark, 0.7 * len(label))
+        panel.reject()
+        settle()
+        self.assertIsNone(panel.labels)
