@@ -709,3 +709,4 @@ class TestHeadlessDocument(GuiTestCase):
             App.closeDocument(doc.Name)
 from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorFeel import TestAssemblyLabels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
+from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
