@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -364,6 +365,40 @@ def speedups(fab: Fabrication) -> dict[str, float] | None:
             "sequential": full / max(parts + assembly_seconds(fab), 1e-9)}
 
 
+def _incomplete_studs(part) -> dict:
+    """A printed part's incomplete studs for the report: cells (0-based ``i,j,k``, as
+    layout.json), the layers they are in (counted from 1) and a sentence."""
+    cells = [[int(v) for v in c.split(",")] for c in part.incomplete_studs]
+    layers = sorted({k + 1 for _, _, k in cells})
+    n = len(cells)
+    return {"part": part.id, "count": n, "cells": cells, "layers": layers,
+            "why": f"printed part {part.id} has {n} incomplete stud{'s' if n != 1 else ''} on its "
+                   f"top in layer{'s' if len(layers) != 1 else ''} {', '.join(map(str, layers))}: "
+                   "the LEGO brick above does not clamp there, so the part is held less firmly "
+                   "(connectors are switched off, so the part is cut exactly)"}
+
+
+def print_method_words(full_method: str, parts_method: str) -> str:
+    """How the print times were found, in a maker's words (from the estimates' methods)."""
+    def one(method: str) -> str:
+        if method.startswith("estimate"):
+            why = ("slicing is switched off" if "FABRICKATOR_SLICER" in method or "disabled" in method
+                   else "PrusaSlicer is not installed" if "not found" in method
+                   else "the slicer failed on it")
+            return f"estimated from the volume, surface and layers printed ({why})"
+        if method.startswith("nothing"):
+            return "nothing to print"
+        slicer = re.match(r"[^(;]*(?:\([^)]*\))?", method).group(0).strip()
+        return "sliced with " + slicer.replace("prusa-slicer", "PrusaSlicer")
+    full, parts = one(full_method), one(parts_method)
+    text = (f"Whole part and printed parts: {full}." if full == parts
+            else f"Whole part: {full}. Printed parts: {parts}.")
+    if "estimated" in text:
+        text += (" For a slicer's times, have PrusaSlicer installed and slice them (in FreeCAD the "
+                 "Report's Slice print times button; on the command line, fabricate slices them).")
+    return text
+
+
 def report(fab: Fabrication) -> dict:
     """The ``report.json`` document for a fabrication (DESIGN.md contract)."""
     by_part: dict[str, int] = {}
@@ -416,6 +451,10 @@ def report(fab: Fabrication) -> dict:
             "weak_points_holding_only_leaf_bricks": len(st.leaf_supports),
             "unconnectable": list(st.unconnectable),
             "incomplete_studs": incomplete,
+            "weak_point_details": list(st.weak_details),
+            "incomplete_stud_parts": [_incomplete_studs(p) for p in fab.printed if p.incomplete_studs],
+            "explain": {"weak_point": stability_stage.WEAK_POINT_MEANS,
+                        "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
         },
         "high_res": dict(fab.marks),
         "printed_parts": [p.to_json() for p in fab.printed],
@@ -425,6 +464,7 @@ def report(fab: Fabrication) -> dict:
             "full_model_pose": full.pose, "full_model_supports": bool(full.supports),
             "method": full.method if full.method == plate.method
             else f"full model: {full.method}; printed parts: {plate.method}",
+            "method_words": print_method_words(full.method, plate.method),
         },
         "assembly_s": round(assembly_seconds(fab), 1),
         "assembly_split_s": {"lego": round(lego_s, 1), "insert_printed_parts": round(insert_s, 1)},

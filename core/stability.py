@@ -21,6 +21,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
+from core.catalog import BY_NUMBER
 from core.connectivity import articulation_points, regions
 from core.model import Layout
 
@@ -44,12 +45,25 @@ class Stability:
     weak_points: list[int] = field(default_factory=list)
     unconnectable: list[dict] = field(default_factory=list)
     leaf_supports: list[int] = field(default_factory=list)
+    weak_details: list[dict] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {"regions": self.regions, "components": self.components,
                 "weak_points": list(self.weak_points),
                 "leaf_supports": list(self.leaf_supports),
-                "unconnectable": list(self.unconnectable)}
+                "unconnectable": list(self.unconnectable),
+                "weak_details": list(self.weak_details)}
+
+
+#: What a weak point is, in a builder's words.
+WEAK_POINT_MEANS = ("A weak point is a brick that alone joins two parts of the build: take it "
+                    "away and the structure falls into pieces. Everything on the far side hangs "
+                    "on the studs of this one brick, so a knock or a load there can snap the "
+                    "build apart.")
+#: What an incomplete stud is, in a builder's words.
+INCOMPLETE_STUD_MEANS = ("An incomplete stud is a place where a printed part meets a LEGO brick "
+                         "above it but has no whole stud there (the part's boundary cuts it), so "
+                         "that brick does not clamp onto the part.")
 
 
 def brick_graph(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) -> sparse.csr_matrix:
@@ -123,6 +137,8 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
     weak = sorted(layout.bricks[b].id for b in np.flatnonzero(art))
     leaf_only = art & ~_carries_substructure(graph)
     leaf_supports = sorted(layout.bricks[b].id for b in np.flatnonzero(leaf_only))
+    details = [_weak_detail(layout, graph, int(b)) for b in np.flatnonzero(art)]
+    details.sort(key=lambda d: d["brick"])
     brick_region = np.array([region_lab[b.cell] for b in layout.bricks], dtype=np.int64)
     pairs = np.unique(np.stack([brick_region, comp], axis=1), axis=0)
     per_region = np.bincount(pairs[:, 0], minlength=n_regions + 1)
@@ -139,7 +155,39 @@ def analyse(layout: Layout, clamp: tuple[np.ndarray, np.ndarray] | None = None) 
             "cells": int(np.count_nonzero(region)),
             "reason": joined.get(int(r)) or _why_split(filled[box], region, lab[box], comp, box[2].start),
         })
-    return Stability(n_regions, int(n_comp), weak, unconnectable, leaf_supports)
+    return Stability(n_regions, int(n_comp), weak, unconnectable, leaf_supports, details)
+
+
+def _weak_detail(layout: Layout, graph: sparse.csr_matrix, b: int) -> dict:
+    """Where weak point ``b`` (index into ``layout.bricks``) is and what hangs on it.
+
+    ``brick`` (id), ``part``, ``kind``, ``printed_part``, ``layer`` (counted
+    from 1, as the instructions count), ``cell`` (0-based min cell, as
+    layout.json), ``cut_off`` (the bricks of the smaller piece that falls
+    away without it) and ``why``, a sentence for the builder.
+    """
+    brick = layout.bricks[b]
+    keep = np.ones(graph.shape[0], bool)
+    keep[b] = False
+    idx = np.flatnonzero(keep)
+    _, comp = connected_components(graph[idx][:, idx], directed=False)
+    neighbours = graph.indices[graph.indptr[b]:graph.indptr[b + 1]]
+    own = set(comp[np.searchsorted(idx, neighbours)].tolist())
+    pieces = sorted((idx[comp == c] for c in own), key=len)
+    small = pieces[0]
+    touching = [n for n in neighbours if n in set(small.tolist())]
+    lower = all(layout.bricks[n].cell[2] < brick.cell[2] for n in touching)
+    what = (f"brick of printed part {brick.printed_part}" if brick.kind == "printed"
+            else f"LEGO {BY_NUMBER[brick.part].name.lower()} {brick.part}" if brick.part in BY_NUMBER
+            else f"LEGO {brick.part}")
+    count = len(small)
+    why = (f"The {what} in layer {brick.cell[2] + 1} (cell {brick.cell[0]}, {brick.cell[1]}) is the only "
+           f"brick joining {count} brick{'s' if count != 1 else ''} {'below' if lower else 'above'} "
+           f"it to the rest: without it the build falls into {len(pieces)} pieces")
+    return {"brick": int(brick.id), "part": brick.part, "kind": brick.kind,
+            "printed_part": brick.printed_part, "layer": int(brick.cell[2]) + 1,
+            "cell": [int(v) for v in brick.cell],
+            "cut_off": sorted(int(layout.bricks[n].id) for n in small), "why": why}
 
 
 def _joined_without_clamp(layout: Layout, lab: np.ndarray, clamp, brick_region: np.ndarray,

@@ -1,4 +1,5 @@
-"""Report: brick counts, printed parts, print times, assembly time and speed-up."""
+"""Report: brick counts, printed parts, print times, assembly time and speed-up, in words;
+its weak points and incomplete studs are listed and a click selects them in the 3D view."""
 
 from __future__ import annotations
 
@@ -37,18 +38,22 @@ def _time(seconds) -> str:
 
 
 def summary(fab) -> list[str]:
-    """The headline numbers of ``fab``'s last result, one short line each."""
+    """The headline numbers of ``fab``'s last result, one short line each, in words."""
     doc = make.report(fab)
     bricks, st = doc["bricks"], doc["stability"]
+    weak, studs = st["weak_points"], st["incomplete_studs"]
     lines = [f"{bricks['total']} bricks ({bricks['lego']} LEGO, {bricks['printed']} printed) "
              f"from {doc['plates']} plates; {fab.Steps} assembly steps",
-             f"{st['components']} component(s), {st['weak_points']} weak point(s), "
-             f"{st['incomplete_studs']} incomplete stud(s)"]
+             ("the bricks hold together as one structure" if st["components"] == st.get("regions", 1)
+              else f"the bricks fall into {st['components']} separate pieces"),
+             (f"{weak} weak point{'s' if weak != 1 else ''} (a brick that alone joins two parts "
+              "of the build)" if weak else "no weak points"),
+             (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
+              "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
     times = doc.get("print_time_s")
     if times:
         lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "
-                     f"{_time(times['printed_parts'])} + assembly {_time(doc['assembly_s'])} "
-                     f"({times['method']})")
+                     f"{_time(times['printed_parts'])} + assembly {_time(doc['assembly_s'])}")
     if doc.get("speedup"):
         gains = doc["speedups"]
         printing = f"{gains['printing']:.2f}x" if gains.get("printing") else "nothing to print"
@@ -58,10 +63,51 @@ def summary(fab) -> list[str]:
     return lines
 
 
+def items(fab) -> list[dict]:
+    """What the report points at in the model, each ``{"kind", "title", "text", "bricks",
+    "parts"}``: every weak point (its brick) and every printed part with incomplete
+    studs (the part), with the core's explanation."""
+    st = make.report(fab)["stability"]
+    out = []
+    details = {d["brick"]: d for d in st.get("weak_point_details", ())}
+    for brick in st.get("weak_point_bricks", ()):
+        d = details.get(brick)
+        if d is None:
+            out.append({"kind": "weak", "title": f"Weak point: brick {brick}",
+                        "text": "recompute the Fabrication to see where it is and what hangs on it",
+                        "bricks": [brick], "parts": []})
+            continue
+        where = (f"printed part {d['printed_part']}" if d["kind"] == "printed" else f"LEGO {d['part']}")
+        out.append({"kind": "weak",
+                    "title": f"Weak point: {where}, layer {d['layer']}, cell {d['cell'][0]}, {d['cell'][1]}",
+                    "text": d["why"], "bricks": [brick],
+                    "parts": [d["printed_part"]] if d["kind"] == "printed" else []})
+    for entry in st.get("incomplete_stud_parts", ()):
+        out.append({"kind": "studs",
+                    "title": f"Incomplete studs: printed part {entry['part']}, {entry['count']} "
+                             f"in layer(s) {', '.join(map(str, entry['layers']))}",
+                    "text": entry["why"], "bricks": [], "parts": [entry["part"]]})
+    return out
+
+
+def select(fab, item: dict) -> list:
+    """Select in the 3D view (Gui.Selection) exactly the objects ``item`` names: its
+    bricks (by BrickId) and printed parts (by PartId); returns them."""
+    wanted_bricks, wanted_parts = set(item["bricks"]), set(item["parts"])
+    objects = [b for b in make.bricks(fab) if b.BrickId in wanted_bricks and not wanted_parts]
+    objects += [p for p in make.printed_parts(fab) if p.PartId in wanted_parts]
+    Gui.Selection.clearSelection()
+    for obj in objects:
+        Gui.Selection.addSelection(obj.Document.Name, obj.Name)
+    return objects
+
+
 def report_html(fab) -> str:
-    """The report of ``fab`` as a small HTML page."""
+    """The report of ``fab`` as a small HTML page: the numbers, what they mean and the tables."""
     doc = make.report(fab)
     esc = html.escape
+    st = doc["stability"]
+    explain = st.get("explain", {})
     rows = "".join(f"<tr><td>{esc(part)}</td><td align='right'>{n}</td></tr>"
                    for part, n in doc["bricks"]["by_part"].items())
     parts = "".join(
@@ -70,7 +116,17 @@ def report_html(fab) -> str:
         f"<td align='right'>{p.CompleteStuds}</td><td align='right'>{len(p.IncompleteStuds)}</td>"
         f"<td align='right'>{p.Step}</td></tr>" for p in make.printed_parts(fab))
     lines = "".join(f"<li>{esc(line)}</li>" for line in summary(fab))
-    return (f"<h2>{esc(fab.Label)}</h2><ul>{lines}</ul>"
+    meaning = ""
+    if st["weak_points"] and explain.get("weak_point"):
+        meaning += f"<p><b>Weak points.</b> {esc(explain['weak_point'])}</p>"
+    if st["incomplete_studs"] and explain.get("incomplete_stud"):
+        meaning += f"<p><b>Incomplete studs.</b> {esc(explain['incomplete_stud'])}</p>"
+    if meaning:
+        meaning += "<p>Click one in the list below to select it in the 3D view.</p>"
+    times = doc.get("print_time_s") or {}
+    how = times.get("method_words")
+    timing = f"<p><b>Print times.</b> {esc(how)}</p>" if how else ""
+    return (f"<h2>{esc(fab.Label)}</h2><ul>{lines}</ul>{meaning}{timing}"
             f"<h3>Bricks by LEGO design number</h3><table border='1' cellpadding='3'>"
             f"<tr><th>part</th><th>count</th></tr>{rows}</table>"
             f"<h3>Printed parts</h3><table border='1' cellpadding='3'><tr><th>ID</th><th>cells</th>"
@@ -89,19 +145,36 @@ def slice_print_times(fab) -> bool:
 
 
 class ReportDialog:
-    """The report in a dialog, with a button that slices the print times."""
+    """The report in a dialog: the numbers and what they mean, a list of the weak points
+    and incomplete studs (a click selects them in the 3D view), and a button that slices
+    the print times."""
 
     def __init__(self, fab):
         self.fab = fab
         self.dialog = QtGui.QDialog(Gui.getMainWindow())
         self.dialog.setObjectName("FabrickatorReportDialog")
         self.dialog.setWindowTitle(f"Fabrickator report: {fab.Label}")
-        self.dialog.resize(640, 560)
+        self.dialog.resize(680, 640)
         layout = QtGui.QVBoxLayout(self.dialog)
         self.text = QtGui.QTextBrowser()
         self.text.setObjectName("FabrickatorReportText")
-        layout.addWidget(self.text)
+        layout.addWidget(self.text, 3)
+        self.list = QtGui.QTreeWidget()
+        self.list.setObjectName("FabrickatorReportItems")
+        self.list.setHeaderLabels(["In the model", "Why it matters"])
+        self.list.setRootIsDecorated(False)
+        self.list.setWordWrap(True)
+        self.list.itemClicked.connect(lambda item, _column: self.on_select())
+        layout.addWidget(self.list, 2)
+        self.detail = QtGui.QLabel()
+        self.detail.setObjectName("FabrickatorReportDetail")
+        self.detail.setWordWrap(True)
+        layout.addWidget(self.detail)
         buttons = QtGui.QDialogButtonBox(QtGui.QDialogButtonBox.Close)
+        self.select_button = buttons.addButton("Select in 3D view", QtGui.QDialogButtonBox.ActionRole)
+        self.select_button.setObjectName("FabrickatorReportSelect")
+        self.select_button.setToolTip("Select the brick or printed part of the chosen line in the 3D view")
+        self.select_button.clicked.connect(self.on_select)
         self.slice = buttons.addButton("Slice print times", QtGui.QDialogButtonBox.ActionRole)
         self.slice.setToolTip("Slice the whole part and the printed parts with PrusaSlicer "
                               "(instead of the estimate) and recompute")
@@ -113,6 +186,25 @@ class ReportDialog:
 
     def refresh(self) -> None:
         self.text.setHtml(report_html(self.fab))
+        self.list.clear()
+        self.items = items(self.fab)
+        for item in self.items:
+            row = QtGui.QTreeWidgetItem([item["title"], item["text"]])
+            row.setToolTip(0, item["text"])
+            row.setToolTip(1, item["text"])
+            self.list.addTopLevelItem(row)
+        self.list.setVisible(bool(self.items))
+        self.select_button.setEnabled(bool(self.items))
+        self.list.resizeColumnToContents(0)
+
+    def on_select(self) -> list:
+        """Select the chosen line's bricks or printed part in the 3D view."""
+        row = self.list.currentItem()
+        if row is None:
+            return []
+        item = self.items[self.list.indexOfTopLevelItem(row)]
+        self.detail.setText(f"<b>{html.escape(item['title'])}</b>: {html.escape(item['text'])}")
+        return select(self.fab, item)
 
     def on_slice(self) -> None:
         QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)

@@ -710,3 +710,4 @@ class TestHeadlessDocument(GuiTestCase):
 from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorFeel import TestAssemblyLabels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
+from TestFabrickatorReport import TestReport  # noqa: E402,F401
