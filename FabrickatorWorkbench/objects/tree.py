@@ -33,12 +33,12 @@ from collections import defaultdict
 import FreeCAD as App
 
 from core.catalog import BY_NUMBER
+from core.colours import brick_colours, palette_codes, rgb as code_rgb
 from core.model import Grid, Layout
-from FabrickatorWorkbench import bridge
+from FabrickatorWorkbench import bridge, preferences
 from FabrickatorWorkbench.objects import prototype as prototypes_module
 from FabrickatorWorkbench.objects.printed_part import PrintedPart
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, ensure
-from FabrickatorWorkbench import preferences
 from FabrickatorWorkbench.objects.prototype import (HIGHLIGHT_COLOUR, hide_link_properties,
                                                     make_prototype, rgb_key)
 from FabrickatorWorkbench.viewproviders import attach_missing
@@ -206,8 +206,6 @@ def sync(fab, result) -> tuple[int, int]:
     bricks" group; otherwise (the first layout, or new parameters, regions or
     brush edits) nothing is marked.  Either way the previous marks go.
     """
-    from core.colours import brick_colours, palette_codes, rgb as code_rgb
-
     doc = fab.Document
     layout = result.fab.layout
     palette = preferences.palette()
@@ -268,8 +266,6 @@ def sync(fab, result) -> tuple[int, int]:
 def clear_changes(fab) -> int:
     """Take the marks of the last recompute away: highlighted bricks get their LEGO
     colour back and the ghosts go.  Returns how many bricks were highlighted."""
-    from core.colours import brick_colours
-
     marked = [b for b in bricks(fab) if b.Changed]
     protos_touched = []
     if marked:
