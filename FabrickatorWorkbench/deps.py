@@ -1,14 +1,27 @@
-"""Make Fabrickator's Python packages importable inside FreeCAD, or say why not.
+"""Make Fabrickator's Python packages importable inside FreeCAD, install them, or say why not.
 
-The core needs numpy 2, cadquery, scipy, matplotlib ... from the module
-folder's ``.venv`` (built from FreeCAD's own interpreter by ``make
-setup``), while Debian's FreeCAD brings numpy 1.x.  :func:`bootstrap`,
-called by ``Init.py`` before any module imports numpy, puts the venv's
+The core needs numpy 2, cadquery, scipy, matplotlib ... (``requirements.txt``)
+in the module folder's ``.venv``, built from FreeCAD's own interpreter,
+while Debian's FreeCAD brings numpy 1.x.  :func:`bootstrap`, called by
+``Init.py`` before any module imports numpy, puts the venv's
 ``site-packages`` first on ``sys.path``, so that FreeCAD, its Plot and FEM
 modules and Fabrickator all use one consistent set (numpy 2 and the
 matplotlib and scipy built for it).  It imports nothing but the standard
 library and never raises: a problem becomes one line in the Report view
-that names the command fixing it.
+that names the fix.
+
+A user who installed the add-on with FreeCAD's Addon Manager (a clone of
+the repository in FreeCAD's user ``Mod`` folder) has no venv yet: the
+workbench offers to build it on activation (:mod:`.install`, the GUI),
+which runs :func:`install_commands` -- ``python -m venv`` with the real
+interpreter behind FreeCAD (:func:`base_interpreter`; inside FreeCAD
+``sys.executable`` is the FreeCAD binary), then that venv's pip on
+``requirements.txt``.  :func:`install` does the same from a script or
+``freecadcmd``; :class:`PipProgress` reads pip's output lines as progress
+and :func:`failure_message` turns a failure into one message with the
+command to run by hand.  :func:`activate` then puts the new packages to
+use in the running FreeCAD, or says that FreeCAD must restart.
+Developers run ``make setup`` (the same venv, from the Makefile).
 
 Inside FreeCAD every Mod folder is on ``sys.path``, so ``core`` is a global
 name; :func:`load_core` makes sure it is this repository's ``core`` and says
@@ -17,9 +30,15 @@ so clearly when another add-on's ``core`` got there first.
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import os
+import re
+import shlex
+import shutil
+import subprocess
 import sys
+from dataclasses import dataclass
 
 #: The module folder (the repository root): parent of this package.
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -27,9 +46,20 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: Environment variable naming another virtual environment to use (tests, packagers).
 VENV_ENV = "FABRICKATOR_VENV"
 
+#: The pinned packages the venv is built with.
+REQUIREMENTS = os.path.join(ROOT, "requirements.txt")
+
+#: File the install (and ``make setup``) writes into the venv once it is complete.
+STAMP = ".installed"
+
 #: Packages the workbench needs at run time, by import name.
 REQUIRED = ("numpy", "scipy", "trimesh", "networkx", "cadquery", "OCP", "manifold3d",
             "matplotlib", "numba", "highspy")
+
+#: Environment variables not passed to the install's processes: FreeCAD's own
+#: module path would make pip count FreeCAD's packages as installed in the venv.
+UNSET_FOR_INSTALL = ("PYTHONPATH", "PYTHONSTARTUP", "PYTHONNOUSERSITE", "PIP_USER", "PIP_TARGET",
+                     "PIP_PREFIX")
 
 
 def venv_dir() -> str:
@@ -37,18 +67,104 @@ def venv_dir() -> str:
     return os.environ.get(VENV_ENV) or os.path.join(ROOT, ".venv")
 
 
+def venv_python(venv: str | None = None) -> str:
+    """The interpreter of the venv (``bin/python``, on Windows ``Scripts/python.exe``)."""
+    venv = venv or venv_dir()
+    if os.name == "nt":
+        return os.path.join(venv, "Scripts", "python.exe")
+    return os.path.join(venv, "bin", "python")
+
+
 def site_packages() -> str:
     """The venv's site-packages folder for this interpreter's Python version."""
+    if os.name == "nt":
+        return os.path.join(venv_dir(), "Lib", "site-packages")
     version = f"python{sys.version_info[0]}.{sys.version_info[1]}"
     return os.path.join(venv_dir(), "lib", version, "site-packages")
 
 
-def fix_command() -> str:
-    """The shell command that builds the venv Fabrickator needs."""
-    if os.path.exists(os.path.join(ROOT, "Makefile")):
-        return f"cd {ROOT} && make setup"
-    return (f"{sys.executable} -m venv {venv_dir()} && "
-            f"{venv_dir()}/bin/pip install -r {ROOT}/requirements.txt")
+def _interpreter_candidates() -> list[str]:
+    """Where the Python behind this process may be, most likely first: this process
+    itself when it is a plain ``python``, then ``bin/`` of its prefixes, the folder of
+    the FreeCAD binary, then PATH."""
+    major, minor = sys.version_info[:2]
+    names = ([f"python{major}.{minor}.exe", "python.exe", "python3.exe"] if os.name == "nt"
+             else [f"python{major}.{minor}", f"python{major}", "python"])
+    paths = [sys.executable] if os.path.basename(sys.executable).lower().startswith("python") else []
+    folders = [os.path.join(sys.base_prefix, "bin"), os.path.join(sys.exec_prefix, "bin"),
+               sys.base_prefix, sys.exec_prefix,
+               os.path.dirname(os.path.realpath(sys.executable)), os.path.dirname(sys.executable)]
+    paths += [os.path.join(folder, name) for folder in folders for name in names]
+    paths += [shutil.which(name) or "" for name in names]
+    unique = []
+    for path in paths:
+        if path and path not in unique and os.path.isfile(path) and os.access(path, os.X_OK):
+            unique.append(path)
+    return unique
+
+
+def base_interpreter() -> str | None:
+    """The Python interpreter to build the venv with: the one FreeCAD itself runs, or None.
+
+    Inside FreeCAD ``sys.executable`` is the FreeCAD binary, so the
+    interpreter is looked for where it lies (Debian: ``/usr/bin/python3.11``
+    under ``sys.base_prefix``; FreeCAD's AppImage and Windows builds: beside
+    the FreeCAD binary; then PATH) and each candidate is asked its version:
+    the first that reports exactly this ``sys.version`` wins, else the first
+    of the same major.minor (same ABI, so the venv's compiled packages load
+    here).
+    """
+    same_minor = None
+    wanted = f"{sys.version_info[0]}.{sys.version_info[1]}"
+    for path in _interpreter_candidates():
+        try:
+            run = subprocess.run([path, "-c", "import sys; print(sys.version.splitlines()[0])"],
+                                 capture_output=True, text=True, timeout=30, env=install_env(),
+                                 stdin=subprocess.DEVNULL)
+        except (OSError, subprocess.SubprocessError):
+            continue
+        version = run.stdout.strip()
+        if run.returncode != 0:
+            continue
+        if version == sys.version.splitlines()[0]:
+            return path
+        if same_minor is None and version.split(" ")[0].rsplit(".", 1)[0] == wanted:
+            same_minor = path
+    return same_minor
+
+
+def install_env(environ=None) -> dict[str, str]:
+    """The environment the install's processes run in: ``environ`` (default this
+    process's) without UNSET_FOR_INSTALL."""
+    env = dict(os.environ if environ is None else environ)
+    for name in UNSET_FOR_INSTALL:
+        env.pop(name, None)
+    return env
+
+
+def install_commands(python: str, venv: str | None = None) -> list[list[str]]:
+    """The commands that build the venv: ``python -m venv --clear VENV`` (a half-built
+    one is started afresh), then the venv's pip installing REQUIREMENTS."""
+    venv = venv or venv_dir()
+    return [[python, "-m", "venv", "--clear", venv],
+            [venv_python(venv), "-m", "pip", "install", "--disable-pip-version-check",
+             "--progress-bar", "off", "-r", REQUIREMENTS]]
+
+
+def _quote(argv: list[str]) -> str:
+    if os.name == "nt":
+        return subprocess.list2cmdline(argv)
+    return " ".join(shlex.quote(a) for a in argv)
+
+
+def fix_command(python: str | None = None) -> str:
+    """The shell command that builds the venv Fabrickator needs, for a terminal.
+
+    With the real interpreter (``python``, default :func:`base_interpreter`;
+    ``python3`` when none is found), in this platform's shell quoting.
+    """
+    python = python or base_interpreter() or ("python" if os.name == "nt" else "python3")
+    return " && ".join(_quote(argv) for argv in install_commands(python))
 
 
 def problem() -> str | None:
@@ -94,8 +210,10 @@ def bootstrap() -> str | None:
             else:
                 toolkits.__path__ = [local] + list(path)
     elif missing():
-        report(f"Fabrickator: cannot use its Python packages ({trouble}); run: {fix_command()}",
-                warning=True)
+        report(f"Fabrickator: its Python packages are not installed ({trouble}). The Fabrickator "
+               f"workbench offers to install them; from Python: "
+               f"from FabrickatorWorkbench import deps; deps.install(); in a terminal: {fix_command()}",
+               warning=True)
     return trouble
 
 
@@ -148,7 +266,8 @@ def check(command: str) -> bool:
     gone = missing()
     if gone:
         trouble = (f"Fabrickator: {command} needs the Python package(s) {', '.join(gone)}, "
-                   f"which cannot be imported ({trouble or 'not installed'}); run: {fix_command()}")
+                   f"which cannot be imported ({trouble or 'not installed'}); install them from "
+                   f"the Fabrickator menu (Install Python packages...) or run: {fix_command()}")
     else:
         trouble = None
         try:
@@ -170,3 +289,196 @@ def report(line: str, warning: bool = False) -> None:
         sys.stderr.write(text)
         return
     (FreeCAD.Console.PrintWarning if warning else FreeCAD.Console.PrintError)(text)
+
+
+def needs_install() -> str | None:
+    """Why the venv must be (re)built before the workbench can run, or None.
+
+    A reason when required packages cannot be found (no venv, a half-built
+    one, or a venv for another Python version), or when ``requirements.txt``
+    is newer than the venv's STAMP (the add-on was updated).  None also when
+    the packages are importable without a venv (installed by a packager).
+    """
+    gone = missing()
+    stamp = os.path.join(venv_dir(), STAMP)
+    if gone:
+        where = site_packages()
+        state = "is missing" if not os.path.isdir(where) else "lacks them"
+        return f"{', '.join(gone)} cannot be imported: {where} {state}"
+    if os.path.isdir(site_packages()) and os.path.exists(stamp) and \
+            os.path.getmtime(REQUIREMENTS) > os.path.getmtime(stamp):
+        return f"{REQUIREMENTS} changed since {venv_dir()} was built"
+    return None
+
+
+class PipProgress:
+    """Progress of an install, read from the output lines of :func:`install_commands`.
+
+    :meth:`feed` takes one line and returns the fraction done (0..1) or
+    None while pip installs the downloaded packages (it says nothing until
+    it is done, so no fraction can be told: show a busy indicator), and
+    keeps the line as ``text`` when it is worth showing.  Building the venv
+    counts as VENV_SHARE of the work, pip's "Collecting" lines (one per
+    pinned requirement) as the rest up to INSTALL_FROM.
+    """
+
+    VENV_SHARE = 0.05
+    INSTALL_FROM = 0.6
+
+    def __init__(self, requirements: str = REQUIREMENTS):
+        with open(requirements, encoding="utf-8") as lines:
+            self.total = max(1, sum(1 for line in lines if line.strip() and not line.lstrip().startswith("#")))
+        self.collected = 0
+        self.installing = False
+        self.fraction = 0.0
+        self.text = "Building the virtual environment"
+
+    def started_pip(self) -> float:
+        """The step that builds the venv is done; pip starts."""
+        self.fraction = self.VENV_SHARE
+        self.text = "Starting pip"
+        return self.fraction
+
+    def feed(self, line: str) -> float | None:
+        line = line.strip()
+        if not line:
+            return None if self.installing else self.fraction
+        if line.startswith("Collecting "):
+            self.collected += 1
+            share = min(1.0, self.collected / self.total)
+            self.fraction = self.VENV_SHARE + (self.INSTALL_FROM - self.VENV_SHARE) * share
+            self.text = line
+        elif line.startswith(("Downloading ", "Using cached ", "Processing ", "Requirement already")):
+            self.text = line
+        elif line.startswith("Installing collected packages"):
+            self.installing = True
+            self.text = f"Installing {self.collected} packages (this takes a while)"
+        elif line.startswith("Successfully installed"):
+            self.installing = False
+            self.fraction = 1.0
+            self.text = "Installed"
+        return None if self.installing else self.fraction
+
+
+#: pip's words for a package index it could not reach or that has no such release.
+_NETWORK = re.compile(r"NewConnectionError|Failed to establish a new connection|Name or service not known|"
+                      r"Temporary failure in name resolution|No matching distribution found|"
+                      r"Could not find a version that satisfies|ConnectTimeout|ReadTimeout|"
+                      r"ConnectionError|ProxyError|SSLError|Network is unreachable|"
+                      r"connection broken", re.I)
+
+
+def failure_message(lines: list[str], status: int | None, step: int) -> str:
+    """One message for an install that failed: what went wrong and the command to run by hand.
+
+    ``lines`` is the failing command's output, ``status`` its exit status
+    (None: it could not start), ``step`` 0 for building the venv, 1 for pip.
+    A package index that cannot be reached (no network, a proxy, an index
+    without the pinned releases) is said so, with pip's own error line.
+    """
+    errors = [line.strip() for line in lines if line.strip().startswith("ERROR:")]
+    said = (errors[-1] if errors else next((line.strip() for line in reversed(lines) if line.strip()), ""))
+    said = said.removeprefix("ERROR:").strip()
+    by_hand = f"When that is fixed, activate the Fabrickator workbench again, or run in a terminal: {fix_command()}"
+    if step == 0:
+        if any("ensurepip" in line for line in lines):
+            return ("Fabrickator could not build its virtual environment: this Python has no "
+                    "ensurepip (on Debian and Ubuntu install the package python3-venv, e.g. "
+                    f"sudo apt install python3-venv). {by_hand}")
+        return f"Fabrickator could not build its virtual environment in {venv_dir()}: {said or f'exit status {status}'}. {by_hand}"
+    if any(_NETWORK.search(line) for line in lines):
+        return ("Fabrickator could not download its Python packages: no network, or the package "
+                f"index cannot be reached (pip: {said}). {by_hand}")
+    return f"Fabrickator could not install its Python packages (pip: {said or f'exit status {status}'}). {by_hand}"
+
+
+def no_interpreter_message() -> str:
+    """What to do when :func:`base_interpreter` finds no interpreter."""
+    return (f"Fabrickator found no Python {sys.version_info[0]}.{sys.version_info[1]} interpreter to build "
+            f"its packages with (FreeCAD runs {sys.executable}). Install one, then run in a terminal: "
+            f"{fix_command('python3')}")
+
+
+@dataclass
+class InstallResult:
+    """How an install ended: ``ok``, and ``message`` (the failure's, or what to do next)."""
+
+    ok: bool
+    message: str
+
+
+def write_stamp() -> None:
+    """Mark the venv complete (STAMP, as ``make setup`` does)."""
+    with open(os.path.join(venv_dir(), STAMP), "w", encoding="utf-8") as stamp:
+        stamp.write(f"built from {REQUIREMENTS} for Python {sys.version.split()[0]}\n")
+
+
+def install(progress=None, python: str | None = None) -> InstallResult:
+    """Build the venv from REQUIREMENTS with FreeCAD's own interpreter, from a script or freecadcmd.
+
+    Runs :func:`install_commands` one after the other (``python``: the
+    interpreter, default :func:`base_interpreter`), calling
+    ``progress(fraction or None, line)`` for every output line
+    (:class:`PipProgress`).  On success writes the STAMP and calls
+    :func:`activate`; the result says whether the packages work now or
+    FreeCAD must restart.  On failure the result's message is
+    :func:`failure_message`'s.  Never raises for a failed install.
+    """
+    python = python or base_interpreter()
+    if python is None:
+        return InstallResult(False, no_interpreter_message())
+    meter, before = PipProgress(), loaded_packages()
+    for step, argv in enumerate(install_commands(python)):
+        if step == 1 and progress is not None:
+            progress(meter.started_pip(), meter.text)
+        lines: list[str] = []
+        try:
+            with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                  env=install_env(), stdin=subprocess.DEVNULL, bufsize=1) as run:
+                for line in run.stdout:
+                    lines.append(line.rstrip("\n"))
+                    fraction = meter.feed(line)
+                    if progress is not None:
+                        progress(fraction, line.rstrip("\n"))
+            status = run.returncode
+        except OSError as exc:
+            lines.append(f"ERROR: cannot run {argv[0]}: {exc.strerror or exc}")
+            status = None
+        if status != 0:
+            return InstallResult(False, failure_message(lines, status, step))
+    write_stamp()
+    trouble = activate(before)
+    if trouble:
+        return InstallResult(True, f"Fabrickator's Python packages are installed; {trouble}")
+    return InstallResult(True, "Fabrickator's Python packages are installed and in use")
+
+
+def loaded_packages() -> list[str]:
+    """The required packages already imported in this process (REQUIRED names)."""
+    return [name for name in REQUIRED if name in sys.modules]
+
+
+def activate(loaded_before=()) -> str | None:
+    """Put a newly built venv to use in this process; None when it is in use, else what to do.
+
+    Runs :func:`bootstrap` (after clearing the import system's caches, so
+    the new folders are seen) and :func:`load_core`.  When numpy or another
+    package was imported from elsewhere before (its old version stays
+    loaded), or ``loaded_before`` names packages imported before the venv
+    was rebuilt, returns "restart FreeCAD to use them" with the reason.
+    """
+    importlib.invalidate_caches()
+    if loaded_before:
+        return f"restart FreeCAD to use them ({', '.join(loaded_before)} were already loaded)"
+    trouble = problem()
+    if trouble is None:
+        bootstrap()
+    gone = missing()
+    if trouble or gone:
+        why = trouble or f"{', '.join(gone)} still cannot be imported"
+        return f"restart FreeCAD to use them ({why})"
+    try:
+        load_core()
+    except ImportError as exc:
+        return f"restart FreeCAD to use them ({exc})"
+    return None

@@ -189,7 +189,9 @@ class TestDependencies(unittest.TestCase):
         out = run.stdout + run.stderr
         self.assertIn("CHECK False", out)
         self.assertIn("Legofy needs the Python package(s)", out)
-        self.assertIn("make setup", out)
+        self.assertIn("-m venv --clear /nonexistent/fabrickator-venv && /nonexistent/fabrickator-venv/bin/python "
+                      f"-m pip install --disable-pip-version-check --progress-bar off -r {ROOT}/requirements.txt",
+                      out)
         self.assertNotIn("Traceback", out)
 
 
@@ -206,6 +208,16 @@ class TestPackage(unittest.TestCase):
         self.assertTrue((ROOT / workbench.Subdirectory / "InitGui.py").is_file())
         depends = {d["package"] for d in workbench.Depend}
         self.assertLessEqual({"numpy", "cadquery", "trimesh", "scipy", "manifold3d"}, depends)
+        # each a Python package (FreeCAD 1.x reads the type) pinned in requirements.txt
+        self.assertTrue(all(d.get("type", "python") == "python" for d in workbench.Depend))
+        pinned = {line.split("==")[0].strip().lower()
+                  for line in (ROOT / "requirements.txt").read_text().splitlines() if "==" in line}
+        self.assertLessEqual({name.lower() for name in depends}, pinned)
+        self.assertEqual(meta.Version, "0.1.0")
+        self.assertEqual(meta.FreeCADMin, "0.20.0")
+        self.assertEqual(workbench.FreeCADMin, "0.20.0")
+        self.assertTrue(workbench.supportsCurrentFreeCAD())
+        self.assertTrue((ROOT / workbench.Subdirectory / workbench.Icon).is_file())
         icons = ROOT / "FabrickatorWorkbench" / "resources" / "icons"
         for name in ("Legofy", "Layout", "HighResBrush", "MergeBrush", "SplitBrush", "Export",
                      "Assembly", "Report", "WatchFolder", "CalibrationStrip"):
@@ -922,3 +934,5 @@ class TestExamples(FabrickatorTestCase):
 from TestFabrickatorParity import TestLikeFreeCAD, TestParity  # noqa: E402,F401
 from TestFabrickatorUndo import TestUndo  # noqa: E402,F401
 from TestFabrickatorLookApp import TestLookApp  # noqa: E402,F401
+# The Addon Manager's install in a clean FreeCAD user folder runs with these.
+from TestFabrickatorInstall import TestAddonManagerInstall, TestInstallWithoutNetwork  # noqa: E402,F401

@@ -11,8 +11,9 @@ the loop from Python.  The checks:
 * the workbench in layers: ``objects/`` and ``viewproviders/`` never import
   ``make`` or ``commands``, ``make`` and what it uses never import the commands
   or the task panels;
-* what ``freecadcmd`` loads (everything but ``commands/``, ``taskpanels/`` and
-  the preferences page) imports no GUI module at module level;
+* what ``freecadcmd`` loads (everything but ``commands/``, ``taskpanels/``, the
+  first-run install dialog and the preferences page) imports no GUI module at
+  module level;
 * importing a workbench module loads none of the venv's heavy packages
   (cadquery, OCP, trimesh, scipy, ... :data:`FabrickatorWorkbench.deps.REQUIRED`
   but numpy), directly or through ``core``: those are imported where they are
@@ -37,7 +38,8 @@ FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Mesh", "PySide", "PySide2",
 #: FreeCAD's GUI modules: lazy wherever freecadcmd may import the module.
 GUI_MODULES = {"FreeCADGui", "PySide", "PySide2", "pivy"}
 #: Workbench modules only the GUI loads: they may import the GUI at module top.
-GUI_ONLY = ("FabrickatorWorkbench.commands", "FabrickatorWorkbench.taskpanels")
+GUI_ONLY = ("FabrickatorWorkbench.commands", "FabrickatorWorkbench.taskpanels",
+            "FabrickatorWorkbench.install")
 #: Imports inside functions that must stay there, with the reason.
 LAZY_ON_PURPOSE = {
     # Init.py imports the package (for deps) before deps.bootstrap() puts the venv's numpy
