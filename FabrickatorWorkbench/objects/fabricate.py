@@ -35,7 +35,7 @@ PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBr
 
 
 class Cancelled(Exception):
-    """The user cancelled the recompute in the progress bar."""
+    """The user cancelled the recompute (Esc)."""
 
 
 @dataclass
@@ -315,27 +315,49 @@ def _slicer(slice_parts: bool):
 
 @contextmanager
 def _progress(title: str):
-    """A core progress callback driving FreeCAD's progress bar (GUI only); Esc cancels."""
+    """A core progress callback for the GUI (None without it): the status bar shows the
+    stage and how far the run is, and Esc cancels it (the callback raises
+    :class:`Cancelled`) at the next stage the core starts.
+
+    A document recompute runs FreeCAD's own sequencer ("Recompute...", one step
+    per object), and FreeCAD 0.20 ignores a ``Base.ProgressIndicator`` started
+    inside it (only the outermost sequencer counts), so Esc is checked with
+    ``FreeCAD.checkAbort()``, which asks whichever sequencer runs: it lets the
+    GUI handle its events (the Esc key among them) and, once Esc was pressed,
+    asks FreeCAD's "Do you really want to abort the operation?" and raises
+    ``Base.FreeCADAbort`` on Yes.  Outside a recompute (a macro calling
+    :func:`run_core`) the indicator started here is the outermost one and
+    drives the progress bar.
+    """
     if not App.GuiUp:
         yield None
         return
+    import FreeCADGui as Gui
+
+    status = Gui.getMainWindow().statusBar()
     bar = App.Base.ProgressIndicator()
     bar.start(title, 100)
     done = [0]
 
     def progress(fraction: float, message: str) -> None:
         target = min(int(fraction * 100), 99)
+        status.showMessage(f"{title}: {message.replace('_', ' ')} ({target} %)")
         try:
             while done[0] < target:
                 bar.next(True)
                 done[0] += 1
-        except RuntimeError:
-            raise Cancelled("cancelled in the progress bar") from None
+            # the first call lets the GUI see a pressed Esc (at most every 0.5 s), the
+            # second asks the user about it at once
+            App.checkAbort()
+            App.checkAbort()
+        except (RuntimeError, App.Base.FreeCADAbort):
+            raise Cancelled("stopped with Esc") from None
 
     try:
         yield progress
     finally:
         bar.stop()
+        status.clearMessage()
 
 
 def _restore_parameters(obj) -> None:

@@ -252,15 +252,100 @@ class TestAssemblyLabels(GuiTestCase):
         cy = height - 1 - cy
         near = [(x, y) for x in range(max(0, cx - 80), min(width, cx + 80))
                 for y in range(max(0, cy - 50), min(height, cy + 50))]
-        label = [QtGui.QColor(shown.pixel(x, y)).lightness() for x, y in near
-                 if shown.pixel(x, y) != plain.pixel(x, y)]
-        white = sum(1 for g in label if g > 230)
-        dark = sum(1 for g in label if g < 60)
-        # the label: a few hundred pixels, white text on a frame darker than the bricks
-        self.assertGreater(len(label), 300)
+
+        def lightness(x, y):
+            return QtGui.QColor(shown.pixel(x, y)).lightness()
+
+        # the label's frame: the dark pixels the label adds near the part's top
+        frame = [(x, y) for x, y in near if shown.pixel(x, y) != plain.pixel(x, y) and lightness(x, y) < 60]
+        self.assertTrue(frame, "no dark frame at the printed part")
+        x0, x1 = min(x for x, _ in frame), max(x for x, _ in frame)
+        y0, y1 = min(y for _, y in frame), max(y for _, y in frame)
+        self.assertTrue(20 <= x1 - x0 <= 120 and 15 <= y1 - y0 <= 60, (x0, y0, x1, y1))
+        inside = [lightness(x, y) for x in range(x0, x1 + 1) for y in range(y0, y1 + 1)]
+        white = sum(1 for g in inside if g > 230)
+        dark = sum(1 for g in inside if g < 60)
+        # white text on the dark frame: hardly anything in between but the text's edges
         self.assertGreater(white, 30, "no white text in the label")
-        self.assertGreater(dark, 2 * white, "no dark frame around the text")
-        self.assertGreater(white + dark, 0.7 * len(label))
+        self.assertGreater(dark, 2 * white)
+        self.assertGreater(white + dark, 0.7 * len(inside))
         panel.reject()
         settle()
         self.assertIsNone(panel.labels)
+
+
+def press_escape() -> None:
+    """Press and release Esc on FreeCAD's main window, as the window system would."""
+    mw = Gui.getMainWindow()
+    for kind in (QtCore.QEvent.KeyPress, QtCore.QEvent.KeyRelease):
+        QtGui.QApplication.sendEvent(mw, QtGui.QKeyEvent(kind, QtCore.Qt.Key_Escape,
+                                                         QtCore.Qt.NoModifier))
+
+
+class TestEscCancels(GuiTestCase):
+    """A recompute long enough to watch (a 160 x 96 x 48 mm part with a printed region:
+    a few seconds); FreeCAD hands the GUI its events only now and then during it,
+    and that is when the test acts, as a user pressing keys would be heard."""
+
+    def long_fabrication(self):
+        from TestFabrickatorApp import padded_body
+
+        body, _, _ = padded_body(self.doc, 160.0, 96.0, 48.0)
+        f = fab().make_fabrication(body)
+        fab().mark_high_res(f, box=(0, 0, 41.6, 16, 16, 48))
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        return f
+
+    def recompute_pressing_escape(self, f, answer):
+        """Change the seed and recompute; at the first moment the GUI gets its events during
+        the run, note the status bar and press Esc; answer FreeCAD's question with
+        ``answer``.  Returns what was seen: the status bar message and progress bars
+        when Esc was pressed, and the question's title and text."""
+        seen = {}
+        mw = Gui.getMainWindow()
+
+        def during_the_run():
+            seen["message"] = mw.statusBar().currentMessage()
+            seen["bars"] = [(b.isVisible(), b.value(), b.maximum())
+                            for b in mw.statusBar().findChildren(QtGui.QProgressBar)]
+            press_escape()
+
+        def answer_question():
+            box = QtGui.QApplication.activeModalWidget()
+            if isinstance(box, QtGui.QMessageBox):
+                seen["question"] = (box.windowTitle(), box.text())
+                box.button(answer).click()
+
+        asking = QtCore.QTimer()
+        asking.timeout.connect(answer_question)
+        asking.start(50)
+        QtCore.QTimer.singleShot(0, during_the_run)
+        f.Seed = f.Seed + 1
+        self.doc.recompute()
+        asking.stop()
+        settle()
+        return seen
+
+    def test_escape_stops_the_recompute_and_keeps_the_layout(self):
+        f = self.long_fabrication()
+        before = (f.LayoutJson, f.Seed, sorted((b.Name, tuple(b.Placement.Base)) for b in fab().bricks(f)))
+        seen = self.recompute_pressing_escape(f, QtGui.QMessageBox.Yes)
+        self.assertEqual(seen.get("question", ("",))[0], "Aborting", seen)
+        # Esc came while the core ran: the status bar said which stage, short of the end
+        self.assertRegex(seen["message"], rf"^Fabrickator: {f.Label}: [a-z ]+ \((\d|[1-8]\d) %\)$")
+        self.assertIn("Cancelled: stopped with Esc", f.Status)
+        self.assertTrue(f.Status.startswith("failed, previous result kept"), f.Status)
+        after = (f.LayoutJson, f.Seed, sorted((b.Name, tuple(b.Placement.Base)) for b in fab().bricks(f)))
+        self.assertEqual(after, before)
+        # and the status bar says so (FreeCAD shows the Report view's error there)
+        self.assertIn("stopped with Esc", Gui.getMainWindow().statusBar().currentMessage())
+
+    def test_escape_answered_no_lets_the_recompute_finish(self):
+        f = self.long_fabrication()
+        layout, seed = f.LayoutJson, f.Seed
+        seen = self.recompute_pressing_escape(f, QtGui.QMessageBox.No)
+        self.assertEqual(seen.get("question", ("",))[0], "Aborting", seen)
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(f.Seed, seed + 1)
+        self.assertNotEqual(f.LayoutJson, layout)

@@ -708,6 +708,6 @@ class TestHeadlessDocument(GuiTestCase):
         finally:
             App.closeDocument(doc.Name)
 from TestFabrickatorLook import TestLook  # noqa: E402,F401
-from TestFabrickatorFeel import TestAssemblyLabels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
+from TestFabrickatorFeel import TestAssemblyLabels, TestEscCancels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
