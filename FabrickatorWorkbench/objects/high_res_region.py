@@ -72,6 +72,7 @@ class HighResRegion(FeatureProxy):
             show(obj)
 
     def execute(self, obj):
+        self.ensure_properties(obj)
         obj.Shape = region_shape(obj)
 
 

@@ -204,6 +204,12 @@ class TestRegionsShowWhileBrushing(GuiTestCase):
         self.assertEqual((shown.Visibility, hidden.Visibility), (True, False))
         shown.ShowAlways = False
         self.assertFalse(shown.Visibility)
+        # a region that lost the property gets it back on its next recompute
+        hidden.removeProperty("ShowAlways")
+        hidden.touch()
+        self.doc.recompute()
+        self.assertFalse(hidden.ShowAlways)
+        self.assertFalse(hidden.Visibility)
 
     def test_the_assembly_hides_even_regions_shown_always(self):
         f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
