@@ -251,9 +251,9 @@ def load_core():
     return module
 
 
-def missing(names=REQUIRED) -> list[str]:
-    """The required packages that cannot be found (without importing them)."""
-    return [n for n in names if importlib.util.find_spec(n) is None]
+def missing(names=None) -> list[str]:
+    """The packages ``names`` (default REQUIRED) that cannot be found (without importing them)."""
+    return [n for n in (REQUIRED if names is None else names) if importlib.util.find_spec(n) is None]
 
 
 def check(command: str) -> bool:
