@@ -711,3 +711,4 @@ from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorFeel import TestAssemblyLabels, TestEscCancels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
+from TestFabrickatorInstallGui import TestInstallInTheGui  # noqa: E402,F401
