@@ -385,7 +385,8 @@ def failure_message(lines: list[str], status: int | None, step: int) -> str:
             return ("Fabrickator could not build its virtual environment: this Python has no "
                     "ensurepip (on Debian and Ubuntu install the package python3-venv, e.g. "
                     f"sudo apt install python3-venv). {by_hand}")
-        return f"Fabrickator could not build its virtual environment in {venv_dir()}: {said or f'exit status {status}'}. {by_hand}"
+        return (f"Fabrickator could not build its virtual environment in {venv_dir()}: "
+                f"{said or f'exit status {status}'}. {by_hand}")
     if any(_NETWORK.search(line) for line in lines):
         return ("Fabrickator could not download its Python packages: no network, or the package "
                 f"index cannot be reached (pip: {said}). {by_hand}")

@@ -84,7 +84,7 @@ class Request:
                               "--no-grid-fit", off="keep the grid centred on the part instead of "
                                                    "shifting it so that the high-res regions "
                                                    "print the least")
-    profile: str | None = _setting(None, "a PrusaSlicer ini to slice with instead of the installed slicer's own MK3S presets")
+    profile: str | None = _setting(None, "a PrusaSlicer ini to slice with instead of the installed slicer's presets")
     previous: str | None = _setting(None, "an earlier --out of the same object: align, diff, keep "
                                           "its layout where nothing changed, reprint only changed "
                                           "parts (changes.html)", "--previous", "DIR")

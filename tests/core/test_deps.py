@@ -79,7 +79,9 @@ def test_progress_grows_with_pips_lines_and_is_busy_while_it_unpacks(tmp_path):
 
 
 OFFLINE = """Looking in indexes: https://pypi.org/simple
-WARNING: Retrying (Retry(total=4, connect=None, read=None, redirect=None, status=None)) after connection broken by 'NewConnectionError('<pip._vendor.urllib3.connection.HTTPSConnection object>: Failed to establish a new connection: [Errno -3] Temporary failure in name resolution')': /simple/attrs/
+WARNING: Retrying (Retry(total=4, connect=None, read=None, redirect=None, status=None)) after connection \
+broken by 'NewConnectionError('<pip._vendor.urllib3.connection.HTTPSConnection object>: Failed to establish \
+a new connection: [Errno -3] Temporary failure in name resolution')': /simple/attrs/
 ERROR: Could not find a version that satisfies the requirement attrs==26.1.0 (from versions: none)
 ERROR: No matching distribution found for attrs==26.1.0""".splitlines()
 
