@@ -19,6 +19,7 @@ from pivy import coin
 from PySide import QtCore, QtGui
 
 from FabrickatorWorkbench import make
+from FabrickatorWorkbench.taskpanels.titles import fitting_title
 
 #: Colour of the bricks to place in the current step.
 NEXT_COLOUR = (0.1, 0.35, 1.0)
@@ -56,7 +57,8 @@ class AssemblyPanel:
         self.labels = None
         self.current = len(self.steps)
         self.form = Gui.PySideUic.loadUi(UI)
-        self.form.setWindowTitle(f"Assembly of {fab.Label}")
+        self.form.setWindowTitle(fitting_title("Assembly of ", fab.Label, self.form))
+        self.form.setToolTip(f"Assembly of {fab.Label}")
         self.form.slider.setMaximum(len(self.steps))
         self.form.slider.setValue(len(self.steps))
         self.form.slider.valueChanged.connect(self.go)

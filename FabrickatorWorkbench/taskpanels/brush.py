@@ -28,6 +28,7 @@ from PySide import QtCore, QtGui
 from core import picking
 from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.objects import high_res_region
+from FabrickatorWorkbench.taskpanels.titles import fitting_title
 
 #: Modes and their preview colours.
 MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
@@ -57,7 +58,10 @@ class BrushPanel:
         self.fab = fab
         self.doc = fab.Document
         self.form = Gui.PySideUic.loadUi(UI)
-        self.form.setWindowTitle(TITLES[mode])
+        # the task box keeps the title it opened with: name the Fabrication, the modes
+        # below say which brush paints
+        self.form.setWindowTitle(fitting_title("Brushes on ", fab.Label, self.form))
+        self.form.setToolTip(f"Brushes on {fab.Label}")
         self.buttons = {"high-res": self.form.modeHighRes, "merge": self.form.modeMerge,
                         "split": self.form.modeSplit, "unmark": self.form.modeUnmark}
         self.buttons[mode].setChecked(True)
@@ -104,7 +108,6 @@ class BrushPanel:
 
     def on_mode(self, checked: bool) -> None:
         if checked:
-            self.form.setWindowTitle(TITLES[self.mode])
             self.form.modeHelp.setText(HELP[self.mode])
             self.refresh()
 

@@ -92,6 +92,7 @@ class TestPanelsFit(GuiTestCase):
 
     def test_assembly_panel_fits_the_combo_view(self):
         f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        f.Label = "Bicycle lamp holder, second version"
         Gui.Selection.addSelection(f)
         Gui.runCommand("Fabrickator_Assembly")
         settle()
@@ -108,10 +109,13 @@ class TestPanelsFit(GuiTestCase):
 
     def test_brush_panel_fits_the_combo_view(self):
         f = self.fabrication()
+        f.Label = "Bicycle lamp holder, second version"
         Gui.Selection.addSelection(f)
         Gui.runCommand("Fabrickator_SplitBrush")
         settle()
         panel = f.ViewObject.Proxy.panel
+        self.assertTrue(panel.form.windowTitle().startswith("Brushes on Bicycle"))
+        self.assertTrue(panel.form.windowTitle().endswith("\u2026"))   # elided to fit
         self.assertIn("own", panel.form.modeHelp.text())
         panel.form.modeHighRes.setChecked(True)
         self.assertIn("printed", panel.form.modeHelp.text())
