@@ -707,8 +707,8 @@ class TestHeadlessDocument(GuiTestCase):
             shown.saveImage(str(ARTIFACTS / "headless_reopened.png"), 800, 600, "White")
         finally:
             App.closeDocument(doc.Name)
-from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorFeel import TestAssemblyLabels, TestEscCancels, TestPanelsFit, TestRegionsShowWhileBrushing  # noqa: E402,F401
+from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
 from TestFabrickatorInstallGui import TestInstallInTheGui  # noqa: E402,F401
