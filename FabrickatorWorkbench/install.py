@@ -113,7 +113,8 @@ def offer(on_installed=None) -> Installer | None:
     box.setInformativeText(
         translate("They go into a folder of their own, {venv}, built with FreeCAD's Python ({python}) "
                   "and pip from the package index (about 1.6 GB on disk; a few minutes on a fast "
-                  "connection). FreeCAD's own packages are not changed. Reason: {reason}.").format(
+                  "connection). Nothing of FreeCAD's own is changed; its Python then finds these packages "
+                  "first (FreeCAD's Plot and FEM use this numpy too). Reason: {reason}.").format(
             venv=deps.venv_dir(), python=python or translate("not found"), reason=reason))
     install = box.addButton(translate("Install"), QtGui.QMessageBox.AcceptRole)
     box.addButton(translate("Not now"), QtGui.QMessageBox.RejectRole)
