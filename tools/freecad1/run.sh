@@ -5,12 +5,16 @@
 #   usage: tools/freecad1/run.sh ROOT COMMAND...      (COMMAND runs in the copy, /root/fab)
 # The copy is refreshed from the working tree every run (.venv and outputs left out);
 # tests/gui/artifacts of the run are copied back to tests/gui/artifacts-freecad1/.
+# FREECAD1_COPY=NAME uses /root/NAME for the copy (runs side by side), and
+# FREECAD1_KEEP_MOUNTS=1 leaves the mounts for other runs (unmounted at exit otherwise).
 set -eu
 ROOT=${1:?usage: run.sh ROOT COMMAND...}; shift
 REPO=$(cd "$(dirname "$0")/../.." && pwd)
 SHARED="$REPO/../shared"
 mounts=""
+COPY=${FREECAD1_COPY:-fab}
 cleanup() {
+  [ "${FREECAD1_KEEP_MOUNTS:-}" = 1 ] && return 0
   for m in $mounts; do umount "$m" 2>/dev/null || umount -l "$m" 2>/dev/null || true; done
 }
 trap cleanup EXIT INT TERM
@@ -26,16 +30,18 @@ bind /dev "$ROOT/dev"
 mountpoint -q "$ROOT/dev/shm" || { mount -t tmpfs shm "$ROOT/dev/shm"; mounts="$ROOT/dev/shm $mounts"; }
 [ -d /opt ] && bind /opt "$ROOT/opt" ro
 if [ -d "$SHARED" ]; then bind "$SHARED" "$ROOT/root/shared" ro; fi
-rm -rf "$ROOT/root/fab"
-mkdir -p "$ROOT/root/fab"
+rm -rf "$ROOT/root/$COPY"
+mkdir -p "$ROOT/root/$COPY"
 tar -C "$REPO" --exclude=./.venv --exclude=./demo-out --exclude=./bench/out --exclude=./.apt.stamp \
     --exclude='./tests/gui/artifacts*' --exclude=.pytest_cache --exclude=__pycache__ -cf - . \
-  | tar -C "$ROOT/root/fab" -xf -
+  | tar -C "$ROOT/root/$COPY" -xf -
 status=0
 chroot "$ROOT" /usr/bin/env -i HOME=/root PATH=/usr/local/bin:/usr/bin:/bin LANG=C.UTF-8 \
-  TERM=dumb FABRICKATOR_VENV=/root/venv sh -c 'cd /root/fab && "$@"' sh "$@" || status=$?
-if [ -d "$ROOT/root/fab/tests/gui/artifacts" ]; then
-  rm -rf "$REPO/tests/gui/artifacts-freecad1"
-  cp -r "$ROOT/root/fab/tests/gui/artifacts" "$REPO/tests/gui/artifacts-freecad1"
+  TERM=dumb FABRICKATOR_VENV=/root/venv sh -c 'cd "/root/$0" && "$@"' "$COPY" "$@" || status=$?
+if [ -d "$ROOT/root/$COPY/tests/gui/artifacts" ]; then
+  out="$REPO/tests/gui/artifacts-freecad1"
+  [ "$COPY" = fab ] || out="$out-$COPY"
+  rm -rf "$out"
+  cp -r "$ROOT/root/$COPY/tests/gui/artifacts" "$out"
 fi
 exit $status
