@@ -140,6 +140,7 @@ class Fabrication(FeatureProxy):
     def onDocumentRestored(self, obj):
         super().onDocumentRestored(obj)
         retire_clearance(obj)
+        tree.restore_bricks(obj)
         if App.GuiUp:
             for proto in tree.prototypes(obj.Document):
                 prototype.apply_colour(proto)

@@ -35,8 +35,9 @@ class Prop:
 
 
 def ensure(obj, props) -> list[str]:
-    """Add the missing ``props`` to ``obj`` (with their defaults) and set every
-    editor mode; returns the names added."""
+    """Add the missing ``props`` to ``obj`` (with their defaults), move the present ones
+    into their group (a file from an older version may have them elsewhere) and set
+    every editor mode; returns the names added."""
     added = []
     existing = set(obj.PropertiesList)
     for p in props:
@@ -46,6 +47,8 @@ def ensure(obj, props) -> list[str]:
             if default is not None:
                 setattr(obj, p.name, default)
             added.append(p.name)
+        elif obj.getGroupOfProperty(p.name) != p.group:
+            obj.setGroupOfProperty(p.name, p.group)
         if p.mode != NORMAL:
             obj.setEditorMode(p.name, p.mode)
     return added

@@ -123,6 +123,15 @@ def bricks(fab) -> list:
     return [b for g in layer_groups(fab) for b in g.Group if role(b) == BRICK_ROLE]
 
 
+def restore_bricks(fab) -> None:
+    """Bring the brick objects of a document saved by an older version up to date: their
+    properties in today's group (first in the property view), the Link properties a
+    brick user never needs hidden."""
+    for obj in bricks(fab):
+        ensure(obj, BRICK_PROPERTIES)
+        hide_link_properties(obj)
+
+
 def ghosts(fab) -> list:
     """The removed bricks (ghosts) the last recompute took off."""
     return [g for grp in child_groups(fab, GHOSTS_GROUP_ROLE) for g in grp.Group

@@ -69,3 +69,26 @@ class TestLookApp(FabrickatorTestCase):
         self.assertEqual(len([o for o in self.doc.Objects
                               if tree.role(o) == tree.PROTOTYPES_ROLE]), 1)
         self.assertTrue(tree.prototypes(self.doc))
+
+    def test_document_from_an_older_version_gets_todays_property_view(self):
+        from FabrickatorWorkbench.objects.prototype import LINK_PROPERTIES_HIDDEN
+        from FabrickatorWorkbench.objects.tree import BRICK_GROUP
+
+        f = self.fabrication()
+        for brick in fab.bricks(f):   # as saved before the brick group sorted first
+            for name in ("PartNumber", "Cell", "Step", "Changed"):
+                brick.setGroupOfProperty(name, "Brick")
+            for name in LINK_PROPERTIES_HIDDEN:
+                brick.setEditorMode(name, 0)
+        path = self.path("older.FCStd")
+        self.doc.saveAs(path)
+        App.closeDocument(self.doc.Name)
+        self.doc = App.openDocument(path)
+        bricks = fab.bricks(fab.fabrications(self.doc)[0])
+        self.assertTrue(bricks)
+        for brick in bricks:
+            self.assertEqual({brick.getGroupOfProperty(n) for n in ("PartNumber", "Cell", "Step")},
+                             {BRICK_GROUP})
+            for name in LINK_PROPERTIES_HIDDEN:
+                self.assertIn("Hidden", brick.getEditorMode(name), name)
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
