@@ -167,23 +167,57 @@ def fix_command(python: str | None = None) -> str:
     return " && ".join(_quote(argv) for argv in install_commands(python))
 
 
+def numpy_importers(limit: int = 3) -> list[str]:
+    """Names of up to ``limit`` loaded modules (not numpy's own) that hold numpy, sorted:
+    who loaded it, as far as can be told in a running process."""
+    numpy = sys.modules.get("numpy")
+    if numpy is None:
+        return []
+    holders = []
+    for name, module in list(sys.modules.items()):
+        if name.split(".")[0] == "numpy" or module is None:
+            continue
+        try:
+            found = any(value is numpy for value in vars(module).values())
+        except TypeError:
+            continue
+        if found:
+            holders.append(name)
+    return sorted(holders)[:limit]
+
+
+def numpy_clash() -> str | None:
+    """A phrase naming the numpy loaded in this process from outside the venv (its version,
+    folder and the modules that hold it), or None when none is or it is the venv's."""
+    numpy = sys.modules.get("numpy")
+    if numpy is None:
+        return None
+    where = os.path.abspath(getattr(numpy, "__file__", "") or "")
+    if where.startswith(os.path.abspath(site_packages()) + os.sep):
+        return None
+    holders = numpy_importers()
+    by = f", used by {', '.join(holders)}" if holders else ""
+    return (f"numpy {getattr(numpy, '__version__', '?')} from {os.path.dirname(os.path.dirname(where))} "
+            f"was loaded in this FreeCAD before Fabrickator could put its own first{by}")
+
+
 def problem() -> str | None:
     """Why the venv cannot be put first on ``sys.path`` in this process (a phrase), or None.
 
     The venv must exist for this Python version, and numpy, if already
-    imported, must be the venv's (numpy 1.x imported first by another
-    module cannot be replaced in a running process).
+    imported, must be the venv's: another numpy (FreeCAD's own 1.x, which
+    FreeCAD's PartDesign workbench loads when it is activated, as FreeCAD
+    1.0's start workbench is) cannot be replaced in a running process
+    (:func:`numpy_clash`).  That phrase says to restart FreeCAD: at the next
+    start ``Init.py`` puts the venv first before any workbench is loaded.
     """
     packages = site_packages()
     if not os.path.isdir(packages):
         return f"{packages} is missing"
-    numpy = sys.modules.get("numpy")
-    if numpy is not None:
-        where = os.path.abspath(getattr(numpy, "__file__", "") or "")
-        if not where.startswith(os.path.abspath(packages) + os.sep):
-            return (f"numpy {getattr(numpy, '__version__', '?')} from {os.path.dirname(where)} was "
-                    f"imported before Fabrickator could put its own first: restart FreeCAD and "
-                    f"disable the add-on that imports numpy at start-up")
+    clash = numpy_clash()
+    if clash:
+        return (f"{clash}: restart FreeCAD (if this comes back after a restart, a module that starts "
+                f"before Fabrickator loads numpy)")
     return None
 
 
@@ -256,15 +290,28 @@ def missing(names=None) -> list[str]:
     return [n for n in (REQUIRED if names is None else names) if importlib.util.find_spec(n) is None]
 
 
+def installed_not_in_use() -> bool:
+    """True when the venv is built (its STAMP is there) but not on ``sys.path`` in this
+    process: installed in this session after numpy was loaded, so FreeCAD must restart."""
+    packages = site_packages()
+    return (os.path.isdir(packages) and os.path.exists(os.path.join(venv_dir(), STAMP))
+            and packages not in sys.path)
+
+
 def check(command: str) -> bool:
     """True when ``command`` can run; else writes one Report-view line naming the fix.
 
     Checks that the required packages can be imported (from the venv, or
-    installed otherwise) and that ``core`` is this repository's.
+    installed otherwise) and that ``core`` is this repository's.  When the
+    venv is installed but cannot be used before a restart, the line says to
+    restart FreeCAD (not to install again).
     """
     trouble = bootstrap()
     gone = missing()
-    if gone:
+    if gone and installed_not_in_use():
+        trouble = (f"Fabrickator: {command} needs the Python packages installed in {venv_dir()}, which "
+                   f"this FreeCAD cannot use yet ({trouble or 'not on sys.path'})")
+    elif gone:
         trouble = (f"Fabrickator: {command} needs the Python package(s) {', '.join(gone)}, "
                    f"which cannot be imported ({trouble or 'not installed'}); install them from "
                    f"the Fabrickator menu (Install Python packages...) or run: {fix_command()}")
@@ -295,19 +342,21 @@ def needs_install() -> str | None:
     """Why the venv must be (re)built before the workbench can run, or None.
 
     A reason when required packages cannot be found (no venv, a half-built
-    one, or a venv for another Python version), or when ``requirements.txt``
-    is newer than the venv's STAMP (the add-on was updated).  None also when
-    the packages are importable without a venv (installed by a packager).
+    one without STAMP, or a venv for another Python version), or when
+    ``requirements.txt`` is newer than the venv's STAMP (the add-on was
+    updated).  None also when the packages are importable without a venv
+    (installed by a packager), and when the venv is built but this FreeCAD
+    cannot use it before a restart (:func:`installed_not_in_use`).
     """
-    gone = missing()
     stamp = os.path.join(venv_dir(), STAMP)
-    if gone:
-        where = site_packages()
-        state = "is missing" if not os.path.isdir(where) else "lacks them"
-        return f"{', '.join(gone)} cannot be imported: {where} {state}"
     if os.path.isdir(site_packages()) and os.path.exists(stamp) and \
             os.path.getmtime(REQUIREMENTS) > os.path.getmtime(stamp):
         return f"{REQUIREMENTS} changed since {venv_dir()} was built"
+    gone = missing()
+    if gone and not installed_not_in_use():
+        where = site_packages()
+        state = "is missing" if not os.path.isdir(where) else "lacks them"
+        return f"{', '.join(gone)} cannot be imported: {where} {state}"
     return None
 
 
@@ -463,21 +512,21 @@ def activate(loaded_before=()) -> str | None:
     """Put a newly built venv to use in this process; None when it is in use, else what to do.
 
     Runs :func:`bootstrap` (after clearing the import system's caches, so
-    the new folders are seen) and :func:`load_core`.  When numpy or another
-    package was imported from elsewhere before (its old version stays
-    loaded), or ``loaded_before`` names packages imported before the venv
-    was rebuilt, returns "restart FreeCAD to use them" with the reason.
+    the new folders are seen) and :func:`load_core`.  When numpy was
+    imported from elsewhere before (its old version stays loaded: FreeCAD
+    1.0's start workbench PartDesign loads FreeCAD's own), or
+    ``loaded_before`` names packages imported before the venv was rebuilt,
+    returns "restart FreeCAD to use them" with the reason (:func:`numpy_clash`).
     """
     importlib.invalidate_caches()
-    if loaded_before:
-        return f"restart FreeCAD to use them ({', '.join(loaded_before)} were already loaded)"
-    trouble = problem()
+    trouble = numpy_clash() or problem()
+    if trouble is None and loaded_before:
+        trouble = f"{', '.join(loaded_before)} were already loaded"
     if trouble is None:
         bootstrap()
     gone = missing()
     if trouble or gone:
-        why = trouble or f"{', '.join(gone)} still cannot be imported"
-        return f"restart FreeCAD to use them ({why})"
+        return f"restart FreeCAD to use them ({trouble or ', '.join(gone) + ' still cannot be imported'})"
     try:
         load_core()
     except ImportError as exc:

@@ -14,7 +14,10 @@ stays).  A failed install (no network, no ``python3-venv``) ends in one
 message that says what to do and gives the exact command to run by hand.
 Once installed, the packages are put to use in the running FreeCAD
 (:func:`.deps.activate`) and the workbench gets its commands; when that is
-impossible the message says to restart FreeCAD.
+impossible (FreeCAD already loaded its own numpy: FreeCAD 1.0's start
+workbench PartDesign does) the message says to restart FreeCAD, the offer
+does not come back, and at the next start ``Init.py`` puts the packages
+first before any workbench loads numpy.
 
 This module imports nothing from :mod:`core` or the commands (they need
 the packages it installs).
@@ -93,7 +96,10 @@ def offer(on_installed=None) -> Installer | None:
     preference is on; otherwise, or when the user declines, writes one
     Report-view line naming the menu command and the terminal command.
     The dialog (object name OFFER_DIALOG) names what is installed where and
-    with which interpreter; its *Do not ask again* box turns ASK off.
+    with which interpreter, and says when FreeCAD will have to restart
+    (:func:`.deps.numpy_clash`: FreeCAD already loaded its own numpy, as
+    FreeCAD 1.0 does at start-up with its start workbench PartDesign); its
+    *Do not ask again* box turns ASK off.
     """
     reason = deps.needs_install()
     if reason is None:
@@ -103,7 +109,7 @@ def offer(on_installed=None) -> Installer | None:
     if not asking():
         deps.report(later, warning=True)
         return None
-    python = deps.base_interpreter()
+    python, clash = deps.base_interpreter(), deps.numpy_clash()
     box = QtGui.QMessageBox(Gui.getMainWindow())
     box.setObjectName(OFFER_DIALOG)
     box.setIcon(QtGui.QMessageBox.Question)
@@ -115,7 +121,10 @@ def offer(on_installed=None) -> Installer | None:
                   "and pip from the package index (about 1.6 GB on disk; a few minutes on a fast "
                   "connection). Nothing of FreeCAD's own is changed; its Python then finds these packages "
                   "first (FreeCAD's Plot and FEM use this numpy too). Reason: {reason}.").format(
-            venv=deps.venv_dir(), python=python or translate("not found"), reason=reason))
+            venv=deps.venv_dir(), python=python or translate("not found"), reason=reason)
+        + ("" if clash is None else " " + translate(
+            "This FreeCAD has already loaded its own numpy ({clash}), so restart FreeCAD after the "
+            "install to use them.").format(clash=clash)))
     install = box.addButton(translate("Install"), QtGui.QMessageBox.AcceptRole)
     box.addButton(translate("Not now"), QtGui.QMessageBox.RejectRole)
     box.setDefaultButton(install)

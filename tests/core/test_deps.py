@@ -7,6 +7,7 @@ GUI: tests/app/TestFabrickatorInstall.py, tests/gui/TestFabrickatorInstallGui.py
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -115,3 +116,49 @@ def test_needs_install_says_why(tmp_path, monkeypatch):
                                     f"is missing")
     monkeypatch.setattr(deps, "REQUIRED", ("numpy",))
     assert deps.needs_install() is None
+
+
+def test_a_venv_built_after_another_numpy_was_loaded_needs_a_restart_not_a_new_install(tmp_path, monkeypatch,
+                                                                                      capsys):
+    # this process's numpy (the developer venv's) stands for the numpy FreeCAD loaded before the install
+    import numpy
+
+    monkeypatch.setenv(deps.VENV_ENV, str(tmp_path / "venv"))
+    monkeypatch.setattr(deps, "REQUIRED", ("numpy", "no_such_package_fabrickator"))
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    holder = type(sys)("fabrickator_numpy_holder")
+    holder.np = numpy
+    monkeypatch.setitem(sys.modules, holder.__name__, holder)
+    packages = tmp_path / "venv" / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
+    packages.mkdir(parents=True)
+    # half built (pip did not finish: no stamp): install again
+    assert deps.needs_install() == f"no_such_package_fabrickator cannot be imported: {packages} lacks them"
+    assert not deps.installed_not_in_use()
+    deps.write_stamp()
+    assert deps.installed_not_in_use()
+    assert deps.needs_install() is None
+    clash = deps.numpy_clash()
+    assert clash.startswith(f"numpy {numpy.__version__} from {os.path.dirname(os.path.dirname(numpy.__file__))} "
+                            f"was loaded in this FreeCAD before Fabrickator could put its own first, used by ")
+    assert holder.__name__ in deps.numpy_importers(limit=len(sys.modules))
+    assert deps.activate(["numpy"]) == f"restart FreeCAD to use them ({clash})"
+    assert str(packages) not in sys.path
+    capsys.readouterr()
+    assert not deps.check("Legofy")
+    said = capsys.readouterr().err
+    assert f"Fabrickator: Legofy needs the Python packages installed in {tmp_path / 'venv'}, which this " \
+           f"FreeCAD cannot use yet ({clash}: restart FreeCAD" in said
+    assert "Install Python packages..." not in said
+    # the add-on was updated: requirements.txt newer than the stamp asks for the install again
+    os.utime(os.path.join(tmp_path, "venv", deps.STAMP), (0, 0))
+    assert deps.needs_install() == f"{deps.REQUIREMENTS} changed since {tmp_path / 'venv'} was built"
+
+
+def test_the_venvs_own_numpy_is_no_clash(monkeypatch):
+    import numpy
+
+    monkeypatch.setenv(deps.VENV_ENV, os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(
+        os.path.dirname(numpy.__file__))))))
+    assert deps.site_packages() == os.path.dirname(os.path.dirname(numpy.__file__))
+    assert deps.numpy_clash() is None
+    assert deps.problem() is None
