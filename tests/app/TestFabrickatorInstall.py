@@ -53,11 +53,20 @@ class UserFolder:
                         FABRICKATOR_SLICER="none", PYTHONUNBUFFERED="1")
         self.data = Path(self.ask("FreeCAD.getUserAppDataDir()"))
         if self.home.resolve() not in (self.data.resolve(), *self.data.resolve().parents):
-            raise unittest.SkipTest(f"this FreeCAD keeps its user data in {self.data} whatever "
-                                    f"FREECAD_USER_HOME / FREECAD_USER_DATA say: not cloning into it")
+            # a failure, not a skip: the Addon Manager's install would go untested
+            raise AssertionError(f"this FreeCAD keeps its user data in {self.data} whatever "
+                                 f"FREECAD_USER_HOME / FREECAD_USER_DATA say: not cloning into it")
         self.mod = self.data / "Mod" / "Fabrickator"
         self.mod.parent.mkdir(parents=True, exist_ok=True)
         subprocess.run(["git", "clone", "-q", str(ROOT), str(self.mod)], check=True, timeout=120)
+
+    def write_config(self, start_workbench: str) -> None:
+        """A fresh ``user.cfg`` whose start workbench is ``start_workbench``."""
+        self.cfg.write_text('<?xml version="1.0" encoding="UTF-8" standalone="no" ?>\n<FCParameters>'
+                            '<FCParamGroup Name="Root"><FCParamGroup Name="BaseApp"><FCParamGroup '
+                            'Name="Preferences"><FCParamGroup Name="General"><FCText Name="AutoloadModule">'
+                            f'{start_workbench}</FCText></FCParamGroup></FCParamGroup></FCParamGroup>'
+                            '</FCParamGroup></FCParameters>\n')
 
     def ask(self, expression: str) -> str:
         """The value of a Python expression in this user folder's freecadcmd."""
@@ -214,3 +223,39 @@ class TestInstallWithoutNetwork(unittest.TestCase):
         finally:
             shutil.rmtree(base, ignore_errors=True)
 
+
+
+class TestPackageXml(unittest.TestCase):
+    """package.xml as FreeCAD's own reader (App.Metadata, which the Addon Manager uses) sees it."""
+
+    def test_freecad_reads_the_workbench_and_its_optional_python_packages(self):
+        import xml.etree.ElementTree as ElementTree
+
+        metadata = App.Metadata(str(ROOT / "package.xml"))
+        self.assertEqual(metadata.Name, "Fabrickator")
+        self.assertRegex(metadata.Version, r"^\d+\.\d+\.\d+$")
+        self.assertTrue((ROOT / metadata.Icon).is_file(), metadata.Icon)
+        self.assertEqual(metadata.FreeCADMin, "0.20.0")
+        self.assertTrue(metadata.supportsCurrentFreeCAD())
+        [workbench] = metadata.Content["workbench"]
+        self.assertEqual(workbench.Classname, "FabrickatorWorkbench")
+        self.assertIn("class FabrickatorWorkbench(FreeCADGui.Workbench)",
+                      (ROOT / workbench.Subdirectory / "InitGui.py").read_text())
+        self.assertTrue((ROOT / workbench.Icon).is_file(), workbench.Icon)
+        self.assertEqual(workbench.FreeCADMin, "0.20.0")
+        # each python package pinned in requirements.txt by that name (or cadquery-ocp for OCP)
+        pinned = {line.split("==")[0].lower() for line in (ROOT / "requirements.txt").read_text().splitlines()
+                  if "==" in line}
+        names = [depend["package"] for depend in workbench.Depend]
+        self.assertEqual(len(names), 11, names)
+        self.assertLessEqual({name.lower() for name in names}, pinned)
+        written = ElementTree.parse(ROOT / "package.xml").getroot()
+        namespace = {"p": "https://wiki.freecad.org/Package_Metadata"}
+        for depend in written.findall("p:content/p:workbench/p:depend", namespace):
+            self.assertEqual((depend.get("type"), depend.get("optional")), ("python", "true"), depend.text)
+        if "optional" in workbench.Depend[0]:
+            # FreeCAD 1.0 reads the type and the optional flag (0.20 reads neither)
+            self.assertEqual({(d["type"], d["optional"]) for d in workbench.Depend}, {("python", True)})
+            self.assertEqual(workbench.PythonMin, "3.10.0")
+        else:
+            self.assertLess([int(n) for n in App.Version()[:2]], [1, 0], "this FreeCAD should read the optional flag")

@@ -8,12 +8,17 @@ script in it answers the dialogs by their object names as a user would:
 * installing: activating the workbench offers the install, *Install* shows the progress
   dialog fed by pip, the packages are then in use in that same FreeCAD, the toolbar gets
   the commands and the example fabricates;
+* after a restart on the same user folder, with FreeCAD 1.0's start workbench PartDesign (which
+  loads numpy at start-up), the packages are in use from the start and the example fabricates;
 * declining: *Not now* leaves only *Install Python packages...* and FreeCAD working, the
   offer comes back at the next activation; without a package index the install ends in
   one message with the command to run by hand; *Cancel* in the progress dialog stops it
   and the offer comes back; *Do not ask again* stops the offer.
 
-The two FreeCADs run at once (the install is mostly waiting for pip).  Screenshots of the
+The installing and the declining FreeCAD run at once (the install is mostly waiting for pip);
+both start in the Part workbench, which loads no numpy.  A FreeCAD that already loaded its own
+numpy (1.0's default start workbench PartDesign does) cannot use the packages before a restart:
+that message is tested in tests/core/test_deps.py.  Screenshots of the
 dialogs go to tests/gui/artifacts/install_*.png.
 """
 
@@ -39,7 +44,7 @@ import json, os, sys, time, traceback
 import FreeCAD as App, FreeCADGui as Gui
 from PySide import QtCore, QtGui
 
-out = {"numpy_at_start": "numpy" in sys.modules, "dialogs": []}
+out = {"numpy_at_start": "numpy" in sys.modules, "start_workbench": Gui.activeWorkbench().name(), "dialogs": []}
 
 
 def settle(seconds):
@@ -63,7 +68,8 @@ def answer(name, button, shot_as=None, tick=False):
         if widget is None:
             return
         timer.stop()
-        out["dialogs"].append([widget.objectName(), widget.text() if hasattr(widget, "text") else ""])
+        out["dialogs"].append([widget.objectName(), widget.text() if hasattr(widget, "text") else "",
+                               widget.informativeText() if hasattr(widget, "informativeText") else ""])
         if widget.objectName() != name:
             widget.reject()
             return
@@ -184,9 +190,23 @@ def decline_plan():
     out["toolbar_end"] = toolbar()
 
 
+def restarted_plan():
+    out["numpy_file_at_start"] = sys.modules["numpy"].__file__ if "numpy" in sys.modules else None
+    Gui.activateWorkbench("FabrickatorWorkbench")
+    out["dialogs_on_activation"] = dialogs_within(1.0)
+    out["toolbar"] = toolbar()
+    from FabrickatorWorkbench import deps, example
+    out["needs_after"] = deps.needs_install()
+    sys.path.insert(0, os.path.join(deps.ROOT, "examples"))
+    import hmd
+    hmd.build_hmd().val().exportStep(REPORT + ".step")
+    f = example.open_example(REPORT + ".step")
+    out["status"], out["bricks"] = f.Status, f.Bricks
+
+
 def run():
     try:
-        {"install": install_plan, "decline": decline_plan}[PLAN]()
+        {"install": install_plan, "decline": decline_plan, "restarted": restarted_plan}[PLAN]()
     except Exception:
         out["error"] = traceback.format_exc()
     with open(REPORT, "w") as report:
@@ -201,7 +221,9 @@ QtCore.QTimer.singleShot(1500, run)
 class GuiUser(UserFolder):
     """A throw-away user folder whose FreeCAD GUI runs a :data:`CHILD` plan."""
 
-    def start(self, plan: str, **env) -> tuple[subprocess.Popen, Path]:
+    def start(self, plan: str, start_workbench: str, **env) -> tuple[subprocess.Popen, Path]:
+        """Start FreeCAD on ``plan`` with a fresh user.cfg whose start workbench is ``start_workbench``."""
+        self.write_config(start_workbench)
         report = self.home / f"{plan}.json"
         script = self.home / f"{plan}.py"
         script.write_text(f"PLAN = {plan!r}\nREPORT = {str(report)!r}\nARTIFACTS = {str(ARTIFACTS)!r}\n"
@@ -221,17 +243,28 @@ class TestInstallInTheGui(unittest.TestCase):
         cls.base = Path(tempfile.mkdtemp(prefix="fabrickator-gui-install-"))
         installing, declining = GuiUser(cls.base, "install"), GuiUser(cls.base, "decline")
         cls.clones = {"install": installing.mod, "decline": declining.mod}
-        started = {"install": installing.start("install"),
-                   "decline": declining.start("decline", PIP_NO_INDEX="1",
+        # Part as the start workbench: it loads no numpy, so the install can be in use at once
+        started = {"install": installing.start("install", "PartWorkbench"),
+                   "decline": declining.start("decline", "PartWorkbench", PIP_NO_INDEX="1",
                                               PIP_FIND_LINKS=str(cls.base / "no-such-folder"))}
         cls.reports, cls.outputs = {}, {}
-        for plan, (process, report) in started.items():
-            try:
-                cls.outputs[plan], _ = process.communicate(timeout=INSTALL_TIMEOUT_S + 300)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                cls.outputs[plan], _ = process.communicate()
-            cls.reports[plan] = json.loads(report.read_text()) if report.exists() else None
+        cls.finish(started, "install")
+        # FreeCAD again on the same user folder, with FreeCAD 1.0's start workbench PartDesign,
+        # which loads numpy at start-up (its shaft wizard)
+        started["restarted"] = installing.start("restarted", "PartDesignWorkbench")
+        cls.finish(started, "decline")
+        cls.finish(started, "restarted")
+
+    @classmethod
+    def finish(cls, started: dict, plan: str) -> None:
+        """Wait for the FreeCAD running ``plan`` and read its report."""
+        process, report = started[plan]
+        try:
+            cls.outputs[plan], _ = process.communicate(timeout=INSTALL_TIMEOUT_S + 300)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            cls.outputs[plan], _ = process.communicate()
+        cls.reports[plan] = json.loads(report.read_text()) if report.exists() else None
 
     @classmethod
     def tearDownClass(cls):
@@ -245,7 +278,10 @@ class TestInstallInTheGui(unittest.TestCase):
 
     def test_install_from_the_offer_then_the_workbench_works_without_a_restart(self):
         report = self.report("install")
+        self.assertEqual(report["start_workbench"], "PartWorkbench")
         self.assertFalse(report["numpy_at_start"])
+        self.assertIn(f"They go into a folder of their own, {self.clones['install'] / '.venv'}", report["dialogs"][0][2])
+        self.assertNotIn("restart FreeCAD", report["dialogs"][0][2])
         self.assertEqual(report["dialogs"][0][0], "FabrickatorInstallOffer")
         self.assertIn("Install them now?", report["dialogs"][0][1])
         self.assertTrue(report["installer"])
@@ -270,8 +306,23 @@ class TestInstallInTheGui(unittest.TestCase):
         for name in ("install_offer", "install_progress", "install_done", "install_example"):
             self.assertTrue((ARTIFACTS / f"{name}.png").is_file(), name)
 
+    def test_a_restart_puts_the_packages_first_before_the_start_workbench_loads_numpy(self):
+        self.report("install")
+        report = self.report("restarted")
+        self.assertEqual(report["start_workbench"], "PartDesignWorkbench")
+        # PartDesign loaded numpy before this FreeCAD ran the test: the venv's, as Init.py put it first
+        self.assertTrue(report["numpy_at_start"])
+        self.assertTrue(report["numpy_file_at_start"].startswith(str(self.clones["install"] / ".venv")),
+                        report["numpy_file_at_start"])
+        self.assertEqual(report["dialogs_on_activation"], [])
+        self.assertIn("Fabrickator_Legofy", report["toolbar"])
+        self.assertIsNone(report["needs_after"])
+        self.assertTrue(report["status"].startswith("ok"), report["status"])
+        self.assertGreater(report["bricks"], 100)
+
     def test_declining_keeps_freecad_working_and_the_offer_comes_back(self):
         report = self.report("decline")
+        self.assertFalse(report["numpy_at_start"])
         self.assertEqual(report["toolbar_declined"], ["Fabrickator_InstallPackages"])
         self.assertFalse(report["numpy_after_decline"])
         self.assertTrue(report["command_active"])
