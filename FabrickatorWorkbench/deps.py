@@ -40,6 +40,8 @@ import subprocess
 import sys
 from dataclasses import dataclass
 
+from . import llvm
+
 #: The module folder (the repository root): parent of this package.
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -512,7 +514,9 @@ def activate(loaded_before=()) -> str | None:
     """Put a newly built venv to use in this process; None when it is in use, else what to do.
 
     Runs :func:`bootstrap` (after clearing the import system's caches, so
-    the new folders are seen) and :func:`load_core`.  When numpy was
+    the new folders are seen), :func:`.llvm.isolate` (as ``Init.py`` does
+    at start-up: without it the first numba kernel compiled in FreeCAD 1.0's
+    GUI crashes it) and :func:`load_core`.  When numpy was
     imported from elsewhere before (its old version stays loaded: FreeCAD
     1.0's start workbench PartDesign loads FreeCAD's own), or
     ``loaded_before`` names packages imported before the venv was rebuilt,
@@ -524,6 +528,8 @@ def activate(loaded_before=()) -> str | None:
         trouble = f"{', '.join(loaded_before)} were already loaded"
     if trouble is None:
         bootstrap()
+        # what Init.py does at start-up once the venv is there (before any kernel is compiled)
+        llvm.isolate()
     gone = missing()
     if trouble or gone:
         return f"restart FreeCAD to use them ({trouble or ', '.join(gone) + ' still cannot be imported'})"

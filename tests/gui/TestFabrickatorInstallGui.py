@@ -354,6 +354,6 @@ class TestInstallInTheGui(unittest.TestCase):
         self.assertTrue(message.endswith(f" -m venv --clear {venv} && {venv}/bin/python -m pip install "
                                          f"--disable-pip-version-check --progress-bar off -r "
                                          f"{clone}/requirements.txt"), message)
-        shown = [text for name, text in report["dialogs"] if name == "FabrickatorInstallFailed"][0]
+        shown = [d[1] for d in report["dialogs"] if d[0] == "FabrickatorInstallFailed"][0]
         self.assertIn(f"-m venv --clear {venv}", shown)
         self.assertTrue((ARTIFACTS / "install_failed.png").is_file())
