@@ -34,6 +34,10 @@ PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBr
               "SecondsPerPart", "SlicePrintTimes", "FitGrid")
 
 
+#: Milliseconds the status bar says that a recompute was stopped with Esc.
+CANCELLED_MESSAGE_MS = 10000
+
+
 class Cancelled(Exception):
     """The user cancelled the recompute (Esc)."""
 
@@ -193,7 +197,8 @@ def run_core(obj) -> Result:
 
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj)}
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
-            _slicer(bool(obj.SlicePrintTimes)), _progress(f"Fabrickator: {obj.Label}") as progress:
+            _slicer(bool(obj.SlicePrintTimes)), \
+            _progress(f"Fabrickator: {obj.Label}", obj.Document) as progress:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, float(obj.Scale))
         previous = _previous(obj, work) if obj.KeepLayout else None
@@ -314,20 +319,23 @@ def _slicer(slice_parts: bool):
 
 
 @contextmanager
-def _progress(title: str):
+def _progress(title: str, document):
     """A core progress callback for the GUI (None without it): the status bar shows the
     stage and how far the run is, and Esc cancels it (the callback raises
-    :class:`Cancelled`) at the next stage the core starts.
+    :class:`Cancelled`) at the next stage the core starts; after a cancelled run the
+    status bar says so, once ``document`` finished recomputing.
 
     A document recompute runs FreeCAD's own sequencer ("Recompute...", one step
-    per object), and FreeCAD 0.20 ignores a ``Base.ProgressIndicator`` started
+    per object), and FreeCAD ignores a ``Base.ProgressIndicator`` started
     inside it (only the outermost sequencer counts), so Esc is checked with
     ``FreeCAD.checkAbort()``, which asks whichever sequencer runs: it lets the
-    GUI handle its events (the Esc key among them) and, once Esc was pressed,
-    asks FreeCAD's "Do you really want to abort the operation?" and raises
-    ``Base.FreeCADAbort`` on Yes.  Outside a recompute (a macro calling
-    :func:`run_core`) the indicator started here is the outermost one and
-    drives the progress bar.
+    GUI handle its events (the Esc key among them) at most every 0.5 s and,
+    once Esc was pressed, asks FreeCAD's "Do you really want to abort the
+    operation?" and raises ``Base.FreeCADAbort`` on Yes.  Between those
+    moments the GUI paints nothing (a run shorter than 0.5 s gets no events at
+    all), so the status bar is repainted at once at every stage.  Outside a
+    recompute (a macro calling :func:`run_core`) the indicator started here is
+    the outermost one and drives the progress bar.
     """
     if not App.GuiUp:
         yield None
@@ -342,6 +350,7 @@ def _progress(title: str):
     def progress(fraction: float, message: str) -> None:
         target = min(int(fraction * 100), 99)
         status.showMessage(f"{title}: {message.replace('_', ' ')} ({target} %)")
+        status.repaint()
         try:
             while done[0] < target:
                 bar.next(True)
@@ -353,11 +362,36 @@ def _progress(title: str):
         except (RuntimeError, App.Base.FreeCADAbort):
             raise Cancelled("stopped with Esc") from None
 
+    cancelled = False
     try:
         yield progress
+    except Cancelled:
+        cancelled = True
+        raise
     finally:
         bar.stop()
         status.clearMessage()
+        if cancelled:
+            _say_when_recomputed(document, status,
+                                 f"{title}: stopped with Esc, the previous result is kept")
+
+
+def _say_when_recomputed(document, status, text: str) -> None:
+    """Show ``text`` in the status bar for :data:`CANCELLED_MESSAGE_MS` once ``document``
+    is no longer recomputing (FreeCAD clears the status bar when its recompute ends)."""
+    from PySide import QtCore
+
+    def say():
+        try:
+            recomputing = bool(document.Recomputing)
+        except (AttributeError, ReferenceError, RuntimeError):   # FreeCAD without it, or closed
+            recomputing = False
+        if recomputing:
+            QtCore.QTimer.singleShot(100, say)
+        else:
+            status.showMessage(text, CANCELLED_MESSAGE_MS)
+
+    QtCore.QTimer.singleShot(0, say)
 
 
 def _restore_parameters(obj) -> None:
