@@ -29,11 +29,11 @@ all: demo
 
 # built afresh whenever requirements.txt changes: upgrading cadquery/OCP in place leaves
 # a broken VTK behind (cadquery 2.5 -> 2.6 did)
-$(VENV)/.installed: requirements.txt .apt.stamp
-	@echo "== building $(VENV) from $(SYSPY) with requirements.txt"
+$(VENV)/.installed: requirements.txt requirements-dev.txt .apt.stamp
+	@echo "== building $(VENV) from $(SYSPY) with requirements-dev.txt (requirements.txt and the test tools)"
 	rm -rf $(VENV)
 	$(SYSPY) -m venv $(VENV)
-	$(PY) -m pip install -q --disable-pip-version-check -r requirements.txt
+	$(PY) -m pip install -q --disable-pip-version-check -r requirements-dev.txt
 	@touch $@
 
 setup: $(VENV)/.installed
