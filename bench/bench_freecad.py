@@ -23,6 +23,8 @@ import sys
 import tempfile
 import time
 
+import FreeCAD
+
 
 def _root():
     here = globals().get("__file__") or next((a for a in sys.argv if a.endswith("bench_freecad.py")), "")
@@ -186,7 +188,9 @@ def main():
     setup()
     app = measure(gui=False)
     gui = run_gui()
-    print("\n## FreeCAD workbench (FreeCAD 0.20.2, this machine)\n")
+    version = ".".join(FreeCAD.Version()[:3])
+    python = ".".join(map(str, sys.version_info[:3]))
+    print(f"\n## FreeCAD workbench (FreeCAD {version}, Python {python}, this machine)\n")
     print(table(app, gui))
     sys.stdout.flush()
     os._exit(0)
