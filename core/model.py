@@ -68,7 +68,8 @@ class Brick:
     brick turned by 90° has size ``(4, 2, 3)``), ``cell`` its min corner.
     ``kind`` is ``"lego"`` or ``"printed"``; a printed brick names its
     printed part in ``printed_part``.  ``step`` is the assembly step, or
-    None before instructions are made.
+    None before instructions are made.  ``load_g`` is an extra mass in grams
+    resting on the brick (a lens, a battery), which the force check carries.
     """
 
     id: int
@@ -78,13 +79,14 @@ class Brick:
     kind: str = "lego"
     printed_part: str | None = None
     step: int | None = None
+    load_g: float = 0.0
 
     def slices(self) -> tuple[slice, slice, slice]:
         """Index of the brick's cells in a grid-shaped array."""
         return tuple(slice(c, c + s) for c, s in zip(self.cell, self.size))
 
     def to_json(self) -> dict:
-        return {
+        out = {
             "id": self.id,
             "part": self.part,
             "size": list(self.size),
@@ -93,6 +95,9 @@ class Brick:
             "printed_part": self.printed_part,
             "step": self.step,
         }
+        if self.load_g:
+            out["load_g"] = self.load_g
+        return out
 
 
 @dataclass
@@ -124,7 +129,7 @@ class Layout:
         TypeError or ValueError for a document that is not one."""
         bricks = [Brick(int(b["id"]), str(b["part"]), tuple(int(v) for v in b["size"]),
                         tuple(int(v) for v in b["cell"]), b["kind"], b["printed_part"],
-                        b.get("step")) for b in data["bricks"]]
+                        b.get("step"), float(b.get("load_g", 0.0))) for b in data["bricks"]]
         filled = np.zeros(tuple(int(v) for v in data["shape"]), dtype=bool)
         for b in bricks:
             filled[b.slices()] = True

@@ -1,0 +1,833 @@
+"""Force stage: does the layout stand, with what it carries?
+
+The graph test of :mod:`core.stability` says which bricks hold together; this
+stage says whether they *hold*: a static equilibrium of rigid bodies whose
+joints have the strength of real LEGO, solved as one linear program with
+HiGHS (after StableLego, Liu et al. 2024, and Luo et al. 2015).
+
+**Bodies.**  Every LEGO brick is a rigid body, and so is every printed part
+(all its bricks).  Gravity acts at its centre of mass: a LEGO part's mass is
+its catalog weight (:data:`core.catalog.MASS_G`), a printed part's is its
+volume printed with the slicer profile's walls and infill in its filament's
+density (:func:`printed_mass_g`).  Extra masses rest on bricks: a brick's
+``load_g`` (layout.json) at its centre, and :class:`Load` boxes (``--load``)
+shared out over the cells they touch.
+
+**Joints.**  Where a cell of one body lies directly under a cell of another,
+the lower one's stud is in the upper one's underside.  A stud is gripped at
+contact points (:func:`contact_directions`): under a 1-wide brick by the two
+side walls and the pins or end walls along it (four points), under a 2-wide
+brick by the outer wall beside it and, along the brick, by a tube or an end
+wall (three points), under a printed socket all round (four).  The points lie
+:data:`CONTACT_RADIUS` studs from the stud's axis.  Each point carries a
+vertical force: compression without limit, tension (the clutch, friction on
+the stud) up to ``clutch_n`` per point, where both the stud and the socket
+are whole (a printed part's incomplete stud or socket presses but does not
+hold).  Each stud also carries a horizontal force (shear) in the joint's
+plane, and bodies side by side in a layer may push each other apart (never
+pull).  The grid's bottom layer rests on the ground: on a ``table`` the
+outline of every bottom cell presses down (compression only) with friction
+:data:`TABLE_FRICTION`; on a ``baseplate`` its studs grip the bottom cells
+like any joint.
+
+**Strength of a part.**  A LEGO brick is also a beam: across every section
+between its studs the bending moment stays within its section's strength
+(:func:`bending_capacity_nmm`, ABS).  That is what makes a plate a weaker
+bridge than a brick.
+
+**Program.**  Find forces that put every body in equilibrium (six equations
+each) and minimise the worst *utilisation* ``u``: tension / clutch at every
+contact point, bending moment / strength at every section.  A second pass
+keeps that worst value and minimises the sum of every joint's own worst
+utilisation (a joint: all studs between two bodies), so that each joint
+carries only what it must and its utilisation means something.  The layout stands when ``u <= 1``.  A body that no equilibrium
+holds at all (it floats, or it tips off the table whatever the joints do) is
+*unsupported*: its utilisation is infinite.
+
+**Calibration.**  StableLego's staircase of 2x4 bricks, each offset by two
+studs, on a baseplate stands at 19 levels and falls at 20 on real builds,
+failing at the second brick.  With the clutch of 0.98 N per contact point
+(StableLego's T = 100 g) and the catalog weights, contact points 0.2 studs
+(1.6 mm) from the stud's axis reproduce that; at the stud's rim (0.3 studs)
+this model would let 20 levels stand.  ``tests/core/test_forces.py`` holds
+the known answers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+
+from core.catalog import BY_NUMBER, MASS_G
+from core.errors import InputError
+from core.model import Layout
+
+#: Acceleration of gravity, m/s^2.
+G = 9.81
+#: Default clutch: the tension one stud contact point holds, N (StableLego's T = 100 g).
+CLUTCH_N = 0.98
+#: Distance of a stud's contact points from its axis, in studs (8 mm); see the module docstring.
+CONTACT_RADIUS = 0.2
+#: Friction coefficient of ABS on a table top.
+TABLE_FRICTION = 0.4
+#: ABS tensile strength used for a part's bending strength, N/mm^2 (MPa).
+ABS_STRENGTH_MPA = 40.0
+#: LEGO wall and top thickness, mm (DESIGN.md dimensions: walls 1.2-1.5, top 1.0).
+WALL_MM = 1.2
+TOP_MM = 1.0
+#: Grounds a layout can stand on.
+GROUNDS = ("table", "baseplate")
+#: Utilisation above which a joint counts as failing (numerical slack of the LP).
+FAIL_ABOVE = 1.0 + 1e-6
+
+_DIAG = math.sqrt(0.5)
+
+
+@dataclass(frozen=True)
+class Load:
+    """A mass of ``grams`` resting on the bricks the box ``lo``-``hi`` (model mm) touches."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+    grams: float
+
+    def to_json(self) -> dict:
+        return {"box_mm": [list(self.lo), list(self.hi)], "grams": self.grams}
+
+
+def parse_load(text) -> Load:
+    """A :class:`Load` from ``"X0,Y0,Z0,X1,Y1,Z1:GRAMS"`` (a Load passes through).
+
+    Raises :class:`InputError` naming the problem: not six numbers and a
+    mass, a non-finite number, an empty box, a mass not > 0.
+    """
+    if isinstance(text, Load):
+        return text
+    match = re.fullmatch(r"\s*([^:]+):\s*([^:]+?)\s*", str(text))
+    if not match:
+        raise InputError(f"--load {text!r}: write X0,Y0,Z0,X1,Y1,Z1:GRAMS (a box in model mm and a mass)")
+    try:
+        box = [float(v) for v in match[1].split(",")]
+        grams = float(match[2])
+    except ValueError:
+        raise InputError(f"--load {text!r}: the box and the mass must be numbers") from None
+    if len(box) != 6:
+        raise InputError(f"--load {text!r}: the box needs six numbers X0,Y0,Z0,X1,Y1,Z1, got {len(box)}")
+    if not all(math.isfinite(v) for v in box + [grams]):
+        raise InputError(f"--load {text!r}: numbers must be finite")
+    if not grams > 0:
+        raise InputError(f"--load {text!r}: the mass must be more than 0 g")
+    lo, hi = np.minimum(box[:3], box[3:]), np.maximum(box[:3], box[3:])
+    if np.any(hi - lo <= 0):
+        raise InputError(f"--load {text!r}: the box is empty (each side must be longer than 0 mm)")
+    return Load(tuple(float(v) for v in lo), tuple(float(v) for v in hi), grams)
+
+
+@dataclass
+class Forces:
+    """What :func:`analyse` found.
+
+    ``stable``: every body is held and every utilisation is at most 1.
+    ``max_utilisation``: the worst utilisation (inf when some body is
+    unsupported).  ``utilisation``: brick id -> the utilisation of what
+    holds that brick (the joints under it, or above it for a brick that
+    hangs; its own bending), inf for unsupported bricks.  ``failing_bricks``:
+    ids whose utilisation is above 1, sorted; ``unsupported``: those no
+    equilibrium holds.  ``failures``: one dict per failing brick with
+    ``brick``, ``layer`` (from 1), ``cell``, ``utilisation`` (None when
+    unsupported), ``mode`` ("clutch", "bending", "floats", "tips") and
+    ``why``, a sentence.  ``mass_g``: the total mass, loads included.
+    """
+
+    stable: bool
+    ground: str
+    max_utilisation: float
+    utilisation: dict[int, float] = field(default_factory=dict)
+    failing_bricks: list[int] = field(default_factory=list)
+    unsupported: list[int] = field(default_factory=list)
+    failures: list[dict] = field(default_factory=list)
+    mass_g: float = 0.0
+    clutch_n: float = CLUTCH_N
+    loads: list[dict] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        """The ``stability.force`` block of report.json (inf written as null)."""
+        def num(v: float):
+            return None if not math.isfinite(v) else round(float(v), 4)
+        return {"stable": bool(self.stable), "ground": self.ground,
+                "max_utilisation": num(self.max_utilisation),
+                "failing_bricks": list(self.failing_bricks),
+                "unsupported_bricks": list(self.unsupported),
+                "failures": list(self.failures),
+                "utilisation": {str(k): num(v) for k, v in sorted(self.utilisation.items())},
+                "mass_g": round(self.mass_g, 2), "clutch_n": self.clutch_n,
+                "loads": list(self.loads), "seconds": round(self.seconds, 3),
+                "explain": FORCE_MEANS}
+
+
+#: What the utilisation means, in a builder's words.
+FORCE_MEANS = ("Utilisation is how hard the hardest-working joint holding a brick works: the pull on "
+               "its studs against the clutch they hold (about 100 g per contact point), or the bending "
+               "of the brick against what it takes. Up to 1 the brick holds; above 1 it comes off or "
+               "breaks. 'Unsupported' bricks float or tip over whatever their studs do.")
+
+
+def contact_directions(size_x: np.ndarray, size_y: np.ndarray, a: np.ndarray, b: np.ndarray,
+                       printed: np.ndarray) -> np.ndarray:
+    """Unit directions (n, 4, 2) from each stud's axis to its contact points, NaN where unused.
+
+    The stud is at local position (``a``, ``b``) under a part of footprint
+    (``size_x``, ``size_y``) studs.  A 1-wide part or a printed socket grips
+    it all round (+x, -x, +y, -y); a 2-wide part by the outer wall across
+    the part, and along it by the end wall at an end or the tube between it
+    and the next stud (diagonally, towards the part's centre line).
+    """
+    n = len(a)
+    out = np.full((n, 4, 2), np.nan)
+    ring = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    round_ = printed | (np.minimum(size_x, size_y) < 2)
+    out[round_] = ring
+    for long_x in (True, False):
+        sel = ~round_ & ((size_x >= size_y) == long_x)
+        if not sel.any():
+            continue
+        along, across = (a[sel], b[sel]) if long_x else (b[sel], a[sel])
+        length = size_x[sel] if long_x else size_y[sel]
+        side = np.where(across == 0, -1.0, 1.0)      # the outer wall beside the stud
+        inward = -side                                # towards the centre line (tubes)
+        d = np.zeros((sel.sum(), 4, 2))
+        d[:, 3] = np.nan
+        # (along, across) components, then swapped into (x, y) for a part long in y
+        d[:, 0] = np.stack([np.zeros_like(side), side], axis=1)
+        minus_end = along == 0
+        d[:, 1] = np.where(minus_end[:, None], [[-1.0, 0.0]],
+                           np.stack([np.full_like(side, -_DIAG), _DIAG * inward], axis=1))
+        plus_end = along == length - 1
+        d[:, 2] = np.where(plus_end[:, None], [[1.0, 0.0]],
+                           np.stack([np.full_like(side, _DIAG), _DIAG * inward], axis=1))
+        if not long_x:
+            d = d[:, :, ::-1]
+        out[sel] = d
+    return out
+
+
+def section_modulus_mm3(width_mm: float, height_mm: float) -> float:
+    """Elastic section modulus (mm^3) of a LEGO part's cross-section: a top of
+    :data:`TOP_MM` over two side walls of :data:`WALL_MM`, ``width_mm`` wide and
+    ``height_mm`` tall (the hollow underside's tubes ignored: on the safe side)."""
+    top_a = width_mm * TOP_MM
+    wall_h = height_mm - TOP_MM
+    wall_a = 2 * WALL_MM * wall_h
+    top_y, wall_y = height_mm - TOP_MM / 2, wall_h / 2
+    area = top_a + wall_a
+    ybar = (top_a * top_y + wall_a * wall_y) / area
+    inertia = (width_mm * TOP_MM ** 3 / 12 + top_a * (top_y - ybar) ** 2
+               + 2 * WALL_MM * wall_h ** 3 / 12 + wall_a * (wall_y - ybar) ** 2)
+    return inertia / max(ybar, height_mm - ybar)
+
+
+def bending_capacity_nmm(across_studs: int, layers: int, cell=(8.0, 8.0, 3.2)) -> float:
+    """Bending moment (N mm) a LEGO part ``across_studs`` wide and ``layers`` plates tall
+    takes across a section: :data:`ABS_STRENGTH_MPA` times :func:`section_modulus_mm3`."""
+    return ABS_STRENGTH_MPA * section_modulus_mm3(across_studs * cell[0] - 0.2, layers * cell[2])
+
+
+def printed_mass_g(volume_mm3: float, area_mm2: float, profile: dict[str, str] | None = None) -> float:
+    """Mass (g) of a printed part of ``volume_mm3`` and surface ``area_mm2`` as the slicer
+    prints it: a shell of the profile's perimeters times their extrusion width all round,
+    the rest filled at the profile's ``fill_density``, in its ``filament_density``
+    (PLA 1.24 g/cm^3, 2 perimeters of 0.45 mm, 15 % infill without a profile)."""
+    cfg = profile or {}
+
+    def number(key: str, default: float) -> float:
+        try:
+            return float(str(cfg.get(key, default)).rstrip("%").split(",")[0])
+        except ValueError:
+            return default
+    density = number("filament_density", 1.24)
+    fill = number("fill_density", 15.0) / 100.0
+    shell_mm = number("perimeters", 2) * number("perimeter_extrusion_width", 0.45)
+    shell = min(volume_mm3, area_mm2 * shell_mm)
+    return density * (shell + fill * (volume_mm3 - shell)) / 1000.0
+
+
+@dataclass
+class _Program:
+    """The LP in HiGHS's terms, built column by column (see :func:`analyse`)."""
+
+    cost: list = field(default_factory=list)
+    lower: list = field(default_factory=list)
+    upper: list = field(default_factory=list)
+    rows: list = field(default_factory=list)      # arrays of row indices
+    cols: list = field(default_factory=list)      # arrays of column indices
+    vals: list = field(default_factory=list)
+    ncol: int = 0
+    nrow: int = 0
+    row_lo: list = field(default_factory=list)
+    row_hi: list = field(default_factory=list)
+
+    def columns(self, n: int, lo: float, hi: float, cost: float = 0.0) -> np.ndarray:
+        idx = np.arange(self.ncol, self.ncol + n)
+        self.ncol += n
+        self.cost.append(np.full(n, cost))
+        self.lower.append(np.full(n, lo))
+        self.upper.append(np.full(n, hi))
+        return idx
+
+    def new_rows(self, n: int, lo, hi) -> np.ndarray:
+        idx = np.arange(self.nrow, self.nrow + n)
+        self.nrow += n
+        self.row_lo.append(np.broadcast_to(np.asarray(lo, float), (n,)).copy())
+        self.row_hi.append(np.broadcast_to(np.asarray(hi, float), (n,)).copy())
+        return idx
+
+    def put(self, row, col, val) -> None:
+        row, col, val = np.broadcast_arrays(np.asarray(row), np.asarray(col), np.asarray(val, float))
+        keep = val != 0
+        self.rows.append(row[keep].ravel())
+        self.cols.append(col[keep].ravel())
+        self.vals.append(val[keep].ravel())
+
+    def solve(self, u: int | None = None, spread: np.ndarray | None = None):
+        """(status, column values) of the LP; status 'optimal' or 'infeasible'.
+
+        With ``u`` (a column) and ``spread`` (columns), a second pass keeps
+        column ``u`` at its optimum and minimises the sum of the ``spread``
+        columns instead, from the first pass's basis."""
+        import highspy
+        h = highspy.Highs()
+        h.setOptionValue("output_flag", False)
+        h.setOptionValue("threads", 1)
+        lp = highspy.HighsLp()
+        lp.num_col_ = self.ncol
+        lp.num_row_ = self.nrow
+        lp.col_cost_ = np.concatenate(self.cost)
+        lp.col_lower_ = np.concatenate(self.lower)
+        lp.col_upper_ = np.concatenate(self.upper)
+        lp.row_lower_ = np.concatenate(self.row_lo) if self.row_lo else np.zeros(0)
+        lp.row_upper_ = np.concatenate(self.row_hi) if self.row_hi else np.zeros(0)
+        mat = sparse.csc_matrix((np.concatenate(self.vals), (np.concatenate(self.rows),
+                                                             np.concatenate(self.cols))),
+                                shape=(self.nrow, self.ncol))
+        mat.sum_duplicates()
+        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+        lp.a_matrix_.start_ = mat.indptr
+        lp.a_matrix_.index_ = mat.indices
+        lp.a_matrix_.value_ = mat.data
+        h.passModel(lp)
+        h.run()
+        status = h.getModelStatus()
+        if status == highspy.HighsModelStatus.kOptimal and u is not None and len(spread):
+            best = float(h.getSolution().col_value[u])
+            h.changeColBounds(u, 0.0, best * (1 + 1e-7) + 1e-9)
+            h.changeColCost(u, 0.0)
+            h.changeColsCost(len(spread), np.asarray(spread, dtype=np.int32),
+                             np.ones(len(spread)))
+            h.run()
+            status = h.getModelStatus()
+        if status == highspy.HighsModelStatus.kOptimal:
+            return "optimal", np.asarray(h.getSolution().col_value)
+        if status in (highspy.HighsModelStatus.kInfeasible,
+                      highspy.HighsModelStatus.kUnboundedOrInfeasible):
+            return "infeasible", None
+        raise RuntimeError(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
+
+
+def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
+            clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None) -> Forces:
+    """The force verdict of ``layout`` standing on ``ground`` ("table" or "baseplate").
+
+    ``loads`` are :class:`Load` (or "X0,Y0,Z0,X1,Y1,Z1:GRAMS" strings),
+    ``printed`` the :class:`core.printed.PrintedPart` list (their masses;
+    without it a printed part weighs as if solid PLA), ``clamp`` the
+    (studs_ok, bottom_ok) masks of :func:`core.printed.clamp_masks` (None:
+    every stud and socket whole), ``clutch_n`` the tension of one contact
+    point in N, ``profile`` the slicer settings printed masses follow.
+
+    Promises: every brick of ``layout`` has a utilisation; ``stable`` is
+    True exactly when no brick fails; ``layout`` is not changed.  Raises
+    :class:`InputError` for an unknown ground, a clutch not > 0, or a load
+    that touches no brick.
+    """
+    start = time.perf_counter()
+    if ground not in GROUNDS:
+        raise InputError(f"--ground {ground!r}: choose table or baseplate")
+    if not (isinstance(clutch_n, (int, float)) and math.isfinite(clutch_n) and clutch_n > 0):
+        raise InputError(f"--clutch {clutch_n!r} must be a force in N above 0")
+    loads = [parse_load(x) for x in loads]
+    n = len(layout.bricks)
+    if n == 0:
+        return Forces(True, ground, 0.0, clutch_n=float(clutch_n),
+                      loads=[x.to_json() for x in loads], seconds=time.perf_counter() - start)
+    model = _Model(layout, ground, loads, printed, clamp, float(clutch_n), profile)
+    forces = model.solve()
+    forces.seconds = time.perf_counter() - start
+    return forces
+
+
+class _Model:
+    """Bodies, contacts and the LP of one :func:`analyse` call."""
+
+    def __init__(self, layout: Layout, ground: str, loads: list[Load], printed, clamp,
+                 clutch_n: float, profile):
+        self.layout, self.ground, self.loads, self.clutch = layout, ground, loads, clutch_n
+        grid = layout.grid
+        self.cell = np.asarray(grid.cell, dtype=float)
+        self.origin = np.asarray(grid.origin, dtype=float)
+        bricks = layout.bricks
+        n = len(bricks)
+        self.lab = layout.labels()
+        # bodies: a LEGO brick each, a printed part all its bricks
+        body_of = np.empty(n, dtype=np.int64)
+        names: dict[str, int] = {}
+        count = 0
+        for idx, b in enumerate(bricks):
+            if b.kind == "printed" and b.printed_part is not None:
+                if b.printed_part not in names:
+                    names[b.printed_part] = count
+                    count += 1
+                body_of[idx] = names[b.printed_part]
+            else:
+                body_of[idx] = count
+                count += 1
+        self.body_of, self.nbody, self.part_body = body_of, count, names
+        self.blab = np.where(self.lab >= 0, body_of[np.maximum(self.lab, 0)], -1)
+        self.studs_ok, self.bottom_ok = (None, None) if clamp is None else (
+            np.asarray(clamp[0], bool), np.asarray(clamp[1], bool))
+        self._masses(printed, profile)
+
+    # -- masses ------------------------------------------------------------------------------
+    def _masses(self, printed, profile) -> None:
+        """Per body: mass (g) and centre of mass (mm), loads included."""
+        bricks = self.layout.bricks
+        lo, hi = self.layout.boxes_mm()
+        centre = (lo + hi) / 2
+        mass = np.zeros(self.nbody)
+        moment = np.zeros((self.nbody, 3))
+        by_part = {p.id: p for p in printed}
+        for idx, b in enumerate(bricks):
+            body = self.body_of[idx]
+            if b.kind == "printed" and b.printed_part is not None:
+                continue
+            m = MASS_G.get(b.part, 0.0) if b.part in BY_NUMBER else _solid_pla_g(hi[idx] - lo[idx])
+            mass[body] += m
+            moment[body] += m * centre[idx]
+        for name, body in self.part_body.items():
+            members = [i for i, b in enumerate(bricks) if b.printed_part == name]
+            part = by_part.get(name)
+            if part is not None and part.mesh is not None and len(part.mesh.faces):
+                m = printed_mass_g(float(part.mesh.volume), float(part.mesh.area), profile)
+                com = np.asarray(part.mesh.center_mass, dtype=float)
+            else:
+                m = sum(_solid_pla_g(hi[i] - lo[i]) for i in members)
+                com = centre[members].mean(axis=0)
+            mass[body] += m
+            moment[body] += m * com
+        points: dict[int, list] = {}
+        for idx, b in enumerate(bricks):
+            extra = float(getattr(b, "load_g", 0.0) or 0.0)
+            if extra:
+                points.setdefault(idx, []).append((centre[idx], extra))
+        for load in self.loads:
+            cells = _touched_cells(self.layout, load, self.lab)
+            for c in cells:
+                at = self.origin + (np.asarray(c) + 0.5) * self.cell
+                points.setdefault(int(self.lab[c]), []).append((at, load.grams / len(cells)))
+        for idx, items in points.items():
+            for at, grams in items:
+                mass[self.body_of[idx]] += grams
+                moment[self.body_of[idx]] += grams * at
+        self.point_masses = points
+        self.mass_g = mass
+        self.com = np.where(mass[:, None] > 0, moment / np.maximum(mass, 1e-12)[:, None],
+                            self._body_centres(centre))
+
+    def _body_centres(self, centre: np.ndarray) -> np.ndarray:
+        out = np.zeros((self.nbody, 3))
+        np.add.at(out, self.body_of, centre)
+        counts = np.bincount(self.body_of, minlength=self.nbody)
+        return out / np.maximum(counts, 1)[:, None]
+
+    # -- contacts ----------------------------------------------------------------------------
+    def _stud_joints(self):
+        """Cells (i, j, k) of every stud joint: lower body at k, upper at k + 1 (k = -1: ground)."""
+        lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
+        i, j, k = np.nonzero((lower >= 0) & (upper >= 0) & (lower != upper))
+        return i, j, k
+
+    def _contact_points(self, i, j, k_up):
+        """Contact points (m, 4, 3) in mm and validity (m, 4) of the studs under cells
+        (i, j, k_up), shaped by the part whose underside is at k_up."""
+        up = self.lab[i, j, k_up]
+        bricks = self.layout.bricks
+        cells = np.array([bricks[u].cell[:2] for u in range(len(bricks))], dtype=np.int64)
+        sizes = np.array([bricks[u].size[:2] for u in range(len(bricks))], dtype=np.int64)
+        printed = np.array([bricks[u].kind == "printed" for u in range(len(bricks))])
+        dirs = contact_directions(sizes[up, 0], sizes[up, 1], i - cells[up, 0], j - cells[up, 1],
+                                  printed[up])
+        centre = self.origin[:2] + (np.stack([i, j], axis=1) + 0.5) * self.cell[:2]
+        xy = centre[:, None, :] + CONTACT_RADIUS * self.cell[:2] * dirs
+        z = self.origin[2] + k_up * self.cell[2]
+        pts = np.concatenate([xy, np.broadcast_to(z[:, None, None], xy.shape[:2] + (1,))], axis=2)
+        return pts, ~np.isnan(dirs[:, :, 0])
+
+    # -- the program ---------------------------------------------------------------------------
+    def solve(self) -> Forces:
+        held, supported = self._supported()
+        prog = _Program()
+        self.spread = []
+        u = prog.columns(1, 0.0, np.inf, 1.0)[0]
+        eq = prog.new_rows(6 * self.nbody, 0.0, 0.0)        # filled below with gravity
+        rhs = np.zeros((self.nbody, 6))
+        weight = self.mass_g / 1000.0 * G
+        rhs[:, 2] = weight                                    # sum Fz - W = 0  ->  sum Fz = W
+        # joints between bodies
+        i, j, k = self._stud_joints()
+        lower_b = self.blab[i, j, k]
+        upper_b = self.blab[i, j, k + 1]
+        keep = held[lower_b] & held[upper_b]
+        i, j, k, lower_b, upper_b = i[keep], j[keep], k[keep], lower_b[keep], upper_b[keep]
+        tension_ok = np.ones(len(i), bool)
+        if self.studs_ok is not None:
+            tension_ok = self.studs_ok[i, j, k] & self.bottom_ok[i, j, k + 1]
+        self.joint_cells = (i, j, k)
+        pts, valid = self._contact_points(i, j, k + 1)
+        tension_cols = self._vertical(prog, eq, pts, valid, upper_b, lower_b, tension_ok, u)
+        self._shear(prog, eq, np.stack([i, j], 1), k + 1, upper_b, lower_b)
+        self.joint_tension = tension_cols
+        # ground
+        gi, gj = np.nonzero(self.blab[:, :, 0] >= 0)
+        gb = self.blab[gi, gj, 0]
+        keep = held[gb]
+        gi, gj, gb = gi[keep], gj[keep], gb[keep]
+        self.ground_cells = (gi, gj)
+        if self.ground == "baseplate":
+            gpts, gvalid = self._contact_points(gi, gj, np.zeros(len(gi), dtype=np.int64))
+            self.ground_tension = self._vertical(prog, eq, gpts, gvalid, gb, None,
+                                                 np.ones(len(gi), bool), u)
+            self._shear(prog, eq, np.stack([gi, gj], 1), np.zeros(len(gi), np.int64), gb, None)
+        else:
+            self.ground_tension = None
+            self._table(prog, eq, gi, gj, gb)
+        self._sides(prog, eq, held)
+        self._bending(prog, u, held)
+        # equilibrium right-hand sides: gravity at the centre of mass, moments about it
+        lo_hi = rhs.ravel()
+        prog.row_lo[0] = lo_hi.copy()
+        prog.row_hi[0] = lo_hi.copy()
+        spread = np.concatenate(self.spread) if self.spread else np.zeros(0, np.int64)
+        status, x = prog.solve(u, spread)
+        residual = np.zeros(self.nbody)
+        if status == "infeasible":
+            slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e4)
+            signs = np.tile([1.0, -1.0], 6 * self.nbody)
+            prog.put(np.repeat(eq, 2), slack, signs)
+            status, x = prog.solve(u, spread)
+            if status != "optimal":
+                raise RuntimeError("the force program with slack is infeasible")
+            residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
+        return self._verdict(x, held & (residual < 1e-7), held)
+
+    def _supported(self):
+        """(held, _) per body: bodies joined to the ground through joints (others float)."""
+        i, j, k = self._stud_joints()
+        a, b = self.blab[i, j, k], self.blab[i, j, k + 1]
+        n = self.nbody
+        graph = sparse.coo_matrix((np.ones(len(a)), (a, b)), shape=(n + 1, n + 1))
+        on_ground = np.unique(self.blab[:, :, 0][self.blab[:, :, 0] >= 0])
+        graph = sparse.coo_matrix((np.concatenate([graph.data, np.ones(len(on_ground))]),
+                                   (np.concatenate([graph.row, on_ground]),
+                                    np.concatenate([graph.col, np.full(len(on_ground), n)]))),
+                                  shape=(n + 1, n + 1))
+        _, comp = connected_components(graph, directed=False)
+        held = comp[:n] == comp[n]
+        return held, None
+
+    def _moment_rows(self, prog, eq, body, pts, force_dir, cols, sign):
+        """Add force ``sign * force_dir * x[cols]`` at points ``pts`` to the equations of ``body``."""
+        r = pts - self.com[body]
+        f = sign[:, None] * force_dir
+        moment = np.cross(r, f)
+        base = 6 * body
+        for axis in range(3):
+            prog.put(eq[base + axis], cols, f[:, axis])
+            prog.put(eq[base + 3 + axis], cols, moment[:, axis])
+
+    def _vertical(self, prog, eq, pts, valid, upper_b, lower_b, tension_ok, u):
+        """Vertical contact forces (on the upper body, up) at ``pts``; tension columns per joint."""
+        m = len(upper_b)
+        cp = np.flatnonzero(valid.ravel())
+        owner = cp // 4
+        p = pts.reshape(-1, 3)[cp]
+        can_pull = tension_ok[owner]
+        v = prog.columns(len(cp), -np.inf, np.inf)
+        # compression-only points: v >= 0 through a row (cheaper than splitting the columns)
+        if (~can_pull).any():
+            rows = prog.new_rows(int((~can_pull).sum()), 0.0, np.inf)
+            prog.put(rows, v[~can_pull], 1.0)
+        pull = np.flatnonzero(can_pull)
+        t = prog.columns(len(pull), 0.0, np.inf)
+        rows = prog.new_rows(len(pull), 0.0, np.inf)          # v + t >= 0: t is the pull
+        prog.put(rows, v[pull], 1.0)
+        prog.put(rows, t, 1.0)
+        # one joint per pair of bodies: z >= pull / clutch at each of its points, u >= z
+        pair = upper_b.astype(np.int64) * (self.nbody + 1) + (
+            self.nbody if lower_b is None else lower_b)
+        keys, joint_of_stud = np.unique(pair, return_inverse=True)
+        z = prog.columns(len(keys), 0.0, np.inf)
+        self.spread.append(z)
+        rows = prog.new_rows(len(pull), -np.inf, 0.0)          # t - T z <= 0
+        prog.put(rows, t, 1.0)
+        prog.put(rows, z[joint_of_stud[owner[pull]]], -self.clutch)
+        rows = prog.new_rows(len(keys), -np.inf, 0.0)          # z - u <= 0
+        prog.put(rows, z, 1.0)
+        prog.put(rows, np.full(len(keys), u), -1.0)
+        up = np.array([0.0, 0.0, 1.0])
+        ones = np.ones(len(cp))
+        self._moment_rows(prog, eq, upper_b[owner], p, np.broadcast_to(up, p.shape), v, ones)
+        if lower_b is not None:
+            self._moment_rows(prog, eq, lower_b[owner], p, np.broadcast_to(up, p.shape), v, -ones)
+        return {"owner": owner, "v": v, "points": p, "joints": m, "z": z,
+                "joint_of_stud": joint_of_stud}
+
+    def _shear(self, prog, eq, ij, k_up, upper_b, lower_b):
+        """Horizontal forces at each stud's axis in the joint plane (free)."""
+        m = len(upper_b)
+        centre = self.origin[:2] + (ij + 0.5) * self.cell[:2]
+        pts = np.concatenate([centre, (self.origin[2] + k_up * self.cell[2])[:, None]], axis=1)
+        for axis in (0, 1):
+            cols = prog.columns(m, -np.inf, np.inf)
+            d = np.zeros((m, 3))
+            d[:, axis] = 1.0
+            self._moment_rows(prog, eq, upper_b, pts, d, cols, np.ones(m))
+            if lower_b is not None:
+                self._moment_rows(prog, eq, lower_b, pts, d, cols, -np.ones(m))
+
+    def _table(self, prog, eq, gi, gj, gb):
+        """Bottom cells on a table: the four corners press (>= 0), friction <= mu * press."""
+        m = len(gb)
+        if m == 0:
+            return
+        corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+        inset = np.array([0.1, 0.1]) / self.cell[:2]
+        corners = inset + corners * (1 - 2 * inset)
+        xy = self.origin[:2] + (np.stack([gi, gj], 1)[:, None, :] + corners[None]) * self.cell[:2]
+        z = np.full((m, 4, 1), self.origin[2])
+        pts = np.concatenate([xy, z], axis=2).reshape(-1, 3)
+        press = prog.columns(4 * m, 0.0, np.inf)
+        owner = np.repeat(np.arange(m), 4)
+        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
+        self._moment_rows(prog, eq, gb[owner], pts, up, press, np.ones(4 * m))
+        centre = np.concatenate([self.origin[:2] + (np.stack([gi, gj], 1) + 0.5) * self.cell[:2],
+                                 np.full((m, 1), self.origin[2])], axis=1)
+        for axis in (0, 1):
+            f = prog.columns(m, -np.inf, np.inf)
+            d = np.zeros((m, 3))
+            d[:, axis] = 1.0
+            self._moment_rows(prog, eq, gb, centre, d, f, np.ones(m))
+            for sign in (1.0, -1.0):                      # +-f - mu * sum(press) <= 0
+                rows = prog.new_rows(m, -np.inf, 0.0)
+                prog.put(rows, f, sign)
+                prog.put(np.repeat(rows, 4), press, -TABLE_FRICTION)
+
+    def _sides(self, prog, eq, held):
+        """Bodies side by side in a layer push each other apart (>= 0) at the shared face."""
+        for axis in (0, 1):
+            a = [slice(None)] * 3
+            b = [slice(None)] * 3
+            a[axis], b[axis] = slice(None, -1), slice(1, None)
+            la, lb = self.blab[tuple(a)], self.blab[tuple(b)]
+            i, j, k = np.nonzero((la >= 0) & (lb >= 0) & (la != lb))
+            if not len(i):
+                continue
+            ba, bb = la[i, j, k], lb[i, j, k]
+            keep = held[ba] & held[bb]
+            i, j, k, ba, bb = i[keep], j[keep], k[keep], ba[keep], bb[keep]
+            m = len(i)
+            pos = (np.stack([i, j, k], 1) + 0.5) * self.cell + self.origin
+            pos[:, axis] += 0.5 * self.cell[axis]
+            cols = prog.columns(m, 0.0, np.inf)
+            d = np.zeros((m, 3))
+            d[:, axis] = 1.0
+            self._moment_rows(prog, eq, bb, pos, d, cols, np.ones(m))
+            self._moment_rows(prog, eq, ba, pos, d, cols, -np.ones(m))
+
+    def _bending(self, prog, u, held) -> None:
+        """|bending moment| <= u * strength across every section between a LEGO brick's studs.
+
+        The moment about a section is that of the vertical forces on one side
+        of it: the contact points there, the brick's own weight shared by its
+        cells, and the masses resting on those cells (shear in the joint
+        planes and side pushes are left out).  Records each section in
+        :attr:`sections` as (brick index, columns, coefficients, constant, strength).
+        """
+        self.sections = []
+        bricks = self.layout.bricks
+        lo, hi = self.layout.boxes_mm()
+        pts, cols, sign, owner = [], [], [], []
+        i, j, k = self.joint_cells
+        vt = self.joint_tension
+        for brick_lab, s in ((self.lab[i, j, k + 1], 1.0), (self.lab[i, j, k], -1.0)):
+            pts.append(vt["points"])
+            cols.append(vt["v"])
+            sign.append(np.full(len(vt["v"]), s))
+            owner.append(brick_lab[vt["owner"]])
+        if self.ground_tension is not None:
+            gi, gj = self.ground_cells
+            gt = self.ground_tension
+            pts.append(gt["points"])
+            cols.append(gt["v"])
+            sign.append(np.ones(len(gt["v"])))
+            owner.append(self.lab[gi, gj, 0][gt["owner"]])
+        pts, cols, sign, owner = (np.concatenate(x) for x in (pts, cols, sign, owner))
+        order = np.argsort(owner, kind="stable")
+        pts, cols, sign, owner = pts[order], cols[order], sign[order], owner[order]
+        starts = np.searchsorted(owner, np.arange(len(bricks) + 1))
+        for idx, b in enumerate(bricks):
+            if b.kind == "printed" or b.part not in BY_NUMBER or not held[self.body_of[idx]]:
+                continue
+            p, c, sg = (x[starts[idx]:starts[idx + 1]] for x in (pts, cols, sign))
+            own = MASS_G.get(b.part, 0.0)
+            extra = self.point_masses.get(idx, [])
+            for axis in (0, 1):
+                length = b.size[axis]
+                if length < 2:
+                    continue
+                cap = bending_capacity_nmm(b.size[1 - axis], b.size[2], self.cell)
+                for cut in range(1, length):
+                    at = lo[idx, axis] + cut * self.cell[axis]
+                    far = p[:, axis] > at
+                    share = (length - cut) / length
+                    weight_nmm = own * share * (hi[idx, axis] - at) / 2
+                    weight_nmm += sum(g * (xyz[axis] - at) for xyz, g in extra if xyz[axis] > at)
+                    const = -weight_nmm / 1000.0 * G
+                    coef = sg[far] * (p[far, axis] - at)
+                    rows = prog.new_rows(2, -np.inf, np.array([-const, const]))
+                    prog.put(np.full(len(coef), rows[0]), c[far], coef)
+                    prog.put(np.full(len(coef), rows[1]), c[far], -coef)
+                    prog.put(rows, [u, u], [-cap, -cap])
+                    self.sections.append((idx, c[far], coef, const, cap))
+
+    # -- verdict -------------------------------------------------------------------------------
+    def _verdict(self, x, ok, held) -> Forces:
+        """Utilisation per brick from the solution ``x``; failing and unsupported bricks."""
+        bricks = self.layout.bricks
+        n = len(bricks)
+        below = np.zeros(n)
+        above = np.zeros(n)
+        has_below = np.zeros(n, bool)
+        vt = self.joint_tension
+        i, j, k = self.joint_cells
+        if len(i):
+            per_joint = x[vt["z"]][vt["joint_of_stud"]]
+            ub, lb = self.lab[i, j, k + 1], self.lab[i, j, k]
+            np.maximum.at(below, ub, per_joint)
+            np.maximum.at(above, lb, per_joint)
+            has_below[ub] = True
+        gi, gj = self.ground_cells
+        if len(gi):
+            gb = self.lab[gi, gj, 0]
+            has_below[gb] = True
+            if self.ground_tension is not None:
+                gt = self.ground_tension
+                np.maximum.at(below, gb, x[gt["z"]][gt["joint_of_stud"]])
+        util = np.where(has_below, below, above)
+        mode = np.array(["clutch"] * n, dtype=object)
+        bend = self._bending_use(x)
+        more = bend > util
+        util = np.maximum(util, bend)
+        mode[more] = "bending"
+        # a printed part's bricks share their body's worst utilisation
+        for name, body in self.part_body.items():
+            members = np.flatnonzero(self.body_of == body)
+            util[members] = util[members].max()
+        floats = ~held[self.body_of]
+        tips = held[self.body_of] & ~ok[self.body_of]
+        util[floats | tips] = np.inf
+        mode[floats] = "floats"
+        mode[tips] = "tips"
+        failing = np.flatnonzero(util > FAIL_ABOVE)
+        failures = [self._failure(int(b), float(util[b]), str(mode[b])) for b in failing]
+        ids = [bricks[b].id for b in range(n)]
+        worst = float(util.max()) if n else 0.0
+        return Forces(stable=not len(failing), ground=self.ground, max_utilisation=worst,
+                      utilisation={ids[b]: float(util[b]) for b in range(n)},
+                      failing_bricks=sorted(ids[b] for b in failing),
+                      unsupported=sorted(ids[b] for b in np.flatnonzero(floats | tips)),
+                      failures=sorted(failures, key=lambda f: f["brick"]),
+                      mass_g=float(self.mass_g.sum()), clutch_n=self.clutch,
+                      loads=[x_.to_json() for x_ in self.loads])
+
+    def _bending_use(self, x) -> np.ndarray:
+        """Per brick: the worst |bending moment| / strength over its sections in ``x``."""
+        out = np.zeros(len(self.layout.bricks))
+        for idx, cols, coef, const, cap in self.sections:
+            moment = float(coef @ x[cols]) + const
+            out[idx] = max(out[idx], abs(moment) / cap)
+        return out
+
+    def _failure(self, b: int, util: float, mode: str) -> dict:
+        brick = self.layout.bricks[b]
+        what = (f"printed part {brick.printed_part}" if brick.kind == "printed"
+                else f"LEGO {BY_NUMBER[brick.part].name.lower()} {brick.part}" if brick.part in BY_NUMBER
+                else f"LEGO {brick.part}")
+        where = f"in layer {brick.cell[2] + 1} (cell {brick.cell[0]}, {brick.cell[1]})"
+        why = {"clutch": f"The {what} {where} pulls on the studs holding it with {util:.2f} times "
+                         "the clutch they have: it comes off",
+               "bending": f"The {what} {where} bends with {util:.2f} times the moment it takes: "
+                          "it breaks",
+               "floats": f"The {what} {where} is not joined to anything standing on the ground",
+               "tips": f"The {what} {where} cannot be held in balance: the part it belongs to "
+                       "tips over whatever its studs do"}[mode]
+        return {"brick": int(brick.id), "part": brick.part, "kind": brick.kind,
+                "printed_part": brick.printed_part, "layer": int(brick.cell[2]) + 1,
+                "cell": [int(v) for v in brick.cell],
+                "utilisation": None if not math.isfinite(util) else round(util, 4),
+                "mode": mode, "why": why}
+
+
+def _solid_pla_g(size_mm: np.ndarray) -> float:
+    """Mass (g) of a box of solid PLA (1.24 g/cm^3): a printed brick without its part."""
+    return 1.24 * float(np.prod(size_mm)) / 1000.0
+
+
+def _touched_cells(layout: Layout, load: Load, lab: np.ndarray) -> list[tuple[int, int, int]]:
+    """The filled cells ``load``'s box overlaps, and the top cells it rests on (its bottom
+    within 0.5 mm of their top, overlapping them in plan); InputError when none."""
+    grid = layout.grid
+    cell = np.asarray(grid.cell, float)
+    lo = (np.asarray(load.lo) - grid.origin) / cell
+    hi = (np.asarray(load.hi) - grid.origin) / cell
+    shape = np.array(grid.shape)
+    a = np.clip(np.floor(lo).astype(int), 0, shape)
+    b = np.clip(np.ceil(hi).astype(int), 0, shape)
+    found: set[tuple[int, int, int]] = set()
+    if np.all(b > a):
+        sub = lab[a[0]:b[0], a[1]:b[1], a[2]:b[2]] >= 0
+        for c in zip(*np.nonzero(sub)):
+            cc = np.asarray(c) + a
+            overlap = np.minimum(cc + 1, hi) - np.maximum(cc, lo)
+            if np.all(overlap > 1e-9):
+                found.add(tuple(int(v) for v in cc))
+    # resting: the column's top cell just under the box's bottom
+    k_top = lo[2]
+    k = int(round(k_top)) - 1
+    if abs(k_top - round(k_top)) * cell[2] <= 0.5 and 0 <= k < shape[2]:
+        x0, x1 = np.clip([math.floor(lo[0]), math.ceil(hi[0])], 0, shape[0])
+        y0, y1 = np.clip([math.floor(lo[1]), math.ceil(hi[1])], 0, shape[1])
+        for i in range(x0, x1):
+            for j in range(y0, y1):
+                if min(i + 1, hi[0]) - max(i, lo[0]) > 1e-9 and min(j + 1, hi[1]) - max(j, lo[1]) > 1e-9:
+                    if lab[i, j, k] >= 0:
+                        found.add((i, j, k))
+    if not found:
+        raise InputError(f"--load box {list(load.lo)}..{list(load.hi)} touches no brick")
+    return sorted(found)
