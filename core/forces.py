@@ -261,28 +261,30 @@ def printed_mass_g(volume_mm3: float, area_mm2: float, profile: dict[str, str] |
 
 @dataclass
 class _Program:
-    """The LP in HiGHS's terms, built column by column (see :func:`analyse`)."""
+    """A linear program in HiGHS's terms, built block by block."""
 
     cost: list = field(default_factory=list)
     lower: list = field(default_factory=list)
     upper: list = field(default_factory=list)
-    rows: list = field(default_factory=list)      # arrays of row indices
-    cols: list = field(default_factory=list)      # arrays of column indices
+    rows: list = field(default_factory=list)
+    cols: list = field(default_factory=list)
     vals: list = field(default_factory=list)
     ncol: int = 0
     nrow: int = 0
     row_lo: list = field(default_factory=list)
     row_hi: list = field(default_factory=list)
 
-    def columns(self, n: int, lo: float, hi: float, cost: float = 0.0) -> np.ndarray:
+    def columns(self, n: int, lo, hi, cost: float = 0.0) -> np.ndarray:
+        """``n`` new columns with bounds ``lo``..``hi`` (scalars or arrays); their indices."""
         idx = np.arange(self.ncol, self.ncol + n)
         self.ncol += n
-        self.cost.append(np.full(n, cost))
-        self.lower.append(np.full(n, lo))
-        self.upper.append(np.full(n, hi))
+        self.cost.append(np.full(n, float(cost)))
+        self.lower.append(np.broadcast_to(np.asarray(lo, float), (n,)).copy())
+        self.upper.append(np.broadcast_to(np.asarray(hi, float), (n,)).copy())
         return idx
 
     def new_rows(self, n: int, lo, hi) -> np.ndarray:
+        """``n`` new rows with bounds ``lo``..``hi``; their indices."""
         idx = np.arange(self.nrow, self.nrow + n)
         self.nrow += n
         self.row_lo.append(np.broadcast_to(np.asarray(lo, float), (n,)).copy())
@@ -290,22 +292,20 @@ class _Program:
         return idx
 
     def put(self, row, col, val) -> None:
+        """Add coefficients ``val`` at (``row``, ``col``), broadcast; duplicates add up."""
         row, col, val = np.broadcast_arrays(np.asarray(row), np.asarray(col), np.asarray(val, float))
-        keep = val != 0
+        keep = np.abs(val) > 1e-12
         self.rows.append(row[keep].ravel())
         self.cols.append(col[keep].ravel())
         self.vals.append(val[keep].ravel())
 
-    def solve(self, u: int | None = None, spread: np.ndarray | None = None):
-        """(status, column values) of the LP; status 'optimal' or 'infeasible'.
-
-        With ``u`` (a column) and ``spread`` (columns), a second pass keeps
-        column ``u`` at its optimum and minimises the sum of the ``spread``
-        columns instead, from the first pass's basis."""
+    def solve(self) -> tuple[str, np.ndarray | None]:
+        """('optimal', column values), ('infeasible', None) or ('unbounded', None)."""
         import highspy
         h = highspy.Highs()
         h.setOptionValue("output_flag", False)
         h.setOptionValue("threads", 1)
+        h.setOptionValue("solver", "ipm")
         lp = highspy.HighsLp()
         lp.num_col_ = self.ncol
         lp.num_row_ = self.nrow
@@ -325,24 +325,19 @@ class _Program:
         h.passModel(lp)
         h.run()
         status = h.getModelStatus()
-        if status == highspy.HighsModelStatus.kOptimal and u is not None and len(spread):
-            best = float(h.getSolution().col_value[u])
-            h.changeColBounds(u, 0.0, best * (1 + 1e-7) + 1e-9)
-            h.changeColCost(u, 0.0)
-            h.changeColsCost(len(spread), np.asarray(spread, dtype=np.int32),
-                             np.ones(len(spread)))
-            h.run()
-            status = h.getModelStatus()
         if status == highspy.HighsModelStatus.kOptimal:
             return "optimal", np.asarray(h.getSolution().col_value)
-        if status in (highspy.HighsModelStatus.kInfeasible,
-                      highspy.HighsModelStatus.kUnboundedOrInfeasible):
+        if status == highspy.HighsModelStatus.kInfeasible:
             return "infeasible", None
+        if status in (highspy.HighsModelStatus.kUnbounded,
+                      highspy.HighsModelStatus.kUnboundedOrInfeasible):
+            return "unbounded", None
         raise RuntimeError(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
 
 
 def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
-            clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None) -> Forces:
+            clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None,
+            detail: bool = True) -> Forces:
     """The force verdict of ``layout`` standing on ``ground`` ("table" or "baseplate").
 
     ``loads`` are :class:`Load` (or "X0,Y0,Z0,X1,Y1,Z1:GRAMS" strings),
@@ -351,41 +346,54 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     (studs_ok, bottom_ok) masks of :func:`core.printed.clamp_masks` (None:
     every stud and socket whole), ``clutch_n`` the tension of one contact
     point in N, ``profile`` the slicer settings printed masses follow.
+    ``detail`` False gives the verdict and the worst utilisation only (one
+    small program), with ``utilisation`` and ``failures`` left empty.
 
-    Promises: every brick of ``layout`` has a utilisation; ``stable`` is
-    True exactly when no brick fails; ``layout`` is not changed.  Raises
-    :class:`InputError` for an unknown ground, a clutch not > 0, or a load
-    that touches no brick.
+    Promises: ``stable`` is True exactly when every body is held and the
+    worst utilisation is at most 1; with ``detail`` every brick has a
+    utilisation and ``failing_bricks`` are those above 1; ``layout`` is
+    not changed.  Raises :class:`InputError` for an unknown ground, a
+    clutch not > 0, or a load that touches no brick.
     """
     start = time.perf_counter()
     if ground not in GROUNDS:
         raise InputError(f"--ground {ground!r}: choose table or baseplate")
-    if not (isinstance(clutch_n, (int, float)) and math.isfinite(clutch_n) and clutch_n > 0):
+    if isinstance(clutch_n, bool) or not (isinstance(clutch_n, (int, float))
+                                          and math.isfinite(clutch_n) and clutch_n > 0):
         raise InputError(f"--clutch {clutch_n!r} must be a force in N above 0")
     loads = [parse_load(x) for x in loads]
-    n = len(layout.bricks)
-    if n == 0:
+    if not layout.bricks:
         return Forces(True, ground, 0.0, clutch_n=float(clutch_n),
                       loads=[x.to_json() for x in loads], seconds=time.perf_counter() - start)
     model = _Model(layout, ground, loads, printed, clamp, float(clutch_n), profile)
-    forces = model.solve()
+    forces = model.verdict(detail)
     forces.seconds = time.perf_counter() - start
     return forces
 
 
+#: Largest load factor the verdict looks for: a structure that needs no clutch at all
+#: reports a worst utilisation of 1 / LOAD_FACTOR_CAP (0 to the report's 4 decimals).
+LOAD_FACTOR_CAP = 1e5
+
+
 class _Model:
-    """Bodies, contacts and the LP of one :func:`analyse` call."""
+    """Bodies, contacts and the programs of one :func:`analyse` call.
+
+    Inside the programs lengths are in studs (8 mm) and forces in grams-force,
+    so that the coefficients stay near 1."""
 
     def __init__(self, layout: Layout, ground: str, loads: list[Load], printed, clamp,
                  clutch_n: float, profile):
-        self.layout, self.ground, self.loads, self.clutch = layout, ground, loads, clutch_n
+        self.layout, self.ground, self.loads = layout, ground, loads
+        self.clutch_n = clutch_n
+        self.clutch = clutch_n / (G / 1000.0)                 # grams-force
         grid = layout.grid
-        self.cell = np.asarray(grid.cell, dtype=float)
-        self.origin = np.asarray(grid.origin, dtype=float)
+        self.unit = float(grid.cell[0])
+        self.cell = np.asarray(grid.cell, dtype=float) / self.unit
+        self.origin = np.asarray(grid.origin, dtype=float) / self.unit
         bricks = layout.bricks
         n = len(bricks)
         self.lab = layout.labels()
-        # bodies: a LEGO brick each, a printed part all its bricks
         body_of = np.empty(n, dtype=np.int64)
         names: dict[str, int] = {}
         count = 0
@@ -400,32 +408,36 @@ class _Model:
                 count += 1
         self.body_of, self.nbody, self.part_body = body_of, count, names
         self.blab = np.where(self.lab >= 0, body_of[np.maximum(self.lab, 0)], -1)
+        self.sizes = np.array([b.size for b in bricks], dtype=np.int64).reshape(-1, 3)
+        self.corners = np.array([b.cell for b in bricks], dtype=np.int64).reshape(-1, 3)
+        self.printed_brick = np.array([b.kind == "printed" for b in bricks], dtype=bool)
         self.studs_ok, self.bottom_ok = (None, None) if clamp is None else (
             np.asarray(clamp[0], bool), np.asarray(clamp[1], bool))
         self._masses(printed, profile)
+        self.held = self._held()
 
     # -- masses ------------------------------------------------------------------------------
     def _masses(self, printed, profile) -> None:
-        """Per body: mass (g) and centre of mass (mm), loads included."""
+        """Per body: mass (g) and centre of mass (studs), loads included; per brick the
+        point masses resting on it (for its bending)."""
         bricks = self.layout.bricks
         lo, hi = self.layout.boxes_mm()
-        centre = (lo + hi) / 2
+        centre = (lo + hi) / 2 / self.unit
         mass = np.zeros(self.nbody)
         moment = np.zeros((self.nbody, 3))
         by_part = {p.id: p for p in printed}
         for idx, b in enumerate(bricks):
-            body = self.body_of[idx]
             if b.kind == "printed" and b.printed_part is not None:
                 continue
-            m = MASS_G.get(b.part, 0.0) if b.part in BY_NUMBER else _solid_pla_g(hi[idx] - lo[idx])
-            mass[body] += m
-            moment[body] += m * centre[idx]
+            m = MASS_G[b.part] if b.part in MASS_G else _solid_pla_g(hi[idx] - lo[idx])
+            mass[self.body_of[idx]] += m
+            moment[self.body_of[idx]] += m * centre[idx]
         for name, body in self.part_body.items():
-            members = [i for i, b in enumerate(bricks) if b.printed_part == name]
+            members = np.flatnonzero(self.body_of == body)
             part = by_part.get(name)
             if part is not None and part.mesh is not None and len(part.mesh.faces):
                 m = printed_mass_g(float(part.mesh.volume), float(part.mesh.area), profile)
-                com = np.asarray(part.mesh.center_mass, dtype=float)
+                com = np.asarray(part.mesh.center_mass, dtype=float) / self.unit
             else:
                 m = sum(_solid_pla_g(hi[i] - lo[i]) for i in members)
                 com = centre[members].mean(axis=0)
@@ -433,9 +445,8 @@ class _Model:
             moment[body] += m * com
         points: dict[int, list] = {}
         for idx, b in enumerate(bricks):
-            extra = float(getattr(b, "load_g", 0.0) or 0.0)
-            if extra:
-                points.setdefault(idx, []).append((centre[idx], extra))
+            if b.load_g:
+                points.setdefault(idx, []).append((centre[idx], float(b.load_g)))
         for load in self.loads:
             cells = _touched_cells(self.layout, load, self.lab)
             for c in cells:
@@ -447,334 +458,341 @@ class _Model:
                 moment[self.body_of[idx]] += grams * at
         self.point_masses = points
         self.mass_g = mass
-        self.com = np.where(mass[:, None] > 0, moment / np.maximum(mass, 1e-12)[:, None],
-                            self._body_centres(centre))
-
-    def _body_centres(self, centre: np.ndarray) -> np.ndarray:
-        out = np.zeros((self.nbody, 3))
-        np.add.at(out, self.body_of, centre)
-        counts = np.bincount(self.body_of, minlength=self.nbody)
-        return out / np.maximum(counts, 1)[:, None]
+        fallback = np.zeros((self.nbody, 3))
+        np.add.at(fallback, self.body_of, centre)
+        fallback /= np.maximum(np.bincount(self.body_of, minlength=self.nbody), 1)[:, None]
+        self.com = np.where(mass[:, None] > 0, moment / np.maximum(mass, 1e-12)[:, None], fallback)
 
     # -- contacts ----------------------------------------------------------------------------
     def _stud_joints(self):
-        """Cells (i, j, k) of every stud joint: lower body at k, upper at k + 1 (k = -1: ground)."""
+        """Cells (i, j, k) of every stud joint: lower body at k, upper at k + 1."""
         lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
-        i, j, k = np.nonzero((lower >= 0) & (upper >= 0) & (lower != upper))
-        return i, j, k
+        return np.nonzero((lower >= 0) & (upper >= 0) & (lower != upper))
+
+    def _held(self) -> np.ndarray:
+        """Per body: joined to the ground through joints (the others float)."""
+        i, j, k = self._stud_joints()
+        n = self.nbody
+        ground = np.unique(self.blab[:, :, 0][self.blab[:, :, 0] >= 0])
+        rows = np.concatenate([self.blab[i, j, k], ground])
+        cols = np.concatenate([self.blab[i, j, k + 1], np.full(len(ground), n)])
+        graph = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+        _, comp = connected_components(graph, directed=False)
+        return comp[:n] == comp[n]
 
     def _contact_points(self, i, j, k_up):
-        """Contact points (m, 4, 3) in mm and validity (m, 4) of the studs under cells
+        """Contact points (m, 4, 3) in studs and validity (m, 4) of the studs under cells
         (i, j, k_up), shaped by the part whose underside is at k_up."""
         up = self.lab[i, j, k_up]
-        bricks = self.layout.bricks
-        cells = np.array([bricks[u].cell[:2] for u in range(len(bricks))], dtype=np.int64)
-        sizes = np.array([bricks[u].size[:2] for u in range(len(bricks))], dtype=np.int64)
-        printed = np.array([bricks[u].kind == "printed" for u in range(len(bricks))])
-        dirs = contact_directions(sizes[up, 0], sizes[up, 1], i - cells[up, 0], j - cells[up, 1],
-                                  printed[up])
+        dirs = contact_directions(self.sizes[up, 0], self.sizes[up, 1], i - self.corners[up, 0],
+                                  j - self.corners[up, 1], self.printed_brick[up])
         centre = self.origin[:2] + (np.stack([i, j], axis=1) + 0.5) * self.cell[:2]
         xy = centre[:, None, :] + CONTACT_RADIUS * self.cell[:2] * dirs
         z = self.origin[2] + k_up * self.cell[2]
         pts = np.concatenate([xy, np.broadcast_to(z[:, None, None], xy.shape[:2] + (1,))], axis=2)
         return pts, ~np.isnan(dirs[:, :, 0])
 
-    # -- the program ---------------------------------------------------------------------------
-    def solve(self) -> Forces:
-        held, supported = self._supported()
+    # -- the programs ------------------------------------------------------------------------
+    def verdict(self, detail: bool) -> Forces:
+        """Phase 1: the largest load factor (gravity and loads times it) the joints carry with
+        their clutch; the worst utilisation is its inverse.  Phase 2 (``detail``): at the real
+        loads, each joint's utilisation, the sum of them least, none above phase 1's worst."""
+        prog, parts = self._program(detail=False)
+        status, x = prog.solve()
+        factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
+        worst = 1.0 / factor if factor > 0 else math.inf
+        floats = ~self.held[self.body_of]
+        stable = bool(worst <= FAIL_ABOVE and not floats.any())
+        if not detail:
+            failing = [b.id for b, f in zip(self.layout.bricks, floats) if f]
+            return self._forces(stable, worst, {}, sorted(failing), sorted(failing), [])
+        prog, parts = self._program(detail=True, cap=worst)
+        status, x = prog.solve()
+        residual = np.zeros(self.nbody)
+        if status != "optimal":
+            slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e3)
+            prog.put(np.repeat(parts["eq"], 2), slack, np.tile([1.0, -1.0], 6 * self.nbody))
+            status, x = prog.solve()
+            if status != "optimal":
+                raise RuntimeError(f"the force program with slack ended {status}")
+            residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
+        return self._detail(x, parts, stable, worst, residual > 1e-6)
+
+    def _program(self, detail: bool, cap: float = math.inf):
+        """The LP of a phase: equilibrium rows of every held body, contacts, bending."""
         prog = _Program()
-        self.spread = []
-        u = prog.columns(1, 0.0, np.inf, 1.0)[0]
-        eq = prog.new_rows(6 * self.nbody, 0.0, 0.0)        # filled below with gravity
-        rhs = np.zeros((self.nbody, 6))
-        weight = self.mass_g / 1000.0 * G
-        rhs[:, 2] = weight                                    # sum Fz - W = 0  ->  sum Fz = W
-        # joints between bodies
+        parts: dict = {}
+        if detail:
+            factor = prog.columns(1, 1.0, 1.0)[0]
+        else:
+            factor = prog.columns(1, 0.0, LOAD_FACTOR_CAP, -1.0)[0]
+        parts["factor"] = factor
+        eq = prog.new_rows(6 * self.nbody, 0.0, 0.0)
+        parts["eq"] = eq
+        held = self.held
+        prog.put(eq[6 * np.flatnonzero(held) + 2], factor, -self.mass_g[held])
+        zcap = np.inf if not math.isfinite(cap) else max(cap, 1.0 / LOAD_FACTOR_CAP) * (1 + 1e-6)
         i, j, k = self._stud_joints()
-        lower_b = self.blab[i, j, k]
-        upper_b = self.blab[i, j, k + 1]
+        lower_b, upper_b = self.blab[i, j, k], self.blab[i, j, k + 1]
         keep = held[lower_b] & held[upper_b]
         i, j, k, lower_b, upper_b = i[keep], j[keep], k[keep], lower_b[keep], upper_b[keep]
-        tension_ok = np.ones(len(i), bool)
+        pull_ok = np.ones(len(i), bool)
         if self.studs_ok is not None:
-            tension_ok = self.studs_ok[i, j, k] & self.bottom_ok[i, j, k + 1]
-        self.joint_cells = (i, j, k)
+            pull_ok = self.studs_ok[i, j, k] & self.bottom_ok[i, j, k + 1]
+        parts["joints"] = (i, j, k)
         pts, valid = self._contact_points(i, j, k + 1)
-        tension_cols = self._vertical(prog, eq, pts, valid, upper_b, lower_b, tension_ok, u)
+        parts["studs"] = self._vertical(prog, eq, pts, valid, upper_b, lower_b, pull_ok,
+                                        detail, zcap)
         self._shear(prog, eq, np.stack([i, j], 1), k + 1, upper_b, lower_b)
-        self.joint_tension = tension_cols
-        # ground
         gi, gj = np.nonzero(self.blab[:, :, 0] >= 0)
+        parts["ground_cells"] = (gi, gj)
         gb = self.blab[gi, gj, 0]
-        keep = held[gb]
-        gi, gj, gb = gi[keep], gj[keep], gb[keep]
-        self.ground_cells = (gi, gj)
         if self.ground == "baseplate":
             gpts, gvalid = self._contact_points(gi, gj, np.zeros(len(gi), dtype=np.int64))
-            self.ground_tension = self._vertical(prog, eq, gpts, gvalid, gb, None,
-                                                 np.ones(len(gi), bool), u)
+            parts["base"] = self._vertical(prog, eq, gpts, gvalid, gb, None,
+                                           np.ones(len(gi), bool), detail, zcap)
             self._shear(prog, eq, np.stack([gi, gj], 1), np.zeros(len(gi), np.int64), gb, None)
         else:
-            self.ground_tension = None
+            parts["base"] = None
             self._table(prog, eq, gi, gj, gb)
-        self._sides(prog, eq, held)
-        self._bending(prog, u, held)
-        # equilibrium right-hand sides: gravity at the centre of mass, moments about it
-        lo_hi = rhs.ravel()
-        prog.row_lo[0] = lo_hi.copy()
-        prog.row_hi[0] = lo_hi.copy()
-        spread = np.concatenate(self.spread) if self.spread else np.zeros(0, np.int64)
-        status, x = prog.solve(u, spread)
-        residual = np.zeros(self.nbody)
-        if status == "infeasible":
-            slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e4)
-            signs = np.tile([1.0, -1.0], 6 * self.nbody)
-            prog.put(np.repeat(eq, 2), slack, signs)
-            status, x = prog.solve(u, spread)
-            if status != "optimal":
-                raise RuntimeError("the force program with slack is infeasible")
-            residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
-        return self._verdict(x, held & (residual < 1e-7), held)
-
-    def _supported(self):
-        """(held, _) per body: bodies joined to the ground through joints (others float)."""
-        i, j, k = self._stud_joints()
-        a, b = self.blab[i, j, k], self.blab[i, j, k + 1]
-        n = self.nbody
-        graph = sparse.coo_matrix((np.ones(len(a)), (a, b)), shape=(n + 1, n + 1))
-        on_ground = np.unique(self.blab[:, :, 0][self.blab[:, :, 0] >= 0])
-        graph = sparse.coo_matrix((np.concatenate([graph.data, np.ones(len(on_ground))]),
-                                   (np.concatenate([graph.row, on_ground]),
-                                    np.concatenate([graph.col, np.full(len(on_ground), n)]))),
-                                  shape=(n + 1, n + 1))
-        _, comp = connected_components(graph, directed=False)
-        held = comp[:n] == comp[n]
-        return held, None
+        parts["sections"] = self._bending(prog, parts, factor, detail, zcap)
+        return prog, parts
 
     def _moment_rows(self, prog, eq, body, pts, force_dir, cols, sign):
-        """Add force ``sign * force_dir * x[cols]`` at points ``pts`` to the equations of ``body``."""
-        r = pts - self.com[body]
+        """Add forces ``sign * force_dir * x[cols]`` at points ``pts`` to ``body``'s equations."""
         f = sign[:, None] * force_dir
-        moment = np.cross(r, f)
+        moment = np.cross(pts - self.com[body], f)
         base = 6 * body
         for axis in range(3):
             prog.put(eq[base + axis], cols, f[:, axis])
             prog.put(eq[base + 3 + axis], cols, moment[:, axis])
 
-    def _vertical(self, prog, eq, pts, valid, upper_b, lower_b, tension_ok, u):
-        """Vertical contact forces (on the upper body, up) at ``pts``; tension columns per joint."""
+    def _vertical(self, prog, eq, pts, valid, upper_b, lower_b, pull_ok, detail, zcap):
+        """Vertical forces at the contact points ``pts`` of each stud, on the upper body (the
+        lower one, None for the baseplate, takes the opposite): a column at every point,
+        pressing above 0, which may pull (go below 0) where the stud clamps: down to minus the clutch
+        (phase 1), or to minus the clutch times its joint's utilisation z (phase 2: one z per
+        pair of bodies).
+        Each stud's net force is a column of its own (the bending rows use it)."""
         m = len(upper_b)
         cp = np.flatnonzero(valid.ravel())
-        owner = cp // 4
+        stud = cp // 4
         p = pts.reshape(-1, 3)[cp]
-        can_pull = tension_ok[owner]
-        v = prog.columns(len(cp), -np.inf, np.inf)
-        # compression-only points: v >= 0 through a row (cheaper than splitting the columns)
-        if (~can_pull).any():
-            rows = prog.new_rows(int((~can_pull).sum()), 0.0, np.inf)
-            prog.put(rows, v[~can_pull], 1.0)
-        pull = np.flatnonzero(can_pull)
-        t = prog.columns(len(pull), 0.0, np.inf)
-        rows = prog.new_rows(len(pull), 0.0, np.inf)          # v + t >= 0: t is the pull
-        prog.put(rows, v[pull], 1.0)
-        prog.put(rows, t, 1.0)
-        # one joint per pair of bodies: z >= pull / clutch at each of its points, u >= z
-        pair = upper_b.astype(np.int64) * (self.nbody + 1) + (
-            self.nbody if lower_b is None else lower_b)
-        keys, joint_of_stud = np.unique(pair, return_inverse=True)
-        z = prog.columns(len(keys), 0.0, np.inf)
-        self.spread.append(z)
-        rows = prog.new_rows(len(pull), -np.inf, 0.0)          # t - T z <= 0
-        prog.put(rows, t, 1.0)
-        prog.put(rows, z[joint_of_stud[owner[pull]]], -self.clutch)
-        rows = prog.new_rows(len(keys), -np.inf, 0.0)          # z - u <= 0
-        prog.put(rows, z, 1.0)
-        prog.put(rows, np.full(len(keys), u), -1.0)
-        up = np.array([0.0, 0.0, 1.0])
+        pulls = pull_ok[stud]
+        lower = np.where(pulls, -np.inf if detail else -self.clutch, 0.0)
+        v = prog.columns(len(cp), lower, np.inf)               # up on the upper body: press > 0
+        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (len(cp), 3))
         ones = np.ones(len(cp))
-        self._moment_rows(prog, eq, upper_b[owner], p, np.broadcast_to(up, p.shape), v, ones)
+        self._moment_rows(prog, eq, upper_b[stud], p, up, v, ones)
         if lower_b is not None:
-            self._moment_rows(prog, eq, lower_b[owner], p, np.broadcast_to(up, p.shape), v, -ones)
-        return {"owner": owner, "v": v, "points": p, "joints": m, "z": z,
-                "joint_of_stud": joint_of_stud}
+            self._moment_rows(prog, eq, lower_b[stud], p, up, v, -ones)
+        net = prog.columns(m, -np.inf, np.inf)                 # net = sum of the stud's points
+        rows = prog.new_rows(m, 0.0, 0.0)
+        prog.put(rows, net, 1.0)
+        prog.put(rows[stud], v, -1.0)
+        out = {"net": net}
+        if detail:
+            pair = upper_b.astype(np.int64) * (self.nbody + 1) + (
+                self.nbody if lower_b is None else lower_b)
+            keys, joint = np.unique(pair, return_inverse=True)
+            z = prog.columns(len(keys), 0.0, zcap, 1.0)
+            at = np.flatnonzero(pulls)
+            rows = prog.new_rows(len(at), 0.0, np.inf)         # v + clutch z >= 0
+            prog.put(rows, v[at], 1.0)
+            prog.put(rows, z[joint[stud[at]]], self.clutch)
+            out.update(z=z, joint=joint)
+        return out
 
     def _shear(self, prog, eq, ij, k_up, upper_b, lower_b):
-        """Horizontal forces at each stud's axis in the joint plane (free)."""
-        m = len(upper_b)
+        """Per joint (all studs between two bodies): a horizontal force in x and y at the
+        centre of its studs in the joint plane, and a twisting couple about z (free)."""
+        if not len(upper_b):
+            return
+        pair = upper_b.astype(np.int64) * (self.nbody + 1) + (
+            self.nbody if lower_b is None else lower_b)
+        keys, inv = np.unique(pair, return_inverse=True)
+        m = len(keys)
+        count = np.bincount(inv, minlength=m)
         centre = self.origin[:2] + (ij + 0.5) * self.cell[:2]
-        pts = np.concatenate([centre, (self.origin[2] + k_up * self.cell[2])[:, None]], axis=1)
+        pts = np.stack([np.bincount(inv, centre[:, 0], m) / count,
+                        np.bincount(inv, centre[:, 1], m) / count,
+                        np.bincount(inv, self.origin[2] + k_up * self.cell[2], m) / count], axis=1)
+        first = np.zeros(m, dtype=np.int64)
+        first[inv[::-1]] = np.arange(len(inv))[::-1]
+        up_b = upper_b[first]
+        lo_b = None if lower_b is None else lower_b[first]
         for axis in (0, 1):
             cols = prog.columns(m, -np.inf, np.inf)
             d = np.zeros((m, 3))
             d[:, axis] = 1.0
-            self._moment_rows(prog, eq, upper_b, pts, d, cols, np.ones(m))
-            if lower_b is not None:
-                self._moment_rows(prog, eq, lower_b, pts, d, cols, -np.ones(m))
+            self._moment_rows(prog, eq, up_b, pts, d, cols, np.ones(m))
+            if lo_b is not None:
+                self._moment_rows(prog, eq, lo_b, pts, d, cols, -np.ones(m))
+        twist = prog.columns(m, -np.inf, np.inf)
+        prog.put(eq[6 * up_b + 5], twist, 1.0)
+        if lo_b is not None:
+            prog.put(eq[6 * lo_b + 5], twist, -1.0)
 
     def _table(self, prog, eq, gi, gj, gb):
-        """Bottom cells on a table: the four corners press (>= 0), friction <= mu * press."""
-        m = len(gb)
-        if m == 0:
+        """Bodies on a table press down at the corners of the outline of their bottom cells
+        (the convex hull: nothing inside it matters to a support that only presses), and
+        slide only against friction: |horizontal force| <= mu * press, per body."""
+        held = self.held[gb]
+        gi, gj, gb = gi[held], gj[held], gb[held]
+        if not len(gb):
             return
-        corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
-        inset = np.array([0.1, 0.1]) / self.cell[:2]
-        corners = inset + corners * (1 - 2 * inset)
-        xy = self.origin[:2] + (np.stack([gi, gj], 1)[:, None, :] + corners[None]) * self.cell[:2]
-        z = np.full((m, 4, 1), self.origin[2])
-        pts = np.concatenate([xy, z], axis=2).reshape(-1, 3)
-        press = prog.columns(4 * m, 0.0, np.inf)
-        owner = np.repeat(np.arange(m), 4)
-        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
-        self._moment_rows(prog, eq, gb[owner], pts, up, press, np.ones(4 * m))
-        centre = np.concatenate([self.origin[:2] + (np.stack([gi, gj], 1) + 0.5) * self.cell[:2],
-                                 np.full((m, 1), self.origin[2])], axis=1)
+        from scipy.spatial import ConvexHull, QhullError
+        inset = 0.1 / self.unit
+        pts, owner = [], []
+        for body in np.unique(gb):
+            sel = gb == body
+            lo = self.origin[:2] + np.stack([gi[sel], gj[sel]], 1) * self.cell[:2] + inset
+            hi = lo + self.cell[:2] - 2 * inset
+            corners = np.unique(np.concatenate([lo, hi, np.stack([lo[:, 0], hi[:, 1]], 1),
+                                                np.stack([hi[:, 0], lo[:, 1]], 1)]), axis=0)
+            if len(corners) > 4:
+                try:
+                    corners = corners[ConvexHull(corners).vertices]
+                except QhullError:
+                    pass
+            pts.append(corners)
+            owner.append(np.full(len(corners), body))
+        pts, owner = np.concatenate(pts), np.concatenate(owner)
+        pts3 = np.concatenate([pts, np.full((len(pts), 1), self.origin[2])], axis=1)
+        press = prog.columns(len(pts), 0.0, np.inf)
+        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts3.shape)
+        self._moment_rows(prog, eq, owner, pts3, up, press, np.ones(len(pts)))
+        bodies = np.unique(owner)
+        m = len(bodies)
+        where = np.searchsorted(bodies, owner)
+        centre = np.stack([np.bincount(where, pts3[:, a]) / np.bincount(where) for a in range(3)], 1)
         for axis in (0, 1):
             f = prog.columns(m, -np.inf, np.inf)
             d = np.zeros((m, 3))
             d[:, axis] = 1.0
-            self._moment_rows(prog, eq, gb, centre, d, f, np.ones(m))
+            self._moment_rows(prog, eq, bodies, centre, d, f, np.ones(m))
             for sign in (1.0, -1.0):                      # +-f - mu * sum(press) <= 0
                 rows = prog.new_rows(m, -np.inf, 0.0)
                 prog.put(rows, f, sign)
-                prog.put(np.repeat(rows, 4), press, -TABLE_FRICTION)
+                prog.put(rows[where], press, -TABLE_FRICTION)
+        twist = prog.columns(m, -np.inf, np.inf)
+        prog.put(eq[6 * bodies + 5], twist, 1.0)
 
-    def _sides(self, prog, eq, held):
-        """Bodies side by side in a layer push each other apart (>= 0) at the shared face."""
-        for axis in (0, 1):
-            a = [slice(None)] * 3
-            b = [slice(None)] * 3
-            a[axis], b[axis] = slice(None, -1), slice(1, None)
-            la, lb = self.blab[tuple(a)], self.blab[tuple(b)]
-            i, j, k = np.nonzero((la >= 0) & (lb >= 0) & (la != lb))
-            if not len(i):
-                continue
-            ba, bb = la[i, j, k], lb[i, j, k]
-            keep = held[ba] & held[bb]
-            i, j, k, ba, bb = i[keep], j[keep], k[keep], ba[keep], bb[keep]
-            m = len(i)
-            pos = (np.stack([i, j, k], 1) + 0.5) * self.cell + self.origin
-            pos[:, axis] += 0.5 * self.cell[axis]
-            cols = prog.columns(m, 0.0, np.inf)
-            d = np.zeros((m, 3))
-            d[:, axis] = 1.0
-            self._moment_rows(prog, eq, bb, pos, d, cols, np.ones(m))
-            self._moment_rows(prog, eq, ba, pos, d, cols, -np.ones(m))
-
-    def _bending(self, prog, u, held) -> None:
-        """|bending moment| <= u * strength across every section between a LEGO brick's studs.
+    def _bending(self, prog, parts, factor, detail, zcap) -> list:
+        """|bending moment| / strength <= 1 (phase 1) or <= the brick's utilisation column
+        (phase 2) across every section between a LEGO brick's studs.
 
         The moment about a section is that of the vertical forces on one side
-        of it: the contact points there, the brick's own weight shared by its
-        cells, and the masses resting on those cells (shear in the joint
-        planes and side pushes are left out).  Records each section in
-        :attr:`sections` as (brick index, columns, coefficients, constant, strength).
-        """
-        self.sections = []
-        bricks = self.layout.bricks
-        lo, hi = self.layout.boxes_mm()
-        pts, cols, sign, owner = [], [], [], []
-        i, j, k = self.joint_cells
-        vt = self.joint_tension
+        of it: the studs' net forces there, and the brick's own weight shared
+        by its cells and the masses resting on those cells (times the load
+        factor).  Shear in the joint planes is left out.  Returns the sections
+        as (brick index, net columns, coefficients, weight moment, utilisation
+        column or -1)."""
+        i, j, k = parts["joints"]
+        studs = parts["studs"]
+        cols, signs, owner, xy = [], [], [], []
+        centre = self.origin[:2] + (np.stack([i, j], 1) + 0.5) * self.cell[:2]
         for brick_lab, s in ((self.lab[i, j, k + 1], 1.0), (self.lab[i, j, k], -1.0)):
-            pts.append(vt["points"])
-            cols.append(vt["v"])
-            sign.append(np.full(len(vt["v"]), s))
-            owner.append(brick_lab[vt["owner"]])
-        if self.ground_tension is not None:
-            gi, gj = self.ground_cells
-            gt = self.ground_tension
-            pts.append(gt["points"])
-            cols.append(gt["v"])
-            sign.append(np.ones(len(gt["v"])))
-            owner.append(self.lab[gi, gj, 0][gt["owner"]])
-        pts, cols, sign, owner = (np.concatenate(x) for x in (pts, cols, sign, owner))
+            cols.append(studs["net"])
+            signs.append(np.full(len(i), s))
+            owner.append(brick_lab)
+            xy.append(centre)
+        if parts["base"] is not None:
+            gi, gj = parts["ground_cells"]
+            cols.append(parts["base"]["net"])
+            signs.append(np.ones(len(gi)))
+            owner.append(self.lab[gi, gj, 0])
+            xy.append(self.origin[:2] + (np.stack([gi, gj], 1) + 0.5) * self.cell[:2])
+        cols, signs, owner, xy = (np.concatenate(v) for v in (cols, signs, owner, xy))
         order = np.argsort(owner, kind="stable")
-        pts, cols, sign, owner = pts[order], cols[order], sign[order], owner[order]
+        cols, signs, owner, xy = cols[order], signs[order], owner[order], xy[order]
+        bricks = self.layout.bricks
         starts = np.searchsorted(owner, np.arange(len(bricks) + 1))
+        sections = []
+        scale = 1000.0 / G / self.unit                      # N mm -> grams-force studs
         for idx, b in enumerate(bricks):
-            if b.kind == "printed" or b.part not in BY_NUMBER or not held[self.body_of[idx]]:
+            if b.part not in MASS_G or not self.held[self.body_of[idx]] or max(b.size[:2]) < 2:
                 continue
-            p, c, sg = (x[starts[idx]:starts[idx + 1]] for x in (pts, cols, sign))
-            own = MASS_G.get(b.part, 0.0)
+            c, sg, p = (v[starts[idx]:starts[idx + 1]] for v in (cols, signs, xy))
+            lo = self.origin + np.asarray(b.cell) * self.cell
             extra = self.point_masses.get(idx, [])
+            util = prog.columns(1, 0.0, zcap, 1.0)[0] if detail else -1
             for axis in (0, 1):
                 length = b.size[axis]
                 if length < 2:
                     continue
-                cap = bending_capacity_nmm(b.size[1 - axis], b.size[2], self.cell)
+                strength = bending_capacity_nmm(b.size[1 - axis], b.size[2],
+                                                self.cell * self.unit) * scale
                 for cut in range(1, length):
-                    at = lo[idx, axis] + cut * self.cell[axis]
+                    at = lo[axis] + cut * self.cell[axis]
                     far = p[:, axis] > at
                     share = (length - cut) / length
-                    weight_nmm = own * share * (hi[idx, axis] - at) / 2
-                    weight_nmm += sum(g * (xyz[axis] - at) for xyz, g in extra if xyz[axis] > at)
-                    const = -weight_nmm / 1000.0 * G
-                    coef = sg[far] * (p[far, axis] - at)
-                    rows = prog.new_rows(2, -np.inf, np.array([-const, const]))
-                    prog.put(np.full(len(coef), rows[0]), c[far], coef)
-                    prog.put(np.full(len(coef), rows[1]), c[far], -coef)
-                    prog.put(rows, [u, u], [-cap, -cap])
-                    self.sections.append((idx, c[far], coef, const, cap))
+                    weight = MASS_G[b.part] * share * (length - cut) * self.cell[axis] / 2
+                    weight += sum(g * (xyz[axis] - at) for xyz, g in extra if xyz[axis] > at)
+                    coef = sg[far] * (p[far, axis] - at) / strength
+                    rows = prog.new_rows(2, -np.inf, 0.0 if detail else 1.0)
+                    for r, s in zip(rows, (1.0, -1.0)):
+                        prog.put(np.full(len(coef), r), c[far], s * coef)
+                        prog.put(r, factor, -s * weight / strength)
+                        if detail:
+                            prog.put(r, util, -1.0)
+                    sections.append((idx, c[far], coef, weight / strength, util))
+        return sections
 
     # -- verdict -------------------------------------------------------------------------------
-    def _verdict(self, x, ok, held) -> Forces:
-        """Utilisation per brick from the solution ``x``; failing and unsupported bricks."""
+    def _forces(self, stable, worst, util, failing, unsupported, failures) -> Forces:
+        return Forces(stable=stable, ground=self.ground, max_utilisation=worst, utilisation=util,
+                      failing_bricks=failing, unsupported=unsupported, failures=failures,
+                      mass_g=float(self.mass_g.sum()), clutch_n=self.clutch_n,
+                      loads=[x.to_json() for x in self.loads])
+
+    def _detail(self, x, parts, stable, worst, tips) -> Forces:
+        """Utilisation per brick from phase 2's solution ``x``; failing and unsupported bricks."""
         bricks = self.layout.bricks
         n = len(bricks)
-        below = np.zeros(n)
-        above = np.zeros(n)
+        below, above = np.zeros(n), np.zeros(n)
         has_below = np.zeros(n, bool)
-        vt = self.joint_tension
-        i, j, k = self.joint_cells
+        i, j, k = parts["joints"]
         if len(i):
-            per_joint = x[vt["z"]][vt["joint_of_stud"]]
+            studs = parts["studs"]
+            per_stud = x[studs["z"]][studs["joint"]]
             ub, lb = self.lab[i, j, k + 1], self.lab[i, j, k]
-            np.maximum.at(below, ub, per_joint)
-            np.maximum.at(above, lb, per_joint)
+            np.maximum.at(below, ub, per_stud)
+            np.maximum.at(above, lb, per_stud)
             has_below[ub] = True
-        gi, gj = self.ground_cells
+        gi, gj = parts["ground_cells"]
         if len(gi):
             gb = self.lab[gi, gj, 0]
             has_below[gb] = True
-            if self.ground_tension is not None:
-                gt = self.ground_tension
-                np.maximum.at(below, gb, x[gt["z"]][gt["joint_of_stud"]])
+            if parts["base"] is not None:
+                np.maximum.at(below, gb, x[parts["base"]["z"]][parts["base"]["joint"]])
         util = np.where(has_below, below, above)
         mode = np.array(["clutch"] * n, dtype=object)
-        bend = self._bending_use(x)
-        more = bend > util
+        bend = np.zeros(n)
+        for idx, cols, coef, weight, _ in parts["sections"]:
+            moment = float(coef @ x[cols]) - weight
+            bend[idx] = max(bend[idx], abs(moment))
+        mode[bend > util] = "bending"
         util = np.maximum(util, bend)
-        mode[more] = "bending"
-        # a printed part's bricks share their body's worst utilisation
-        for name, body in self.part_body.items():
+        for body in self.part_body.values():
             members = np.flatnonzero(self.body_of == body)
             util[members] = util[members].max()
-        floats = ~held[self.body_of]
-        tips = held[self.body_of] & ~ok[self.body_of]
-        util[floats | tips] = np.inf
+        floats = ~self.held[self.body_of]
+        tipping = self.held[self.body_of] & tips[self.body_of]
+        util[floats | tipping] = np.inf
         mode[floats] = "floats"
-        mode[tips] = "tips"
+        mode[tipping] = "tips"
         failing = np.flatnonzero(util > FAIL_ABOVE)
-        failures = [self._failure(int(b), float(util[b]), str(mode[b])) for b in failing]
-        ids = [bricks[b].id for b in range(n)]
-        worst = float(util.max()) if n else 0.0
-        return Forces(stable=not len(failing), ground=self.ground, max_utilisation=worst,
-                      utilisation={ids[b]: float(util[b]) for b in range(n)},
-                      failing_bricks=sorted(ids[b] for b in failing),
-                      unsupported=sorted(ids[b] for b in np.flatnonzero(floats | tips)),
-                      failures=sorted(failures, key=lambda f: f["brick"]),
-                      mass_g=float(self.mass_g.sum()), clutch_n=self.clutch,
-                      loads=[x_.to_json() for x_ in self.loads])
-
-    def _bending_use(self, x) -> np.ndarray:
-        """Per brick: the worst |bending moment| / strength over its sections in ``x``."""
-        out = np.zeros(len(self.layout.bricks))
-        for idx, cols, coef, const, cap in self.sections:
-            moment = float(coef @ x[cols]) + const
-            out[idx] = max(out[idx], abs(moment) / cap)
-        return out
+        ids = [b.id for b in bricks]
+        failures = sorted((self._failure(int(b), float(util[b]), str(mode[b])) for b in failing),
+                          key=lambda f: f["brick"])
+        return self._forces(stable and not len(failing), worst,
+                            {ids[b]: float(util[b]) for b in range(n)},
+                            sorted(ids[b] for b in failing),
+                            sorted(ids[b] for b in np.flatnonzero(floats | tipping)), failures)
 
     def _failure(self, b: int, util: float, mode: str) -> dict:
+        """One failing brick for the report: where it is, how it fails, in words."""
         brick = self.layout.bricks[b]
         what = (f"printed part {brick.printed_part}" if brick.kind == "printed"
                 else f"LEGO {BY_NUMBER[brick.part].name.lower()} {brick.part}" if brick.part in BY_NUMBER
