@@ -516,7 +516,19 @@ class _Model:
             if status != "optimal":
                 raise RuntimeError(f"the force program with slack ended {status}")
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
-        return self._detail(x, parts, stable, worst, residual > 1e-6)
+        return self._detail(x, parts, stable, worst, self._tipping(residual > 1e-6))
+
+    def _tipping(self, pushed: np.ndarray) -> np.ndarray:
+        """Per body: in a structure that tips as a whole.  Phase 2 lets every joint pull as
+        hard as it must, so what still cannot balance (``pushed``: the bodies the slack had to
+        push) is a rigid structure whose weight falls outside its support: all of it tips."""
+        if not pushed.any():
+            return pushed
+        i, j, k = self._stud_joints()
+        a, b = self.blab[i, j, k], self.blab[i, j, k + 1]
+        graph = sparse.coo_matrix((np.ones(len(a)), (a, b)), shape=(self.nbody, self.nbody))
+        _, comp = connected_components(graph, directed=False)
+        return np.isin(comp, comp[pushed])
 
     def _program(self, detail: bool, cap: float = math.inf):
         """The LP of a phase: equilibrium rows of every held body, contacts, bending."""

@@ -1,0 +1,240 @@
+"""The force stage against known answers: a real build (StableLego's staircase),
+hand calculations of a cantilever, and PrusaSlicer's own filament weights."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import trimesh
+
+from core import forces
+from core.catalog import MASS_G
+from core.errors import InputError
+from core.model import Brick, Grid, Layout
+
+CELL = np.array([8.0, 8.0, 3.2])
+#: The clutch in grams-force (the programs' unit): 0.98 N.
+T_GF = forces.CLUTCH_N / (forces.G / 1000.0)
+
+
+def layout_of(bricks: list[Brick]) -> Layout:
+    """A layout of ``bricks`` on a grid just large enough, origin at 0."""
+    top = np.max([np.add(b.cell, b.size) for b in bricks], axis=0)
+    filled = np.zeros(tuple(int(v) for v in top), dtype=bool)
+    for b in bricks:
+        assert not filled[b.slices()].any(), "bricks overlap"
+        filled[b.slices()] = True
+    return Layout(Grid(np.zeros(3), CELL.copy(), filled), bricks)
+
+
+def staircase(levels: int) -> Layout:
+    """StableLego's staircase: 2x4 bricks, each two studs further along than the one below."""
+    return layout_of([Brick(n + 1, "3001", (4, 2, 3), (2 * n, 0, 3 * n)) for n in range(levels)])
+
+
+def test_staircase_stands_at_19_and_falls_at_20_at_the_second_brick():
+    """StableLego (validated on real builds): 19 levels stand, 20 collapse, failing at the
+    second brick, with T = 100 g per contact."""
+    assert forces.analyse(staircase(19), ground="baseplate").stable
+    twenty = forces.analyse(staircase(20), ground="baseplate")
+    assert not twenty.stable
+    assert twenty.failing_bricks == [2]
+    assert twenty.failures[0]["mode"] == "clutch"
+
+
+def test_staircase_utilisation_is_the_hand_calculation():
+    """The joint under the second brick carries bricks 2..N as one overhang.  It tips about
+    its contact point furthest along x (the tube contact of its second stud, at x = 3.5 +
+    0.2 * sqrt(1/2) studs); every contact point nearer the start pulls with the clutch at
+    most.  Worst utilisation = moment of the overhang / moment of the full clutch."""
+    n = 20
+    r = forces.CONTACT_RADIUS
+    d = r * math.sqrt(0.5)
+    pivot = 3.5 + d
+    # per row of studs (y = 0 and y = 1 alike): stud at 2.5 has its end wall (x - r),
+    # outer wall (x) and tube (x + d); stud at 3.5: outer wall (x), tubes (x - d), (x + d)
+    xs = [2.5 - r, 2.5, 2.5 + d, 3.5, 3.5 - d, 3.5 + d]
+    resist = 2 * sum(pivot - x for x in xs) * T_GF
+    com = np.mean([2 * m + 2 for m in range(1, n)])          # bricks 2..N, centres in studs
+    demand = (n - 1) * MASS_G["3001"] * (com - pivot)
+    result = forces.analyse(staircase(n), ground="baseplate")
+    assert result.max_utilisation == pytest.approx(demand / resist, rel=1e-4)
+    assert result.utilisation[2] == pytest.approx(demand / resist, rel=1e-4)
+
+
+def test_staircase_on_a_table_tips_over():
+    """Without a baseplate nothing holds the first brick down: the staircase's centre of
+    mass is far beyond its footprint (x = 0..4 studs), so it tips over."""
+    result = forces.analyse(staircase(6), ground="table")
+    assert not result.stable
+    assert math.isinf(result.max_utilisation)
+    assert result.unsupported and {f["mode"] for f in result.failures} == {"tips"}
+
+
+def test_staircase_on_a_table_tips_when_its_centre_of_mass_leaves_the_footprint():
+    """By hand: the first brick rests on x = 0..4 studs (less 0.1 mm of play each side).
+    Two levels have their centre of mass at x = 3 (bricks centred at 2 and 4): they stand.
+    Three levels have it at x = 4, past the edge: they tip over, whatever the studs hold."""
+    assert forces.analyse(staircase(2), ground="table").stable
+    three = forces.analyse(staircase(3), ground="table")
+    assert not three.stable and three.unsupported == [1, 2, 3]
+
+
+@pytest.mark.parametrize("ground", ["table", "baseplate"])
+def test_tower_of_1x1_bricks_stands(ground):
+    tower = layout_of([Brick(n + 1, "3005", (1, 1, 3), (0, 0, 3 * n)) for n in range(12)])
+    result = forces.analyse(tower, ground=ground)
+    assert result.stable and not result.failing_bricks
+    assert result.max_utilisation < 1e-3
+    assert result.mass_g == pytest.approx(12 * MASS_G["3005"])
+
+
+PLATES_1_WIDE = {1: "3024", 2: "3023", 3: "3623", 4: "3710", 6: "3666", 8: "3460"}
+
+
+def cantilever(length: int) -> Layout:
+    """A 1x1 brick on the baseplate, and a 1 x ``length`` plate on it by its first stud."""
+    return layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0)),
+                      Brick(2, PLATES_1_WIDE[length], (length, 1, 1), (0, 0, 3))])
+
+
+@pytest.mark.parametrize("length", [2, 3, 4, 6, 8])
+def test_cantilever_with_a_weight_at_its_tip_breaks_past_the_hand_length(length):
+    """The plate hangs on one stud gripped at four points 0.2 studs from its axis.  It
+    tips about the point towards the tip (x = 0.7 studs); the point opposite pulls with
+    lever 0.4, the two beside with 0.2 each: the joint holds 0.8 T studs.  The plate's
+    weight acts at L/2, the tip load (20 g) at L - 0.5."""
+    tip = 20.0
+    r = forces.CONTACT_RADIUS
+    pivot = 0.5 + r
+    capacity = (2 * r + r + r) * T_GF
+    demand = MASS_G[PLATES_1_WIDE[length]] * (length / 2 - pivot) + tip * (length - 0.5 - pivot)
+    box = f"{(length - 1) * 8},0,12.8,{length * 8},8,16:{tip}"
+    result = forces.analyse(cantilever(length), ground="baseplate", loads=[box])
+    assert result.utilisation[2] == pytest.approx(demand / capacity, rel=1e-4)
+    assert result.stable == (demand <= capacity)
+    # by hand: 1x4 holds 20 g at its tip, 1x6 does not
+    assert result.stable == (length <= 4)
+
+
+def bridge(part: str, layers: int) -> Layout:
+    """Two 2x2 towers two bricks high on a table, 6 studs apart, spanned by a 2x8 ``part``."""
+    bricks = [Brick(n + 1, "3003", (2, 2, 3), (x, 0, 3 * h))
+              for n, (x, h) in enumerate([(0, 0), (0, 1), (6, 0), (6, 1)])]
+    bricks.append(Brick(5, part, (8, 2, layers), (0, 0, 6)))
+    return layout_of(bricks)
+
+
+def test_bridge_of_one_plate_holds_less_than_a_brick():
+    """A load on the middle two columns of studs: the plate (3.2 mm tall) breaks by bending
+    long before the brick (9.6 mm) does.  The load a bridge holds is load / utilisation
+    (its own weight is small against 5 kg)."""
+    held = {}
+    for part, layers in (("3034", 1), ("3007", 3)):
+        top = (6 + layers) * 3.2
+        result = forces.analyse(bridge(part, layers), ground="table",
+                                loads=[f"24,0,{top},40,16,{top + 10}:5000"])
+        held[part] = 5000 / result.max_utilisation
+        assert result.utilisation[5] == pytest.approx(result.max_utilisation, rel=1e-5)
+    assert held["3034"] < held["3007"]
+    # by hand, as a beam on two supports without end moments: the reactions at the
+    # innermost contact points (tubes 0.2 * sqrt(1/2) studs beyond the studs at 1.5 and
+    # 6.5), the load at 3.5 and 4.5: M(4) = P / 2 * (6.5 - d - 4) - P / 2 * 0.5.  The
+    # joints can add end moments, so the plate holds at least that, and not twice over.
+    d = forces.CONTACT_RADIUS * math.sqrt(0.5)
+    arm = 0.5 * (6.5 - d - 4) - 0.5 * 0.5
+    strength = forces.bending_capacity_nmm(2, 1) / (forces.G / 1000) / 8.0
+    simple = strength / arm
+    assert simple * 0.99 <= held["3034"] <= 2 * simple
+
+
+def test_printed_part_weight_turns_a_marginal_layout_unstable():
+    """A 1x4 cantilever loaded to 99.5 % of its clutch stands; a printed part at its tip
+    (a 20 mm cube's worth of PLA, printed with 2 perimeters and 15 % infill) breaks it."""
+    r = forces.CONTACT_RADIUS
+    pivot = 0.5 + r
+    capacity = 4 * r * T_GF
+    tip = (0.995 * capacity - MASS_G["3710"] * (2 - pivot)) / (3.5 - pivot)
+    base = [Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3710", (4, 1, 1), (0, 0, 3))]
+    box = f"24,0,12.8,32,8,16:{tip}"
+    assert forces.analyse(layout_of(base), ground="baseplate", loads=[box]).stable
+    printed = base + [Brick(3, "printed", (1, 1, 3), (3, 0, 4), kind="printed", printed_part="P1")]
+    result = forces.analyse(layout_of(printed), ground="baseplate", loads=[box])
+    assert not result.stable
+    assert 2 in result.failing_bricks
+
+
+@pytest.mark.skipif(shutil.which("prusa-slicer") is None, reason="PrusaSlicer is not installed")
+@pytest.mark.parametrize("size", [(20.0, 20.0, 20.0), (40.0, 16.0, 9.6)])
+def test_printed_mass_matches_prusaslicers_filament_weight(tmp_path, size):
+    """The mass a printed part weighs in the force check is within 5 % of the filament
+    PrusaSlicer itself says it uses, with the profile the parts are sliced with."""
+    from core import print_time
+    mesh = trimesh.creation.box(size)
+    stl = tmp_path / "part.stl"
+    mesh.export(stl)
+    gcode = tmp_path / "part.gcode"
+    subprocess.run(["prusa-slicer", "--export-gcode", "--load", str(print_time.FALLBACK_PROFILE),
+                    "-o", str(gcode), str(stl)], check=True, capture_output=True, timeout=300)
+    grams = float(re.search(r"; filament used \[g\] = ([\d.]+)", gcode.read_text())[1])
+    profile = print_time.load_profile(print_time.FALLBACK_PROFILE)
+    assert forces.printed_mass_g(mesh.volume, mesh.area, profile) == pytest.approx(grams, rel=0.05)
+
+
+def test_loads_and_load_g_add_their_mass():
+    tower = layout_of([Brick(1, "3003", (2, 2, 3), (0, 0, 0), load_g=170.0)])
+    result = forces.analyse(tower, ground="table", loads=["0,0,9.6,16,16,20:30"])
+    assert result.mass_g == pytest.approx(MASS_G["3003"] + 170 + 30)
+    assert result.stable
+
+
+@pytest.mark.parametrize("text, words", [
+    ("1,2,3:5", "six numbers"), ("a,b,c,d,e,f:5", "numbers"), ("0,0,0,1,1,1:-2", "more than 0"),
+    ("0,0,0,0,1,1:2", "empty"), ("0,0,0,1,1,1", "X0,Y0"), ("0,0,0,nan,1,1:3", "finite")])
+def test_bad_loads_name_the_problem(text, words):
+    with pytest.raises(InputError, match=words):
+        forces.parse_load(text)
+
+
+def test_a_load_that_touches_no_brick_is_refused():
+    tower = layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0))])
+    with pytest.raises(InputError, match="touches no brick"):
+        forces.analyse(tower, loads=["100,100,100,110,110,110:10"])
+
+
+def test_floating_bricks_are_unsupported():
+    """A brick joined to nothing that stands on the ground floats."""
+    layout = layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3005", (1, 1, 3), (3, 0, 6))])
+    result = forces.analyse(layout, ground="table")
+    assert not result.stable
+    assert result.unsupported == [2]
+    assert result.failures[0]["mode"] == "floats"
+
+
+def test_verdict_only_agrees_with_the_detail():
+    for levels in (19, 20):
+        quick = forces.analyse(staircase(levels), ground="baseplate", detail=False)
+        full = forces.analyse(staircase(levels), ground="baseplate")
+        assert quick.stable == full.stable
+        assert quick.max_utilisation == pytest.approx(full.max_utilisation, rel=1e-5)
+        assert quick.utilisation == {}
+
+
+def test_analyse_does_not_change_the_layout():
+    layout = staircase(5)
+    before = layout.to_json()
+    forces.analyse(layout, ground="baseplate", loads=["0,0,0,8,8,3:10"])
+    assert layout.to_json() == before
+
+
+@pytest.mark.parametrize("settings, words", [({"ground": "floor"}, "table or baseplate"),
+                                              ({"clutch_n": 0}, "above 0"),
+                                              ({"clutch_n": float("nan")}, "above 0")])
+def test_bad_settings_name_the_problem(settings, words):
+    with pytest.raises(InputError, match=words):
+        forces.analyse(staircase(2), **settings)
