@@ -76,7 +76,23 @@ def _parser() -> argparse.ArgumentParser:
     _model_options(wat)
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
+    _stability_parser(sub)
     return parser
+
+
+def _stability_parser(sub) -> None:
+    """The ``stability`` command: the force check of any layout.json."""
+    sta = sub.add_parser("stability", help="check whether a layout stands, with what it carries",
+                         description="The force check of LAYOUT (a layout.json of fabricate, or any "
+                                     "file in its format): every brick's joints against the clutch "
+                                     "of real LEGO studs and its own strength. Prints the verdict, "
+                                     "the worst utilisation and the failing bricks; exits 0 whether "
+                                     "it stands or not. A brick's load_g rests on it; printed parts "
+                                     "weigh what parts/<id>.stl beside the layout prints as.")
+    sta.add_argument("layout", metavar="LAYOUT")
+    sta.add_argument("--out", metavar="REPORT", default=None,
+                     help="write the verdict as JSON (the stability.force block of report.json)")
+    request.add_options(sta, ("ground", "loads", "clutch_n"))
 
 
 def _calibration_parser(sub) -> None:
@@ -106,13 +122,15 @@ def _calibration_parser(sub) -> None:
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "seed", "parts", "high_res", "high_res_solids",
-                            "stud_fit", "socket_fit"), units=request.UNITS)
+                            "stud_fit", "socket_fit", "ground", "loads", "clutch_n"),
+                        units=request.UNITS)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug)."""
     args = _parser().parse_args(argv)
-    command = {"watch": _watch, "calibration-strip": _calibration_strip}.get(args.command, _fabricate)
+    command = {"watch": _watch, "calibration-strip": _calibration_strip,
+               "stability": _stability}.get(args.command, _fabricate)
     try:
         return command(args)
     except InputError as err:
@@ -121,6 +139,65 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
         sys.stderr.write(bug_message(exc, log_bug(exc, f"python -m core {args.command}")) + "\n")
         return 1
+
+
+def _stability(args) -> int:
+    """The ``stability`` command: read a layout, run the force stage, print and write the verdict."""
+    import json
+    from pathlib import Path
+
+    from core import forces
+    from core.model import Layout
+
+    path = Path(args.layout)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeError) as exc:
+        raise InputError(f"{path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        layout = Layout.from_json(json.loads(text))
+    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{path}: not a layout.json ({type(exc).__name__}: {exc})") from None
+    printed = _printed_meshes(path.parent / "parts", layout)
+    result = forces.analyse(layout, ground=args.ground, loads=args.loads, printed=printed,
+                            clutch_n=args.clutch_n)
+    doc = result.to_json()
+    if args.out:
+        out = Path(args.out)
+        tmp = out.with_name(f".{out.name}.tmp")
+        try:
+            tmp.write_text(json.dumps(doc, indent=2))
+            tmp.replace(out)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
+    worst = "infinite (something floats or tips)" if doc["max_utilisation"] is None else f"{doc['max_utilisation']:.3f}"
+    print(f"{'stands' if result.stable else 'does not stand'} on a {result.ground}: "
+          f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g")
+    for failure in result.failures[:20]:
+        print(f"  brick {failure['brick']}: {failure['why']}")
+    if len(result.failures) > 20:
+        print(f"  ... and {len(result.failures) - 20} more failing bricks")
+    return 0
+
+
+def _printed_meshes(folder, layout) -> list:
+    """The printed parts of ``layout`` whose STL lies in ``folder`` (id and mesh: what the force
+    stage weighs); none when the folder or a file is missing or unreadable."""
+    from types import SimpleNamespace
+
+    import trimesh
+
+    names = sorted({b.printed_part for b in layout.bricks if b.printed_part})
+    out = []
+    for name in names:
+        stl = folder / f"{name}.stl"
+        if stl.is_file():
+            try:
+                out.append(SimpleNamespace(id=name, mesh=trimesh.load(stl, force="mesh")))
+            except (OSError, ValueError):
+                continue
+    return out
 
 
 def _fabricate(args) -> int:
@@ -188,6 +265,14 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
+    force = st.get("force")
+    if force:
+        worst = ("infinite: something floats or tips" if force["max_utilisation"] is None
+                 else f"{force['max_utilisation']:.2f}")
+        print(f"{'stands' if force['stable'] else 'does NOT stand'} on a {force['ground']} with "
+              f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
+              + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"
+                 if force["failing_bricks"] else ""))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]

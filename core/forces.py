@@ -57,7 +57,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import time
 from dataclasses import dataclass, field
 
@@ -67,7 +66,8 @@ from scipy.sparse.csgraph import connected_components
 
 from core.catalog import BY_NUMBER, MASS_G
 from core.errors import InputError
-from core.model import Layout
+from core.model import Layout, Load
+from core.request import parse_load
 
 #: Acceleration of gravity, m/s^2.
 G = 9.81
@@ -88,46 +88,6 @@ GROUNDS = ("table", "baseplate")
 FAIL_ABOVE = 1.0 + 1e-6
 
 _DIAG = math.sqrt(0.5)
-
-
-@dataclass(frozen=True)
-class Load:
-    """A mass of ``grams`` resting on the bricks the box ``lo``-``hi`` (model mm) touches."""
-
-    lo: tuple[float, float, float]
-    hi: tuple[float, float, float]
-    grams: float
-
-    def to_json(self) -> dict:
-        return {"box_mm": [list(self.lo), list(self.hi)], "grams": self.grams}
-
-
-def parse_load(text) -> Load:
-    """A :class:`Load` from ``"X0,Y0,Z0,X1,Y1,Z1:GRAMS"`` (a Load passes through).
-
-    Raises :class:`InputError` naming the problem: not six numbers and a
-    mass, a non-finite number, an empty box, a mass not > 0.
-    """
-    if isinstance(text, Load):
-        return text
-    match = re.fullmatch(r"\s*([^:]+):\s*([^:]+?)\s*", str(text))
-    if not match:
-        raise InputError(f"--load {text!r}: write X0,Y0,Z0,X1,Y1,Z1:GRAMS (a box in model mm and a mass)")
-    try:
-        box = [float(v) for v in match[1].split(",")]
-        grams = float(match[2])
-    except ValueError:
-        raise InputError(f"--load {text!r}: the box and the mass must be numbers") from None
-    if len(box) != 6:
-        raise InputError(f"--load {text!r}: the box needs six numbers X0,Y0,Z0,X1,Y1,Z1, got {len(box)}")
-    if not all(math.isfinite(v) for v in box + [grams]):
-        raise InputError(f"--load {text!r}: numbers must be finite")
-    if not grams > 0:
-        raise InputError(f"--load {text!r}: the mass must be more than 0 g")
-    lo, hi = np.minimum(box[:3], box[3:]), np.maximum(box[:3], box[3:])
-    if np.any(hi - lo <= 0):
-        raise InputError(f"--load {text!r}: the box is empty (each side must be longer than 0 mm)")
-    return Load(tuple(float(v) for v in lo), tuple(float(v) for v in hi), grams)
 
 
 @dataclass

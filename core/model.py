@@ -144,3 +144,15 @@ class Layout:
             "shape": list(self.grid.shape),
             "bricks": [b.to_json() for b in self.bricks],
         }
+
+
+@dataclass(frozen=True)
+class Load:
+    """A mass of ``grams`` resting on the bricks the box ``lo``-``hi`` (model mm) touches."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+    grams: float
+
+    def to_json(self) -> dict:
+        return {"box_mm": [list(self.lo), list(self.hi)], "grams": self.grams}

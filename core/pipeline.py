@@ -26,7 +26,7 @@ from core import build_order, catalog, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
 from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
-from core import stability as stability_stage, voxelize
+from core import forces as forces_stage, stability as stability_stage, voxelize
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
@@ -66,6 +66,7 @@ class Fabrication:
     print_full: print_time_stage.PrintEstimate | None = None
     print_parts: print_time_stage.PrintEstimate | None = None
     plates: list | None = None
+    forces: forces_stage.Forces | None = None
 
     @property
     def seed(self) -> int:
@@ -137,7 +138,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
        iterating, kept parts stay and only changed ones are cut again,
        :func:`core.iterate.printed_parts`).
-    6. **stability** (:func:`core.stability.analyse`), 7. **build order**
+    6. **stability**: the brick graph (:func:`core.stability.analyse`) and the
+       forces on ``ground`` with ``loads`` (:func:`core.forces.analyse`), 7. **build order**
        (:func:`core.build_order.plan`; the layout's bricks get their steps),
        8. with an iteration, the **changes** (:func:`core.iterate.changes`),
        9. with printed parts and ``slice_parts``, **print times**
@@ -227,6 +229,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     if made:
         clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
+    force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made, clamp,
+                  req.clutch_n, _slicer_settings(req) if made else None)
     order = timed("build_order", 0.82, build_order.plan, layout)
     layout = build_order.numbered(layout, order)
     iteration = None
@@ -239,11 +243,20 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
-                      fit=fit, iteration=iteration, notes=notes)
+                      fit=fit, iteration=iteration, notes=notes, forces=force)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
     return fab
+
+
+def _slicer_settings(req: Request) -> dict[str, str]:
+    """The slicer settings printed parts are made with (their walls, infill and filament
+    weigh them in the force check); the committed profile when they cannot be read."""
+    try:
+        return print_time_stage.load_profile(req.profile)
+    except InputError:
+        return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
 
 
 def iterate_moved_out(req: Request, alignment) -> bool:
@@ -455,6 +468,7 @@ def report(fab: Fabrication) -> dict:
             "incomplete_stud_parts": [_incomplete_studs(p) for p in fab.printed if p.incomplete_studs],
             "explain": {"weak_point": stability_stage.WEAK_POINT_MEANS,
                         "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
+            **({} if fab.forces is None else {"force": fab.forces.to_json()}),
         },
         "high_res": dict(fab.marks),
         "printed_parts": [p.to_json() for p in fab.printed],

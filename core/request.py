@@ -14,11 +14,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 from dataclasses import dataclass, field
 
 from core.colours import check_palette
 from core.errors import InputError
 from core.interfaces import Fit
+from core.model import Load
 
 #: Unit names a model file's coordinates may be in, and their size in mm.
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
@@ -97,6 +99,15 @@ class Request:
                                    "the parts list orders) or random (a LEGO colour per brick, to "
                                    "tell bricks apart; parts list, LDraw and instructions keep the "
                                    "parts list's colour)", "--palette", "NAME")
+    ground: str = _setting("table", "what the build stands on for the force check: table (its "
+                                    "bottom layer only presses down) or baseplate (its bottom "
+                                    "layer is clamped to a LEGO baseplate)", "--ground", "table|baseplate")
+    loads: tuple = _setting((), "a mass resting on the bricks a box touches (model mm), e.g. the "
+                                "phone in a headset: X0,Y0,Z0,X1,Y1,Z1:GRAMS (repeatable)",
+                            "--load", "X0,Y0,Z0,X1,Y1,Z1:GRAMS")
+    clutch_n: float = _setting(0.98, "tension one stud contact point holds, N (a LEGO stud is "
+                                     "gripped at 3 points under 2-wide bricks, 4 under 1-wide)",
+                               "--clutch", "N")
 
     @property
     def fit(self) -> Fit:
@@ -137,15 +148,50 @@ class Request:
                                  f"number of mm")
         self.fit.check()
         check_palette(self.palette)
+        if self.ground not in ("table", "baseplate"):
+            raise InputError(f"--ground {self.ground!r}: choose table or baseplate")
+        if not _number(self.clutch_n) or not 0 < self.clutch_n < 1e3:
+            raise InputError(f"--clutch {self.clutch_n!r} must be a force in N above 0")
+        for load in self.loads:
+            parse_load(load)
         return dataclasses.replace(
             self, model=os.fspath(self.model), scale=float(self.scale),
             high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),
             high_res_bricks=tuple(self.high_res_bricks), part_edits=tuple(self.part_edits),
             stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit),
+            loads=tuple(str(x) for x in self.loads), clutch_n=float(self.clutch_n),
             seconds_per_brick=float(self.seconds_per_brick),
             seconds_per_part=float(self.seconds_per_part),
             profile=None if self.profile is None else os.fspath(self.profile),
             previous=None if self.previous is None else os.fspath(self.previous))
+
+
+def parse_load(text) -> Load:
+    """A :class:`Load` from ``"X0,Y0,Z0,X1,Y1,Z1:GRAMS"`` (a Load passes through).
+
+    Raises :class:`InputError` naming the problem: not six numbers and a
+    mass, a non-finite number, an empty box, a mass not > 0.
+    """
+    if isinstance(text, Load):
+        return text
+    match = re.fullmatch(r"\s*([^:]+):\s*([^:]+?)\s*", str(text))
+    if not match:
+        raise InputError(f"--load {text!r}: write X0,Y0,Z0,X1,Y1,Z1:GRAMS (a box in model mm and a mass)")
+    try:
+        box = [float(v) for v in match[1].split(",")]
+        grams = float(match[2])
+    except ValueError:
+        raise InputError(f"--load {text!r}: the box and the mass must be numbers") from None
+    if len(box) != 6:
+        raise InputError(f"--load {text!r}: the box needs six numbers X0,Y0,Z0,X1,Y1,Z1, got {len(box)}")
+    if not all(math.isfinite(v) for v in box + [grams]):
+        raise InputError(f"--load {text!r}: numbers must be finite")
+    if not grams > 0:
+        raise InputError(f"--load {text!r}: the mass must be more than 0 g")
+    lo, hi = [min(a, b) for a, b in zip(box[:3], box[3:])], [max(a, b) for a, b in zip(box[:3], box[3:])]
+    if any(b - a <= 0 for a, b in zip(lo, hi)):
+        raise InputError(f"--load {text!r}: the box is empty (each side must be longer than 0 mm)")
+    return Load(tuple(float(v) for v in lo), tuple(float(v) for v in hi), grams)
 
 
 def _number(value) -> bool:
