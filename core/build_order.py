@@ -92,11 +92,19 @@ class BuildOrder:
 
     ``unattached`` are brick ids placed without anything to attach to;
     ``early_parts`` printed part ids inserted before all units under them.
+    After :func:`standing`: ``utilisation`` the worst utilisation of the
+    partial build after each step (inf where something floats or tips),
+    ``unstable`` the steps after which it does not stand ({"step",
+    "utilisation", "bricks", "why"}), ``moved`` how many steps were put
+    earlier than planned so that the build stands.
     """
 
     steps: list[Step] = field(default_factory=list)
     unattached: list[int] = field(default_factory=list)
     early_parts: list[str] = field(default_factory=list)
+    utilisation: list[float] = field(default_factory=list)
+    unstable: list[dict] = field(default_factory=list)
+    moved: int = 0
 
     def step_of(self) -> dict[int, int]:
         """Brick id -> step number."""
@@ -297,6 +305,106 @@ def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
     if current:
         close(current)
     return result
+
+
+#: Steps ahead of the planned next one that :func:`standing` may put first.
+LOOKAHEAD = 8
+#: A partial build whose worst utilisation is above this is fragile (the instructions warn).
+FRAGILE = 0.8
+
+
+def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD) -> BuildOrder:
+    """``order`` changed so that the partial build after every step stands, where it can.
+
+    ``stands(present)`` says whether the bricks ``present`` (a bool per brick
+    of ``layout``, in its order) stand, as (bool, worst utilisation) — e.g.
+    :meth:`core.forces.BuildChecker.stands`.  Step by step, the next planned
+    step is taken if the build then stands; else the first of the next
+    ``lookahead`` steps that can be placed (each of its units on the ground or
+    touching a placed unit, a printed part only once every unit under it is
+    placed) and leaves a standing build; else the planned step anyway, recorded
+    in ``unstable`` with the reason.  Promises: the same steps with the same
+    bricks, renumbered 1..n in their new order; ``utilisation`` per step; the
+    order is ``order``'s wherever every prefix stands.  ``order`` is not changed.
+    """
+    if not order.steps:
+        return dataclasses.replace(order, utilisation=[], unstable=[], moved=0)
+    index = {b.id: n for n, b in enumerate(layout.bricks)}
+    u = _units(layout)
+    unit_of, _, _ = units(layout)
+    below = [set(u.below.indices[u.below.indptr[v]:u.below.indptr[v + 1]].tolist())
+             for v in range(len(u.members))]
+    above = [set(u.above.indices[u.above.indptr[v]:u.above.indptr[v + 1]].tolist())
+             for v in range(len(u.members))]
+    unit_steps = [sorted({int(unit_of[index[b]]) for b in s.bricks}) for s in order.steps]
+    early = set(order.early_parts)
+    placed_units = np.zeros(len(u.members), dtype=bool)
+
+    def placeable(n: int) -> bool:
+        for v in unit_steps[n]:
+            if u.part[v] is not None and u.part[v] not in early and not all(placed_units[w] for w in below[v]):
+                return False
+            if u.k0[v] != 0 and not any(placed_units[w] for w in below[v] | above[v]):
+                return False
+        return True
+
+    present = np.zeros(len(layout.bricks), dtype=bool)
+    remaining = list(range(len(order.steps)))
+    chosen: list[int] = []
+    worst: list[float] = []
+    unstable: list[dict] = []
+    moved = 0
+    while remaining:
+        pick, fallback = None, None
+        for n in remaining[:lookahead]:
+            if n != remaining[0] and not placeable(n):
+                continue
+            trial = present.copy()
+            trial[[index[b] for b in order.steps[n].bricks]] = True
+            ok, value = stands(trial)
+            if ok:
+                pick = (n, value)
+                break
+            if fallback is None:
+                fallback = (n, value)
+        if pick is None:
+            pick = (remaining[0], fallback[1] if fallback and fallback[0] == remaining[0]
+                    else stands(_with(present, index, order.steps[remaining[0]]))[1])
+            step = order.steps[pick[0]]
+            unstable.append({"step": len(chosen) + 1, "utilisation": _finite(pick[1]),
+                             "bricks": list(step.bricks), "why": _unstable_why(step, pick[1])})
+        n, value = pick
+        moved += n != remaining[0]
+        remaining.remove(n)
+        chosen.append(n)
+        worst.append(float(value))
+        present[[index[b] for b in order.steps[n].bricks]] = True
+        placed_units[unit_steps[n]] = True
+    steps = [dataclasses.replace(order.steps[n], number=k + 1) for k, n in enumerate(chosen)]
+    return dataclasses.replace(order, steps=steps, utilisation=worst, unstable=unstable,
+                               moved=moved)
+
+
+def _with(present: np.ndarray, index: dict, step: Step) -> np.ndarray:
+    out = present.copy()
+    out[[index[b] for b in step.bricks]] = True
+    return out
+
+
+def _finite(value: float) -> float | None:
+    return None if not np.isfinite(value) else round(float(value), 4)
+
+
+def _unstable_why(step: Step, value: float) -> str:
+    """Why the build does not stand after ``step``, in a builder's words."""
+    what = f"printed part {step.printed_part}" if step.printed_part else \
+        f"{len(step.bricks)} brick{'s' if len(step.bricks) != 1 else ''} in layer {step.layer + 1}"
+    if not np.isfinite(value):
+        return (f"after placing the {what} the partial build tips over or has a piece joined to "
+                "nothing; no other order of the next steps avoids it: hold it until the next steps "
+                "are on")
+    return (f"after placing the {what} a joint carries {value:.2f} times what its studs hold; no "
+            "other order of the next steps avoids it: support it by hand until the next steps are on")
 
 
 def numbered(layout: Layout, order: BuildOrder) -> Layout:

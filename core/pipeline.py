@@ -229,9 +229,12 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     if made:
         clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
+    settings = _slicer_settings(req) if made else None
     force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made, clamp,
-                  req.clutch_n, _slicer_settings(req) if made else None)
+                  req.clutch_n, settings)
     order = timed("build_order", 0.82, build_order.plan, layout)
+    checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
+    order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
     layout = build_order.numbered(layout, order)
     iteration = None
     if before is not None:
@@ -412,6 +415,22 @@ def print_method_words(full_method: str, parts_method: str) -> str:
     return text
 
 
+def build_stability(order: build_order.BuildOrder) -> dict:
+    """The report's ``stability.build``: does the partial build stand after every step."""
+    worst = max(order.utilisation)
+    return {"stands_every_step": not order.unstable,
+            "worst_step_utilisation": None if not np.isfinite(worst) else round(worst, 4),
+            "unstable_steps": list(order.unstable),
+            "fragile_steps": [n + 1 for n, u in enumerate(order.utilisation)
+                              if build_order.FRAGILE < u <= forces_stage.FAIL_ABOVE],
+            "steps_moved_earlier": order.moved,
+            "explain": "Each step's partial build is checked with the same forces, without what "
+                       "the object carries. A step is put earlier than planned when that lets the "
+                       "build stand; an unstable step needs a hand to hold it until the next steps "
+                       "are on; a fragile step stands with its hardest joint above "
+                       f"{build_order.FRAGILE:g} of its clutch."}
+
+
 def report(fab: Fabrication) -> dict:
     """The ``report.json`` document for a fabrication (DESIGN.md contract)."""
     by_part: dict[str, int] = {}
@@ -469,6 +488,7 @@ def report(fab: Fabrication) -> dict:
             "explain": {"weak_point": stability_stage.WEAK_POINT_MEANS,
                         "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
             **({} if fab.forces is None else {"force": fab.forces.to_json()}),
+            **({} if not fab.order.utilisation else {"build": build_stability(fab.order)}),
         },
         "high_res": dict(fab.marks),
         "printed_parts": [p.to_json() for p in fab.printed],

@@ -238,3 +238,52 @@ def test_analyse_does_not_change_the_layout():
 def test_bad_settings_name_the_problem(settings, words):
     with pytest.raises(InputError, match=words):
         forces.analyse(staircase(2), **settings)
+
+
+def t_layout() -> Layout:
+    """On a table: a 1x2 brick (x 3..5), a lone 1x1 brick further on (x 10), then in the
+    layer above a 1x4 arm over the first brick's left stud (x 0..4) and a 1x2 counterweight
+    over its right stud (x 4..6)."""
+    return layout_of([Brick(1, "3004", (2, 1, 3), (3, 0, 0)), Brick(2, "3005", (1, 1, 3), (10, 0, 0)),
+                      Brick(3, "3010", (4, 1, 3), (0, 0, 3)), Brick(4, "3004", (2, 1, 3), (4, 0, 3))])
+
+
+def test_build_order_whose_third_step_tips_is_reordered():
+    """Planned one brick a step, bottom-up: the arm (step 3) would tip the 1x2 brick over (by
+    hand: centre of mass (0.81 * 4 + 1.57 * 2) / 2.38 = 2.68, left of its footprint's edge
+    at 3); with the counterweight first (centre 4.5) and then the arm (3.27) it stands."""
+    from core import build_order
+    layout = t_layout()
+    planned = build_order.plan(layout, bricks_per_step=1)
+    assert [s.bricks for s in planned.steps] == [[1], [2], [3], [4]]
+    checker = forces.BuildChecker(layout, ground="table")
+    assert checker.stands(np.array([True, True, True, False])) == (False, math.inf)
+    order = build_order.standing(layout, planned, checker.stands)
+    assert [s.bricks for s in order.steps] == [[1], [2], [4], [3]]
+    assert [s.number for s in order.steps] == [1, 2, 3, 4]
+    assert order.unstable == [] and order.moved == 1
+    assert all(u <= 1 for u in order.utilisation)
+
+
+def test_build_order_that_cannot_stand_names_the_step():
+    """Without the counterweight nothing keeps the arm from tipping the brick over: the
+    order stays and the step is named."""
+    from core import build_order
+    layout = layout_of(t_layout().bricks[:3])
+    planned = build_order.plan(layout, bricks_per_step=1)
+    order = build_order.standing(layout, planned, forces.BuildChecker(layout, ground="table").stands)
+    assert [s.bricks for s in order.steps] == [[1], [2], [3]]
+    assert [u["step"] for u in order.unstable] == [3]
+    assert order.unstable[0]["utilisation"] is None and "tips over" in order.unstable[0]["why"]
+
+
+def test_build_checker_agrees_with_the_analysis_on_every_prefix():
+    layout = staircase(21)
+    checker = forces.BuildChecker(layout, ground="baseplate")
+    for n in (1, 5, 19, 20, 21, 12):
+        present = np.arange(21) < n
+        prefix = layout_of(layout.bricks[:n])
+        ok, worst = checker.stands(present)
+        full = forces.analyse(prefix, ground="baseplate", detail=False)
+        assert ok == full.stable
+        assert worst == pytest.approx(full.max_utilisation, rel=1e-5, abs=1e-9)
