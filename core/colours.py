@@ -160,3 +160,20 @@ def delta_e(a, b) -> float:
     """How different two sRGB colours (0..1) look: the CIE76 colour difference (about
     2.3 is just noticeable; above about 40 they are different colours at a glance)."""
     return float(np.linalg.norm(_lab(a) - _lab(b)))
+
+
+#: The stress scale of the force check: utilisation 0 (no pull on any stud) is dark,
+#: 1 (the clutch fully used) is red, above 1 (fails) and unsupported is white.
+STRESS_DARK = (0.16, 0.17, 0.20)
+STRESS_RED = (0.86, 0.08, 0.06)
+STRESS_WHITE = (1.0, 1.0, 1.0)
+
+
+def stress_rgb(utilisation) -> np.ndarray:
+    """RGB (n, 3) in 0..1 of utilisations (n,): dark at 0 through red at 1; white above 1
+    and for inf or NaN.  Between 0 and 1 the square root spreads the small values."""
+    u = np.asarray(utilisation, dtype=float)
+    t = np.sqrt(np.clip(np.nan_to_num(u, nan=0.0, posinf=0.0), 0.0, 1.0))[:, None]
+    out = (1 - t) * np.array(STRESS_DARK) + t * np.array(STRESS_RED)
+    out[~np.isfinite(u) | (u > 1.0)] = STRESS_WHITE
+    return out

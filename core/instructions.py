@@ -415,9 +415,12 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
     info = {p.id: p for p in printed_parts}
     out = []
     lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
+    warnings = step_warnings(order)
     for s in order.steps:
         item = {"n": s.number, "k": s.layer, "a": s.attached, "e": s.early,
                 "nb": len(s.bricks), "p": s.printed_part, "c": []}
+        if s.number in warnings:
+            item["w"] = warnings[s.number]
         for number, count in build_order.callout(layout, s):
             part = BY_NUMBER.get(number)
             item["c"].append([number, part.name if part else number, count, lego_color])
@@ -426,6 +429,18 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
             item["pv"] = None if p is None else round(float(p.volume_mm3) / 1000.0, 1)
             item["pf"] = None if p is None else (p.stl or f"parts/{p.id}.stl")
         out.append(item)
+    return out
+
+
+def step_warnings(order: build_order.BuildOrder) -> dict[int, str]:
+    """Step number -> the warning the builder reads at that step: the partial build does
+    not stand after it (:func:`core.build_order.standing`'s ``unstable``), or it stands with
+    its hardest joint above :data:`core.build_order.FRAGILE` of its clutch."""
+    out = {u["step"]: "Does not stand on its own: " + u["why"] + "." for u in order.unstable}
+    for n, value in enumerate(order.utilisation, start=1):
+        if n not in out and build_order.FRAGILE < value:
+            out[n] = (f"Fragile: after this step the hardest-working joint uses {value:.0%} of its "
+                      "clutch. Press the bricks fully home and handle the build gently.")
     return out
 
 
@@ -680,7 +695,8 @@ function show(s, animate){
       '"/></svg><span class="nm"><b>' + name + '</b>' + num + ' · ' + color + '</span>';
     ul.appendChild(li);
   }
-  el('attach').textContent = st.a ? '' : 'Nothing to attach this to yet: hold it in place.';
+  el('attach').textContent = (st.a ? '' : 'Nothing to attach this to yet: hold it in place. ') +
+    (st.w || '');
   document.title = 'Step ' + s + ' / ' + N;
 }
 function go(d){ show(cur + d, true); }

@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from core import build_order, catalog, connectors as connectors_stage, grid_fit
+from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
 from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
@@ -415,6 +415,15 @@ def print_method_words(full_method: str, parts_method: str) -> str:
     return text
 
 
+def stress_title(fab: Fabrication) -> str:
+    """The title of ``stress.png``: what the colours mean and the verdict."""
+    f = fab.forces
+    worst = "infinite" if not np.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
+    verdict = "stands" if f.stable else f"{len(f.failing_bricks)} brick(s) fail"
+    return (f"{Path(fab.model.path).name} on a {f.ground}, {f.mass_g:.0f} g: {verdict}, worst "
+            f"utilisation {worst} (dark 0, red 1, white fails)")
+
+
 def build_stability(order: build_order.BuildOrder) -> dict:
     """The report's ``stability.build``: does the partial build stand after every step."""
     worst = max(order.utilisation)
@@ -604,6 +613,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
             render.render_layout(fab.layout, tmp / "layout.png",
                                  title=f"{title}: {len(fab.layout.bricks)} bricks",
                                  palette=fab.request.palette)
+            if fab.forces is not None and fab.forces.utilisation:
+                render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
+                                     colours=colours.stress_rgb(
+                                         [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]))
         result.snapshot(fab, tmp)
         doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
         for entry in doc["printed_parts"]:

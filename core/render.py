@@ -94,7 +94,7 @@ def brick_colours(layout: Layout, labels: np.ndarray, palette: str = "bom") -> n
     return decided_colours(layout, palette, labels)
 
 
-def _scene(layout: Layout, palette: str = "bom"):
+def _scene(layout: Layout, palette: str = "bom", rgb: np.ndarray | None = None):
     """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
 
     kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.
@@ -102,7 +102,7 @@ def _scene(layout: Layout, palette: str = "bom"):
     cell = np.asarray(layout.grid.cell, dtype=float)
     labels = layout.labels()
     padded = np.pad(labels, 1, constant_values=-1)
-    rgb = brick_colours(layout, labels, palette)
+    rgb = brick_colours(layout, labels, palette) if rgb is None else np.asarray(rgb, dtype=float)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
     cells = np.argwhere(labels >= 0)
     own = labels[tuple(cells.T)]
@@ -164,12 +164,14 @@ def _scene(layout: Layout, palette: str = "bom"):
 
 
 def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
-                  title: str | None = None, palette: str = "bom") -> None:
+                  title: str | None = None, palette: str = "bom",
+                  colours: np.ndarray | None = None) -> None:
     """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
 
     Bricks are shaded boxes with black outlines along brick edges and studs
     on their exposed tops, in the colours :mod:`core.colours` decides for
-    ``palette`` (printed bricks orange); ``title`` goes above.
+    ``palette`` (printed bricks orange), or ``colours`` (RGB per brick, e.g.
+    :func:`core.colours.stress_rgb`); ``title`` goes above.
     A layout without bricks gives a picture that says so.  Raises
     ValueError for a size that is not two integers from 16 to 20000 and
     FileNotFoundError for a path whose folder does not exist (the caller
@@ -202,7 +204,7 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
         fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
         return
 
-    polys, kinds, colours = _scene(layout, palette)
+    polys, kinds, colours = _scene(layout, palette, colours)
     lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
     span = np.maximum(hi - lo, 1e-9) * 1.04
     box_w, box_h = 0.98 * width, (top_margin - 0.01) * height

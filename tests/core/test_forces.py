@@ -287,3 +287,15 @@ def test_build_checker_agrees_with_the_analysis_on_every_prefix():
         full = forces.analyse(prefix, ground="baseplate", detail=False)
         assert ok == full.stable
         assert worst == pytest.approx(full.max_utilisation, rel=1e-5, abs=1e-9)
+
+
+def test_instructions_warn_at_the_step_that_does_not_stand():
+    from core import build_order, instructions
+    layout = layout_of(t_layout().bricks[:3])
+    order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
+                                 forces.BuildChecker(layout, ground="table").stands)
+    layout = build_order.numbered(layout, order)
+    steps = instructions._step_data(layout, order, [])
+    assert [s.get("w", "")[:24] for s in steps] == ["", "", "Does not stand on its ow"]
+    text, _ = instructions.page(layout, order)
+    assert "Does not stand on its own" in text

@@ -1,0 +1,123 @@
+"""``make bench``: the force check (issue 14) on every model, and its scaling.
+
+Per model (no printed parts, on a table, as the CLI runs it): bricks, the
+force verdict and worst utilisation of the laid-out object before and after
+the layout uses the forces (:mod:`core.reinforce`), failing and unsupported
+bricks, whether every build step stands (unstable and moved steps), seconds
+of the force stage and of the build-order check.  Then the synthetic rows:
+the force check of a ~3,000-brick layout and all build prefixes of a
+~500-brick build.  Prints markdown tables and writes them to ``bench/out/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench import MODELS, UNITS, model_paths, table  # noqa: E402  (bench/bench.py)
+from core import build_order, catalog, forces, layout, pipeline, voxelize  # noqa: E402
+from core.errors import InputError  # noqa: E402
+from core.model import CELL_MM, Grid  # noqa: E402
+
+
+def _verdict(f: forces.Forces) -> str:
+    worst = "inf" if not np.isfinite(f.max_utilisation) else f"{f.max_utilisation:.3f}"
+    return f"{'stands' if f.stable else 'FAILS'} {worst}"
+
+
+def bench_model(path: Path, ground: str) -> dict:
+    """One row: the pipeline on ``path`` (no slicing), its force and build verdicts."""
+    row = {"model": path.name, "ground": ground}
+    try:
+        fab = pipeline.run(path, units=UNITS.get(path.name, "mm"), slice_parts=False, ground=ground,
+                           picture=False)
+    except InputError as err:
+        row["error"] = str(err)
+        return row
+    f = fab.forces
+    row.update({
+        "bricks": len(fab.layout.bricks),
+        "verdict": _verdict(f),
+        "failing": len(f.failing_bricks),
+        "unsupported": len(f.unsupported),
+        "every step stands": "yes" if not fab.order.unstable else f"no: {len(fab.order.unstable)}",
+        "steps moved": fab.order.moved,
+        "steps": len(fab.order.steps),
+        "forces s": fab.timings_s.get("forces"),
+        "build check s": fab.timings_s.get("build_stability"),
+    })
+    return row
+
+
+def bench_scaling() -> list[dict]:
+    """The force check of a ~3,000-brick layout (a hollow box), the build prefixes of a
+    ~500-brick one, both on a table."""
+    rows = []
+    for name, outer, wall in (("hollow box 64x64x90 cells, wall 3", (64, 64, 90), 3),
+                              ("hollow box 30x30x45 cells, wall 2", (30, 30, 45), 2)):
+        filled = np.ones(outer, dtype=bool)
+        filled[wall:-wall, wall:-wall, wall:] = False
+        grid = Grid(np.zeros(3), np.array(CELL_MM), filled)
+        lay = layout.lay_out(grid, catalog.CATALOG, seed=0)
+        start = time.perf_counter()
+        f = forces.analyse(lay, ground="table")
+        analyse_s = time.perf_counter() - start
+        start = time.perf_counter()
+        quick = forces.analyse(lay, ground="table", detail=False)
+        verdict_s = time.perf_counter() - start
+        order = build_order.plan(lay)
+        checker = forces.BuildChecker(lay, ground="table")
+        start = time.perf_counter()
+        checked = build_order.standing(lay, order, checker.stands)
+        prefixes_s = time.perf_counter() - start
+        rows.append({"case": name, "cells": grid.count, "bricks": len(lay.bricks),
+                     "verdict": _verdict(f), "verdict only s": verdict_s,
+                     "verdict + per-brick s": analyse_s, "steps": len(order.steps),
+                     "prefix programs": checker.solves, "all prefixes s": prefixes_s,
+                     "every step stands": "yes" if not checked.unstable else "no",
+                     "quick agrees": quick.stable == f.stable})
+    return rows
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(ROOT / "bench" / "out"))
+    parser.add_argument("--ground", default="table", choices=forces.GROUNDS)
+    args = parser.parse_args()
+    if not MODELS.is_dir():
+        print(f"note: {MODELS} is absent: only the bundled demo model is measured")
+    warm = trimesh.creation.box((20, 20, 10))
+    forces.analyse(layout.lay_out(voxelize.legofy(warm), catalog.CATALOG))
+    rows = []
+    for path in model_paths():
+        rows.append(bench_model(path, args.ground))
+        print(f"  measured {path.name}", file=sys.stderr)
+    ok = [r for r in rows if "error" not in r]
+    cols = ["model", "ground", "bricks", "verdict", "failing", "unsupported", "every step stands",
+            "steps moved", "steps", "forces s", "build check s"]
+    scaling = bench_scaling()
+    text = ["## Forces per model (verdict: stands/FAILS and the worst utilisation)", "",
+            table(ok, cols), "", "## Force check scaling", "",
+            table(scaling, ["case", "cells", "bricks", "verdict", "verdict only s",
+                            "verdict + per-brick s", "steps", "prefix programs", "all prefixes s",
+                            "every step stands", "quick agrees"]), ""]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "forces.md").write_text("\n".join(text))
+    (out / "forces.json").write_text(json.dumps({"models": rows, "scaling": scaling}, indent=2,
+                                                default=str))
+    print("\n".join(text))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
