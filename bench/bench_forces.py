@@ -43,6 +43,9 @@ def bench_model(path: Path, ground: str) -> dict:
     except InputError as err:
         row["error"] = str(err)
         return row
+    except Exception as exc:  # noqa: BLE001 - a bug: the row says so, the bench goes on
+        row["error"] = f"BUG {type(exc).__name__}: {exc}"
+        return row
     f = fab.forces
     row.update({
         "bricks": len(fab.layout.bricks),
@@ -100,13 +103,17 @@ def main() -> int:
     rows = []
     for path in model_paths():
         rows.append(bench_model(path, args.ground))
-        print(f"  measured {path.name}", file=sys.stderr)
+        print(f"  measured {path.name}: {rows[-1]}", file=sys.stderr)
     ok = [r for r in rows if "error" not in r]
+    refused = [r for r in rows if "error" in r]
     cols = ["model", "ground", "bricks", "verdict", "failing", "unsupported", "every step stands",
             "steps moved", "steps", "forces s", "build check s"]
     scaling = bench_scaling()
     text = ["## Forces per model (verdict: stands/FAILS and the worst utilisation)", "",
-            table(ok, cols), "", "## Force check scaling", "",
+            table(ok, cols), ""]
+    if refused:
+        text += ["## Refused or failed", "", table(refused, ["model", "error"]), ""]
+    text += ["## Force check scaling", "",
             table(scaling, ["case", "cells", "bricks", "verdict", "verdict only s",
                             "verdict + per-brick s", "steps", "prefix programs", "all prefixes s",
                             "every step stands", "quick agrees"]), ""]

@@ -77,6 +77,8 @@ CLUTCH_N = 0.98
 CONTACT_RADIUS = 0.2
 #: Friction coefficient of ABS on a table top.
 TABLE_FRICTION = 0.4
+#: A build that settles on a table leaning more than this (degrees) has fallen over.
+MAX_TILT_DEG = 20.0
 #: ABS tensile strength used for a part's bending strength, N/mm^2 (MPa).
 ABS_STRENGTH_MPA = 40.0
 #: LEGO wall and top thickness, mm (DESIGN.md dimensions: walls 1.2-1.5, top 1.0).
@@ -117,6 +119,7 @@ class Forces:
     clutch_n: float = CLUTCH_N
     loads: list[dict] = field(default_factory=list)
     seconds: float = 0.0
+    tilt_deg: float = 0.0
 
     def to_json(self) -> dict:
         """The ``stability.force`` block of report.json (inf written as null)."""
@@ -130,6 +133,7 @@ class Forces:
                 "utilisation": {str(k): num(v) for k, v in sorted(self.utilisation.items())},
                 "mass_g": round(self.mass_g, 2), "clutch_n": self.clutch_n,
                 "loads": list(self.loads), "seconds": round(self.seconds, 3),
+                "rests_tilted_deg": round(self.tilt_deg, 2),
                 "explain": FORCE_MEANS}
 
 
@@ -367,8 +371,11 @@ class BuildChecker:
                  clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None):
         self.layout = layout
         self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
+        self._printed, self._clamp, self._profile = printed, clamp, profile
         self.solves = 0
+        self.fresh = 0
         self._highs = None
+        self._basis = None
 
     def _setup(self) -> None:
         """Build the program once and index which columns and rows belong to which bodies."""
@@ -384,6 +391,7 @@ class BuildChecker:
         self.row_lo, self.row_hi = prog.row_bounds()
         self.col_lo, self.col_hi = prog.col_bounds()
         self.section_rows = [(idx, rows) for idx, rows in parts["section_rows"]]
+        self.table = parts.get("table")
         self._highs = prog.highs(simplex=True)
         self._present = np.ones(m.nbody, dtype=bool)
         self._highspy = highspy
@@ -404,11 +412,28 @@ class BuildChecker:
             self._setup()
         self._apply(body_present)
         h = self._highs
+        if self.table is not None and len(self.table["cols"]):
+            active, _ = m.resting(body_present)
+            cols = self.table["cols"]
+            hi = np.where(active[self.table["index"]] & body_present[m._table_points()[1][self.table["index"]]],
+                          np.inf, 0.0)
+            h.changeColsBounds(len(cols), cols.astype(np.int32), np.zeros(len(cols)), hi)
         h.run()
         self.solves += 1
-        status = h.getModelStatus()
-        if status != self._highspy.HighsModelStatus.kOptimal:
-            raise RuntimeError(f"the build check ended with HiGHS status {h.modelStatusToString(status)}")
+        if h.getModelStatus() != self._highspy.HighsModelStatus.kOptimal:
+            # the warm start lost its way on a degenerate set (a piece about to tip, seen on
+            # the Stanford bunny): answer from a program of its own, go on from the last basis
+            self.fresh += 1
+            if self._basis is not None:
+                h.setBasis(self._basis)
+            else:
+                h.clearSolver()
+            present_bricks = [b for b, keep in zip(self.layout.bricks, present) if keep]
+            model = _Model(Layout(self.layout.grid, present_bricks), m.ground, [], self._printed,
+                           self._clamp, m.clutch_n, self._profile)
+            verdict = model.verdict(detail=False)
+            return verdict.stable, verdict.max_utilisation
+        self._basis = h.getBasis()
         worst = _worst(float(h.getSolution().col_value[self.factor]))
         return bool(worst <= FAIL_ABOVE), worst
 
@@ -457,10 +482,42 @@ class BuildChecker:
 
 def _worst(factor: float) -> float:
     """The worst utilisation of a largest load factor: its inverse; 0 for a structure that
-    needs no clutch at all (the factor reached :data:`LOAD_FACTOR_CAP`), inf for 0."""
+    needs no clutch at all (the factor reached :data:`LOAD_FACTOR_CAP`), inf when it cannot
+    carry even 1 / LOAD_FACTOR_CAP of its weight (it tips or floats)."""
     if factor >= LOAD_FACTOR_CAP * (1 - 1e-9):
         return 0.0
-    return 1.0 / factor if factor > 0 else math.inf
+    return 1.0 / factor if factor > 1.0 / LOAD_FACTOR_CAP else math.inf
+
+
+def _facet_under(points: np.ndarray, xy: np.ndarray, hull_of, hull_error):
+    """(unit normal, offset) of the face of the lower convex hull of ``points`` (n, 3) under
+    ``xy``, the plane ``normal . p + offset = 0``; None when ``xy`` lies outside the hull's
+    plan (the structure tips).  Flat point sets are their own face."""
+    pts = np.unique(np.round(points, 9), axis=0)
+    if np.ptp(pts[:, 2]) <= 1e-9:
+        try:
+            plan = hull_of(pts[:, :2])
+        except hull_error:
+            return None
+        if np.all(plan.equations[:, :2] @ xy + plan.equations[:, 2] <= 1e-9):
+            return np.array([0.0, 0.0, -1.0]), float(pts[0, 2])
+        return None
+    try:
+        hull = hull_of(pts)
+    except hull_error:
+        return None
+    for eqn, simplex in zip(hull.equations, hull.simplices):
+        if eqn[2] >= -1e-9:
+            continue
+        tri = pts[simplex][:, :2]
+        m = np.array([tri[1] - tri[0], tri[2] - tri[0]]).T
+        try:
+            u, v = np.linalg.solve(m, xy - tri[0])
+        except np.linalg.LinAlgError:
+            continue
+        if u >= -1e-9 and v >= -1e-9 and u + v <= 1 + 1e-9:
+            return eqn[:3], float(eqn[3])
+    return None
 
 
 def _supported_below(lab: np.ndarray) -> bool:
@@ -663,7 +720,7 @@ class _Model:
             self._shear(prog, eq, np.stack([gi, gj], 1), np.zeros(len(gi), np.int64), gb, None)
         else:
             parts["base"] = None
-            self._table(prog, eq, gi, gj, gb)
+            parts["table"] = self._table(prog, eq, held)
         parts["sections"] = self._bending(prog, parts, factor, detail, zcap)
         parts["section_rows"] = [(sec[0], sec[5]) for sec in parts["sections"]]
         return prog, parts
@@ -743,39 +800,83 @@ class _Model:
         if lo_b is not None:
             prog.put(eq[6 * lo_b + 5], twist, -1.0)
 
-    def _table(self, prog, eq, gi, gj, gb):
-        """Bodies on a table press down at the corners of the outline of their bottom cells
-        (the convex hull: nothing inside it matters to a support that only presses), and
-        slide only against friction: |horizontal force| <= mu * press, per body."""
-        held = self.held[gb]
-        gi, gj, gb = gi[held], gj[held], gb[held]
-        if not len(gb):
-            return
+    def _table_points(self):
+        """Where the build can touch a table: the bottom corners (0.1 mm in) of every cell
+        with nothing under it, in studs, with their bodies (computed once)."""
+        if getattr(self, "_points", None) is None:
+            filled = self.blab >= 0
+            exposed = filled.copy()
+            exposed[:, :, 1:] &= ~filled[:, :, :-1]
+            i, j, k = np.nonzero(exposed)
+            inset = 0.1 / self.unit
+            corner = np.array([[inset, inset], [1 - inset, inset], [inset, 1 - inset],
+                               [1 - inset, 1 - inset]])
+            xy = self.origin[:2] + (np.stack([i, j], 1)[:, None, :] + corner[None]) * self.cell[:2]
+            z = np.broadcast_to((self.origin[2] + k * self.cell[2])[:, None, None], (len(i), 4, 1))
+            self._points = (np.concatenate([xy, z], axis=2).reshape(-1, 3),
+                            np.repeat(self.blab[i, j, k], 4))
+        return self._points
+
+    def resting(self, present: np.ndarray) -> tuple[np.ndarray, float]:
+        """Which table points carry the bodies ``present`` (bool per body), and the largest
+        tilt (degrees) the build rests at.
+
+        A rigid build put on a table settles on the face of its lower convex hull under its
+        centre of mass (each connected structure on its own): on its bottom layer when that
+        is flat under it, else tilted onto lower points elsewhere.  A structure whose centre
+        of mass lies outside the hull of all its points, or that would lean more than
+        :data:`MAX_TILT_DEG`, has fallen over: none of its points carry."""
         from scipy.spatial import ConvexHull, QhullError
-        inset = 0.1 / self.unit
-        pts, owner = [], []
-        for body in np.unique(gb):
-            sel = gb == body
-            lo = self.origin[:2] + np.stack([gi[sel], gj[sel]], 1) * self.cell[:2] + inset
-            hi = lo + self.cell[:2] - 2 * inset
-            corners = np.unique(np.concatenate([lo, hi, np.stack([lo[:, 0], hi[:, 1]], 1),
-                                                np.stack([hi[:, 0], lo[:, 1]], 1)]), axis=0)
-            if len(corners) > 4:
-                try:
-                    corners = corners[ConvexHull(corners).vertices]
-                except QhullError:
-                    pass
-            pts.append(corners)
-            owner.append(np.full(len(corners), body))
-        pts, owner = np.concatenate(pts), np.concatenate(owner)
-        pts3 = np.concatenate([pts, np.full((len(pts), 1), self.origin[2])], axis=1)
-        press = prog.columns(len(pts), 0.0, np.inf)
-        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts3.shape)
-        self._moment_rows(prog, eq, owner, pts3, up, press, np.ones(len(pts)))
-        bodies = np.unique(owner)
+        pts, body = self._table_points()
+        active = np.zeros(len(pts), dtype=bool)
+        tilt = 0.0
+        i, j, k = self._stud_joints()
+        a, b = self.blab[i, j, k], self.blab[i, j, k + 1]
+        keep = present[a] & present[b]
+        n = self.nbody
+        graph = sparse.coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(n, n))
+        _, comp = connected_components(graph, directed=False)
+        mine = present[body]
+        for c in np.unique(comp[present]):
+            members = present & (comp == c)
+            sel = np.flatnonzero(mine & members[body])
+            if not len(sel):
+                continue
+            weight = self.mass_g[members]
+            com = (weight[:, None] * self.com[members]).sum(axis=0) / max(weight.sum(), 1e-12)
+            p = pts[sel]
+            low = p[:, 2].min()
+            flat = p[:, 2] <= low + 1e-9
+            facet = _facet_under(p, com[:2], ConvexHull, QhullError)
+            if facet is None:
+                continue
+            normal, offset = facet
+            on = np.abs(p @ normal + offset) <= 1e-6
+            lean = 0.0 if flat[on].all() else math.degrees(math.acos(min(1.0, abs(normal[2]))))
+            if lean > MAX_TILT_DEG:
+                continue
+            active[sel[on]] = True
+            tilt = max(tilt, lean)
+        return active, tilt
+
+    def _table(self, prog, eq, present: np.ndarray):
+        """Bodies on a table press down where the build rests (:meth:`resting`; the other
+        points are columns held at zero, for :class:`BuildChecker`) and slide only against
+        friction: |horizontal force| <= mu * press, per body."""
+        pts, body = self._table_points()
+        use = present[body]
+        pts, body = pts[use], body[use]
+        active, self.tilt = self.resting(present)
+        active = active[use]
+        if not len(pts):
+            return {"cols": np.zeros(0, np.int64), "index": np.flatnonzero(use)}
+        press = prog.columns(len(pts), 0.0, np.where(active, np.inf, 0.0))
+        up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
+        self._moment_rows(prog, eq, body, pts, up, press, np.ones(len(pts)))
+        bodies = np.unique(body)
         m = len(bodies)
-        where = np.searchsorted(bodies, owner)
-        centre = np.stack([np.bincount(where, pts3[:, a]) / np.bincount(where) for a in range(3)], 1)
+        where = np.searchsorted(bodies, body)
+        centre = np.stack([np.bincount(where, pts[:, a]) / np.bincount(where) for a in range(3)], 1)
         for axis in (0, 1):
             f = prog.columns(m, -np.inf, np.inf)
             d = np.zeros((m, 3))
@@ -787,6 +888,7 @@ class _Model:
                 prog.put(rows[where], press, -TABLE_FRICTION)
         twist = prog.columns(m, -np.inf, np.inf)
         prog.put(eq[6 * bodies + 5], twist, 1.0)
+        return {"cols": press, "index": np.flatnonzero(use)}
 
     def _bending(self, prog, parts, factor, detail, zcap) -> list:
         """|bending moment| / strength <= 1 (phase 1) or <= the brick's utilisation column
@@ -854,7 +956,7 @@ class _Model:
         return Forces(stable=stable, ground=self.ground, max_utilisation=worst, utilisation=util,
                       failing_bricks=failing, unsupported=unsupported, failures=failures,
                       mass_g=float(self.mass_g.sum()), clutch_n=self.clutch_n,
-                      loads=[x.to_json() for x in self.loads])
+                      loads=[x.to_json() for x in self.loads], tilt_deg=getattr(self, "tilt", 0.0))
 
     def _detail(self, x, parts, stable, worst, tips) -> Forces:
         """Utilisation per brick from phase 2's solution ``x``; failing and unsupported bricks."""
