@@ -173,7 +173,9 @@ def _stability(args) -> int:
             raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
     worst = "infinite (something floats or tips)" if doc["max_utilisation"] is None else f"{doc['max_utilisation']:.3f}"
     print(f"{'stands' if result.stable else 'does not stand'} on a {result.ground}: "
-          f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g")
+          f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g"
+          + (f", resting leaning {result.tilt_deg:.1f}° on its lower points"
+             if result.tilt_deg >= 1 else ""))
     for failure in result.failures[:20]:
         print(f"  brick {failure['brick']}: {failure['why']}")
     if len(result.failures) > 20:
@@ -272,7 +274,12 @@ def _summary(doc: dict, out) -> None:
         print(f"{'stands' if force['stable'] else 'does NOT stand'} on a {force['ground']} with "
               f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
               + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"
-                 if force["failing_bricks"] else ""))
+                 if force["failing_bricks"] else "")
+              + (f"; it rests leaning {force['rests_tilted_deg']:.0f}° on its lower points"
+                 if force.get("rests_tilted_deg", 0) >= 1 else ""))
+        build = st.get("build") or {}
+        for step in build.get("unstable_steps", ())[:5]:
+            sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]
