@@ -4,7 +4,7 @@ Per model (no printed parts, on a table, as the CLI runs it): bricks, the
 force verdict and worst utilisation of the laid-out object before and after
 the layout uses the forces (:mod:`core.reinforce`), failing and unsupported
 bricks, whether every build step stands (unstable and moved steps), seconds
-of the force stage and of the build-order check.  Then the synthetic rows:
+of the force stage and of the build-order check, on a table and on a baseplate.  Then the synthetic rows:
 the force check of a ~3,000-brick layout and all build prefixes of a
 ~500-brick build.  Prints markdown tables and writes them to ``bench/out/``.
 """
@@ -47,8 +47,14 @@ def bench_model(path: Path, ground: str) -> dict:
         row["error"] = f"BUG {type(exc).__name__}: {exc}"
         return row
     f = fab.forces
+    rf = fab.reinforced
     row.update({
         "bricks": len(fab.layout.bricks),
+        "before forces (layout)": None if rf is None else
+        f"{'stands' if rf.before['stable'] else 'FAILS'} {rf.before['max_utilisation']}",
+        "after forces (layout)": None if rf is None else
+        f"{'stands' if rf.after['stable'] else 'FAILS'} {rf.after['max_utilisation']}",
+        "reinforce s": fab.timings_s.get("reinforce"),
         "verdict": _verdict(f),
         "failing": len(f.failing_bricks),
         "unsupported": len(f.unsupported),
@@ -94,7 +100,8 @@ def bench_scaling() -> list[dict]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(ROOT / "bench" / "out"))
-    parser.add_argument("--ground", default="table", choices=forces.GROUNDS)
+    parser.add_argument("--ground", default=None, choices=forces.GROUNDS,
+                        help="one ground only (default: both, table and baseplate)")
     args = parser.parse_args()
     if not MODELS.is_dir():
         print(f"note: {MODELS} is absent: only the bundled demo model is measured")
@@ -102,12 +109,14 @@ def main() -> int:
     forces.analyse(layout.lay_out(voxelize.legofy(warm), catalog.CATALOG))
     rows = []
     for path in model_paths():
-        rows.append(bench_model(path, args.ground))
-        print(f"  measured {path.name}: {rows[-1]}", file=sys.stderr)
+        for ground in [args.ground] if args.ground else list(forces.GROUNDS):
+            rows.append(bench_model(path, ground))
+            print(f"  measured {path.name}: {rows[-1]}", file=sys.stderr)
     ok = [r for r in rows if "error" not in r]
     refused = [r for r in rows if "error" in r]
-    cols = ["model", "ground", "bricks", "verdict", "failing", "unsupported", "every step stands",
-            "steps moved", "steps", "forces s", "build check s"]
+    cols = ["model", "ground", "bricks", "before forces (layout)", "after forces (layout)", "verdict",
+            "failing", "unsupported", "every step stands", "steps moved", "steps", "reinforce s",
+            "forces s", "build check s"]
     scaling = bench_scaling()
     text = ["## Forces per model (verdict: stands/FAILS and the worst utilisation)", "",
             table(ok, cols), ""]

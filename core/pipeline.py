@@ -26,7 +26,8 @@ from core import build_order, catalog, colours, connectors as connectors_stage, 
 from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
 from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
-from core import forces as forces_stage, stability as stability_stage, voxelize
+from core import forces as forces_stage, reinforce as reinforce_stage
+from core import stability as stability_stage, voxelize
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
@@ -67,6 +68,7 @@ class Fabrication:
     print_parts: print_time_stage.PrintEstimate | None = None
     plates: list | None = None
     forces: forces_stage.Forces | None = None
+    reinforced: reinforce_stage.Reinforced | None = None
 
     @property
     def seed(self) -> int:
@@ -132,7 +134,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     4. **layout**: fresh, marked and other cells laid out apart
        (:func:`core.layout.lay_out_around`); iterating, the previous bricks
        kept where they still fit and the rest laid out anew
-       (:func:`core.iterate.lay_out`).
+       (:func:`core.iterate.lay_out`).  A fresh layout is then re-merged around the
+       joints the forces find failing or loaded (:func:`core.reinforce.reinforce`).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
        by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
@@ -207,6 +210,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
     else:
         layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
+    reinforced = None
+    if before is None:
+        reinforced = timed("reinforce", 0.45, reinforce_stage.reinforce, layout, chosen, req.ground,
+                           req.loads, req.clutch_n, cells, req.seed)
+        layout = reinforced.layout
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -246,7 +254,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
-                      fit=fit, iteration=iteration, notes=notes, forces=force)
+                      fit=fit, iteration=iteration, notes=notes, forces=force,
+                      reinforced=reinforced)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -498,6 +507,7 @@ def report(fab: Fabrication) -> dict:
                         "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
             **({} if fab.forces is None else {"force": fab.forces.to_json()}),
             **({} if not fab.order.utilisation else {"build": build_stability(fab.order)}),
+            **({} if fab.reinforced is None else {"reinforce": fab.reinforced.to_json()}),
         },
         "high_res": dict(fab.marks),
         "printed_parts": [p.to_json() for p in fab.printed],

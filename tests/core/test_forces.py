@@ -317,3 +317,43 @@ def test_a_build_that_would_lean_past_20_degrees_has_fallen_over():
     layout = layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3))])
     result = forces.analyse(layout, ground="table")
     assert not result.stable and result.unsupported == [1, 2]
+
+
+def arm_of_plates() -> Layout:
+    """A 2x2 tower two bricks high and, on it, a 1-wide arm 10 studs long, three plate layers
+    thick, laid as 1x2 plates in a running bond (and 1x2 plates capping the tower)."""
+    bricks = [Brick(1, "3003", (2, 2, 3), (0, 0, 0)), Brick(2, "3003", (2, 2, 3), (0, 0, 3))]
+    rows = {6: [(0, 2), (2, 4), (4, 6), (6, 8), (8, 10)],
+            7: [(0, 1), (1, 3), (3, 5), (5, 7), (7, 9), (9, 10)],
+            8: [(0, 2), (2, 4), (4, 6), (6, 8), (8, 10)]}
+    for k, segments in rows.items():
+        for a, b in segments:
+            bricks.append(Brick(len(bricks) + 1, {1: "3024", 2: "3023"}[b - a], (b - a, 1, 1), (a, 0, k)))
+        bricks.append(Brick(len(bricks) + 1, "3023", (2, 1, 1), (0, 1, k)))
+    return layout_of(bricks)
+
+
+def test_reinforce_re_merges_around_the_failing_joint():
+    """45 g at the arm's tip pulls the arm's 1x2 plates off the tower (utilisation > 1);
+    merged again around the failing joint the arm holds, covering the same cells."""
+    from core import reinforce
+    layout = arm_of_plates()
+    load = ["72,0,28.8,80,8,40:45"]
+    assert not forces.analyse(layout, ground="baseplate", loads=load).stable
+    result = reinforce.reinforce(layout, ground="baseplate", loads=load)
+    assert result.before["stable"] is False and result.after["stable"] is True
+    assert result.after["max_utilisation"] < 1
+    assert forces.analyse(result.layout, ground="baseplate", loads=load).stable
+    covered = np.zeros(layout.grid.shape, dtype=int)
+    for b in result.layout.bricks:
+        covered[b.slices()] += 1
+    assert np.array_equal(covered, layout.grid.filled.astype(int))
+    assert result.after["components"] == 1
+    assert len({b.id for b in result.layout.bricks}) == len(result.layout.bricks)
+
+
+def test_reinforce_leaves_a_standing_layout_alone():
+    from core import reinforce
+    layout = arm_of_plates()
+    result = reinforce.reinforce(layout, ground="baseplate")
+    assert result.layout is layout and result.attempts == 0
