@@ -224,6 +224,8 @@ def _calibration_strip(args) -> int:
 
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
+    if doc["model"]["repaired"]:
+        sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
     for warning in doc["model"]["warnings"]:
         sys.stderr.write(f"warning: {warning}\n")
     for warning in doc.get("warnings", ()):

@@ -394,6 +394,10 @@ def test_an_obj_counting_vertices_from_zero_is_read_as_such(tmp_path, capsys):
     model = mesh_io.load_model(good)
     assert model.watertight and abs(model.mesh.volume - np.prod(BOX_MM)) < 1e-6
     assert any("counting vertices from 0" in r for r in model.repaired)
+    status, _, err = in_process(capsys, "fabricate", good, "--out", tmp_path / "good", "--quiet",
+                                "--no-picture")
+    one_line(status, err, "repaired", "counting vertices from 0", code=0)
+    assert json.loads((tmp_path / "good" / "report.json").read_text())["plates"] == BOX_CELLS
     bad = tmp_path / "bad.obj"
     bad.write_text(text + "f 0 1 2\nf 1 2 8\n")
     status, _, err = in_process(capsys, "fabricate", bad, "--out", tmp_path / "o", "--quiet")
