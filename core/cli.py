@@ -7,7 +7,7 @@ ends with one line on stderr naming the problem and exit status 2; any
 other failure is a bug: one line saying so and naming the log file with the
 traceback (:func:`core.errors.log_bug`), exit status 1.  Ctrl-C (and a
 SIGTERM or SIGHUP) stops a run in one line, exit status 128 + the signal
-(130 for Ctrl-C); the unfinished output is removed.  Progress goes to
+(130 for Ctrl-C); an unfinished output is removed, a finished one stays.  Progress goes to
 stderr, a short summary to stdout.
 """
 
@@ -161,8 +161,7 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         signum = getattr(stop, "signum", signal.SIGINT)
         what = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-        sys.stderr.write(f"stopped by {what}: the unfinished output was removed, "
-                         f"--out is as it was before the run\n")
+        sys.stderr.write(f"stopped by {what}: nothing half-written was left behind\n")
         return 128 + int(signum)
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
         sys.stderr.write(bug_message(exc, log_bug(exc, f"python -m core {args.command}")) + "\n")

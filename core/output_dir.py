@@ -40,6 +40,7 @@ import hashlib
 import json
 import os
 import re
+import secrets
 import shutil
 import signal
 import tempfile
@@ -193,6 +194,9 @@ class OutputFolder:
             raise InputError(f"{self.flag} {out.name[:40]}...: the name is "
                              f"{len(os.fsencode(out.name))} bytes long, the file system allows "
                              f"{longest}")
+        if out.is_symlink():
+            raise InputError(f"{self.flag} {out} is a symbolic link: give the folder itself "
+                             f"({os.path.realpath(out)})")
         if out.exists() and not out.is_dir():
             raise InputError(f"{self.flag} {out} exists and is not a folder")
         above = out.parent
@@ -286,8 +290,8 @@ class OutputFolder:
         with _signals_held():
             try:
                 if self.out.exists():
-                    aside = Path(tempfile.mkdtemp(prefix=f".{_tag(self.out.name)}.old-{os.getpid()}-",
-                                                  dir=self.out.parent))
+                    aside = self.out.parent / (f".{_tag(self.out.name)}.old-{os.getpid()}-"
+                                               f"{secrets.token_hex(4)}")
                     os.rename(self.out, aside)
                 os.rename(self.temp, self.out)
             except OSError as err:
