@@ -20,7 +20,6 @@ import math
 import os
 import re
 import stat
-import tempfile
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -31,6 +30,7 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from core import output_dir
 from core.errors import InputError
 from core.model import CELL_MM
 from core.request import UNITS
@@ -402,7 +402,7 @@ def _tessellate(shape, tolerance_mm: float, name: str) -> tuple[np.ndarray, np.n
     failed = InputError(f"{name}: the solid could not be tessellated")
     writer = StlAPI_Writer()
     writer.ASCIIMode = False
-    with tempfile.TemporaryDirectory(prefix="fabrickator-") as tmp:
+    with output_dir.scratch("stl") as tmp:
         out = os.path.join(tmp, "tessellation.stl")
         try:
             BRepTools.Clean_s(shape)
