@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -148,11 +149,18 @@ def _stop_signals():
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug,
     128 + the signal when stopped: 130 for Ctrl-C)."""
+    for stream in (sys.stdout, sys.stderr):       # a file name that is not UTF-8 prints escaped
+        with contextlib.suppress(AttributeError, ValueError):
+            stream.reconfigure(errors="backslashreplace")
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip}.get(args.command, _fabricate)
     try:
         with _stop_signals():
             return command(args)
+    except BrokenPipeError:                         # stdout piped into a reader that quit
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2

@@ -570,7 +570,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
             return write_outputs(fab, folder, progress, report_doc)
     progress = progress or _noop
     folder, tmp = out, out.temp
-    title = Path(fab.model.path).name
+    title = Path(fab.model.path).name.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
     start = time.perf_counter()
     placed = {}
     if fab.printed:

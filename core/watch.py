@@ -213,7 +213,7 @@ class FolderWatcher:
 
     Files present when the watcher is made count as already seen unless
     ``include_existing``.  Raises :class:`InputError` when ``folder`` is
-    not a folder.
+    not a folder or cannot be read.
     """
 
     folder: Path
@@ -231,8 +231,9 @@ class FolderWatcher:
         if not self.folder.is_dir():
             raise InputError(f"watch folder {self.folder} does not exist or is not a folder")
         self.suffixes = tuple(s.lower() for s in self.suffixes)
+        present = dict(self._scan())            # InputError now when it cannot be read
         if not self.include_existing:
-            self._reported = dict(self._scan())
+            self._reported = present
 
     def _scan(self) -> Iterator[tuple[str, tuple[int, int]]]:
         """(name, (size, mtime_ns)) of every watched file in the folder now."""

@@ -153,6 +153,36 @@ def test_an_unreadable_file_names_the_permission_problem(as_nobody):
     assert list(out.iterdir()) == []
 
 
+def test_a_watch_folder_that_cannot_be_read_is_refused_before_watching(as_nobody):
+    folder, prefix, env = as_nobody
+    closed = folder / "closed"
+    closed.mkdir()
+    closed.chmod(0o000)
+    proc = cli("watch", closed, "--out", folder / "home" / "o", "--existing", "--timeout", "1",
+               prefix=prefix, env=env)
+    one_line(proc.returncode, proc.stderr, "cannot be read")
+
+
+def test_a_file_name_that_is_not_utf8_is_built_and_printed_escaped(box_stl, tmp_path):
+    odd = Path(os.fsdecode(bytes(tmp_path) + b"/b\xff.stl"))
+    shutil.copy(box_stl, odd)
+    out = Path(os.fsdecode(bytes(tmp_path) + b"/o\xfe"))
+    proc = cli("fabricate", odd, "--out", out, "--quiet", "--no-picture")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert "o\\udcfe" in proc.stdout
+    assert_complete(out)
+
+
+def test_a_reader_that_quits_early_is_no_bug(box_stl, tmp_path):
+    proc = subprocess.Popen([sys.executable, "-m", "core", "fabricate", str(box_stl), "--out",
+                             str(tmp_path / "o"), "--quiet", "--no-picture"], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()                      # as `| head -0` does
+    assert proc.wait(timeout=180) == 0
+    assert proc.stderr.read() == ""
+    assert_complete(tmp_path / "o")
+
+
 # --- options ---------------------------------------------------------------------
 
 @pytest.mark.parametrize("args, words", [
