@@ -22,7 +22,7 @@ import threading
 import time
 
 from core import __version__, request
-from core.errors import InputError, bug_message, log_bug
+from core.errors import InputError, bug_line
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"stopped by {what}: nothing half-written was left behind\n")
         return 128 + int(signum)
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
-        sys.stderr.write(bug_message(exc, log_bug(exc, f"python -m core {args.command}")) + "\n")
+        sys.stderr.write(bug_line(exc, f"python -m core {args.command}") + "\n")
         return 1
 
 

@@ -599,3 +599,17 @@ def test_calibration_strip_keeps_other_files(tmp_path, capsys):
     status, out, err = in_process(capsys, "calibration-strip", "--out", tmp_path)
     one_line(status, err, "thesis.txt")
     assert out == "" and (tmp_path / "thesis.txt").read_text() == "precious"
+
+
+# --- bugs ---------------------------------------------------------------------------
+
+def test_a_bug_when_no_log_can_be_written_is_still_one_line(monkeypatch):
+    from core import errors
+
+    monkeypatch.setattr(errors, "log_folders", lambda: [Path("/proc/fabrickator-no-log")])
+    try:
+        raise ValueError("boom: the layout stage broke\nand said more")
+    except ValueError as exc:
+        line = errors.bug_line(exc, "python -m core fabricate")
+    assert "\n" not in line
+    assert line.startswith("bug: ValueError: boom") and "no log of it could be written" in line
