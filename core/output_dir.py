@@ -75,8 +75,10 @@ def pipeline_output(folder: Path) -> str | None:
     names = sorted(p.name for p in folder.iterdir())
     if not names:
         return None
+    report = folder / "report.json"
     try:
-        listed = json.loads((folder / "report.json").read_text(encoding="utf-8")).get("outputs")
+        listed = (json.loads(report.read_text(encoding="utf-8")).get("outputs")
+                  if report.is_file() else None)
     except (OSError, ValueError, AttributeError):
         listed = None
     if isinstance(listed, list):
