@@ -11,10 +11,14 @@ except KeyboardInterrupt:
     sys.exit(130)
 
 status = main()
-if status > 128 and threading.active_count() > 1:
-    # stopped by a signal while worker threads still wait on a slicer: do not wait for
-    # them (the slicer dies with this process, core.print_time.dying_with_us)
-    sys.stdout.flush()
-    sys.stderr.flush()
+if threading.active_count() > 1:
+    # stopped (Ctrl-C, SIGTERM; watch ends so too) while worker threads still wait on a
+    # slicer: do not wait for them (the slicer dies with this process,
+    # core.print_time.dying_with_us); after a run that ended normally none is left
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
     os._exit(status)
 sys.exit(status)

@@ -196,10 +196,10 @@ def _watch(args) -> int:
     job = request.from_options(args, "watched")
     timeout = request.timeout_seconds(args.timeout)
     files = watch.watch(args.folder, include_existing=args.existing, timeout_s=timeout)
-    root, runs = output_dir.check_root(args.out), 0
+    root, runs, built = output_dir.check_root(args.out), 0, 0
     versions = watch.Versions(first=job.previous)
-    sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
     try:
+        sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
         for path in files:
             runs += 1
             out = root / f"{path.stem}-{runs}"
@@ -210,10 +210,11 @@ def _watch(args) -> int:
             except InputError as err:
                 sys.stderr.write(f"error: {path.name}: {err}\n")
                 continue
+            built += 1
             _summary(doc, out)
             versions.record(path, out)
     except KeyboardInterrupt:
-        sys.stderr.write(f"stopped after {runs} version(s)\n")
+        sys.stderr.write(f"stopped after {built} version(s) built\n")
     return 0
 
 

@@ -552,6 +552,14 @@ def test_watch_checks_its_folder_and_output_before_it_watches(box_stl, tmp_path,
         one_line(status, err, *words)
 
 
+def test_ctrl_c_ends_a_watch_in_one_line(tmp_path):
+    proc = running(["watch", tmp_path, "--out", tmp_path / "o"], until="watching")
+    proc.send_signal(signal.SIGINT)
+    stderr = proc.stderr.read()
+    assert proc.wait(timeout=60) == 0
+    assert stderr.strip().splitlines() == ["stopped after 0 version(s) built"]
+
+
 class Clock:
     def __init__(self):
         self.now = 0.0
