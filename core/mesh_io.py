@@ -55,8 +55,9 @@ ABSURD_MM = 1.0e9
 #: further from the origin (131 m and more) is moved to it (:func:`load_model`).
 PRECISE_MM = 0.01
 
-#: Thinnest spread (mm, standard deviation of its corners across) a piece of surface may
-#: have and still enclose volume; flatter pieces are dropped (:func:`repair`).
+#: A piece of surface whose corners spread less than this across (mm, standard deviation)
+#: and less than a millionth of the model's size is flat: it encloses no volume and is
+#: dropped (:func:`repair`).
 FLAT_MM = 1e-3
 
 #: FreeCAD link properties through which one object consumes another's shape
@@ -786,8 +787,10 @@ def _pieces_with_volume(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray
     """Per piece, whether it may enclose volume: 4 faces or more, not all in one plane.
 
     Flatness is judged from the smallest principal extent of the piece's
-    corners (vectorised covariance per piece): at most FLAT_MM (absolute, so a
-    long thin bar is no flatter than a short one).
+    corners (vectorised covariance per piece): flat is at most FLAT_MM *and*
+    at most a millionth of the model's size (so a long thin bar is no
+    flatter than a short one, and a tiny part read in the wrong unit is not
+    flat either).
     """
     pieces = int(labels.max()) + 1
     count = np.bincount(labels, minlength=pieces)
@@ -805,7 +808,8 @@ def _pieces_with_volume(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray
                 cov[:, i, j] = cov[:, j, i] = (np.bincount(lab, corners[:, i] * corners[:, j], pieces)
                                                / n - mean[:, i] * mean[:, j])
     thinnest = np.sqrt(np.clip(np.linalg.eigvalsh(cov)[:, 0], 0.0, None))
-    return (count >= 4) & (thinnest > FLAT_MM)
+    scale = float(np.linalg.norm(np.ptp(corners, axis=0)))
+    return (count >= 4) & (thinnest > min(FLAT_MM, 1e-6 * scale))
 
 
 def _consistent_winding(mesh: trimesh.Trimesh) -> np.ndarray:
