@@ -240,13 +240,15 @@ class OutputFolder:
         self._lock_fd, self._lock_path = fd, path
 
     def _clean_leftovers(self) -> None:
-        """Under the lock: remove the temporary folders of killed runs into this output; an
-        earlier output set aside by a run killed while installing is put back."""
-        pattern = re.compile(rf"\.{re.escape(_tag(self.out.name))}\.(part|old)-\d+-[^/]*$")
+        """Under the lock: remove the temporary folders of killed runs into this output (their
+        process is gone); an earlier output set aside by a run killed while installing is
+        put back."""
+        pattern = re.compile(rf"\.{re.escape(_tag(self.out.name))}\.(part|old)-(\d+)-[^/]*$")
         aside = []
         for entry in self.out.parent.iterdir():
             found = pattern.match(entry.name)
-            if not found or not entry.is_dir() or entry.is_symlink():
+            if (not found or not entry.is_dir() or entry.is_symlink()
+                    or (int(found[2]) != os.getpid() and _alive(int(found[2])))):
                 continue
             if found[1] == "old":
                 aside.append(entry)
@@ -393,7 +395,11 @@ def clean_stale_scratch(prefix: str, where: str | os.PathLike | None = None) -> 
 
 
 def _alive(pid: int) -> bool:
-    """Whether a process ``pid`` exists (one of another user counts as alive)."""
+    """Whether a process ``pid`` exists (one of another user counts as alive).  False
+    where it cannot be asked without harm (Windows' ``os.kill`` ends the process): the
+    leftovers of an output are then cleaned on the lock alone."""
+    if os.name != "posix":
+        return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
