@@ -145,7 +145,7 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     reach = float(np.abs(mesh.bounds).max())
     if recentre and np.spacing(np.float32(reach)) > PRECISE_MM:
         lo, hi = mesh.bounds
-        offset = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+        offset = 0.0 - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         mesh = mesh.copy()
         mesh.apply_translation(offset)
         brep = None if brep is None else _translated_shape(brep, offset, file.name)
