@@ -1,7 +1,24 @@
 """``python -m core``: the headless command line."""
 
+import os
 import sys
+import threading
 
-from core.cli import main
+try:
+    from core.cli import main
+except KeyboardInterrupt:
+    sys.stderr.write("stopped by Ctrl-C while starting\n")
+    sys.exit(130)
 
-sys.exit(main())
+status = main()
+if threading.active_count() > 1:
+    # stopped (Ctrl-C, SIGTERM; watch ends so too) while worker threads still wait on a
+    # slicer: do not wait for them (the slicer dies with this process,
+    # core.print_time.dying_with_us); after a run that ended normally none is left
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)
+sys.exit(status)

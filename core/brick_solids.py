@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import math
 import numbers
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,6 +69,8 @@ from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape, TopoDS_Shell
 from OCP.TopTools import TopTools_IndexedMapOfShape, TopTools_ListOfShape
+
+from core import output_dir
 
 #: The four outer side tags, by axis and direction.
 SIDE_TAGS = ("side-x", "side+x", "side-y", "side+y")
@@ -420,7 +421,7 @@ def to_trimesh(shape, tolerance: float = 0.05, angular_tolerance: float = 0.3) -
     missing = [f for f in face_list(occ) if BRep_Tool.Triangulation_s(f, TopLoc_Location()) is None]
     if missing:
         raise TessellationFailed(f"{len(missing)} face(s) of the shape could not be tessellated")
-    with tempfile.TemporaryDirectory(prefix="fabrickator-") as tmp:
+    with output_dir.scratch("stl") as tmp:
         path = Path(tmp) / "shape.stl"
         writer = StlAPI_Writer()
         writer.ASCIIMode = False

@@ -33,8 +33,6 @@ Everything is in mm.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -269,42 +267,32 @@ SocketFit properties (also in the "Lay out" dialog).  Defaults: stud fit
 def write_strip(out, values=None, fit: Fit = Fit()) -> tuple[Strip, list[Path]]:
     """Build the strip (:func:`build_strip`; ``values`` default to :func:`column_values`
     around ``fit``) and write STL_NAME, THREEMF_NAME and README_NAME into the folder
-    ``out`` (made when missing); returns the strip and the three paths.
+    ``out``; returns the strip and the three paths.
 
-    The values are checked before anything is made or built.  Each file is written
-    under a temporary name and then renamed, README last, so a folder with
-    README.txt is complete.  Raises InputError when ``out`` cannot be made or
-    written, or for values :func:`build_strip` refuses.
+    The values are checked, and the folder (:class:`core.output_dir.OutputFolder`:
+    new, empty or an earlier strip's, made when missing, writable, not being written
+    by another run) before anything is built.  The files are written into a
+    temporary folder beside ``out`` that replaces it whole at the end, so a folder
+    with the strip's files is complete.  Raises InputError when ``out`` cannot be
+    made or written or holds other files, or for values :func:`build_strip` refuses.
     """
     import trimesh
+
+    from core import output_dir
 
     values = column_values(fit=fit) if values is None else tuple(values)
     for value in values:
         column_fit(fit, value)
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot make the output folder {folder}: {err.strerror or err}") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(f"cannot write into the output folder {folder}")
-    strip = build_strip(values, fit)
-    contents = ((STL_NAME, trimesh.exchange.stl.export_stl(strip.mesh)),
-                (THREEMF_NAME, trimesh.exchange.threemf.export_3MF(strip.mesh)),
-                (README_NAME, readme(strip).encode("utf-8")))
-    return strip, [_write(folder / name, data) for name, data in contents]
-
-
-def _write(path: Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in its folder; the path."""
-    try:
-        handle, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(data)
-        os.replace(tmp, path)
-    except OSError as err:
-        raise InputError(f"cannot write {path}: {err.strerror or err}") from None
-    return path
+    names = (STL_NAME, THREEMF_NAME, README_NAME)
+    with output_dir.OutputFolder(out, earlier=output_dir.files_output(*names)) as folder:
+        strip = build_strip(values, fit)
+        contents = (trimesh.exchange.stl.export_stl(strip.mesh),
+                    trimesh.exchange.threemf.export_3MF(strip.mesh),
+                    readme(strip).encode("utf-8"))
+        for name, data in zip(names, contents):
+            (folder.temp / name).write_bytes(data)
+        folder.install()
+    return strip, [folder.out / name for name in names]
 
 
 def _pitch(least: float) -> float:

@@ -5,18 +5,24 @@ help and defaults come from it); the command builds a Request, runs the
 driver (:func:`core.pipeline.fabricate`) and prints the result.  Bad input
 ends with one line on stderr naming the problem and exit status 2; any
 other failure is a bug: one line saying so and naming the log file with the
-traceback (:func:`core.errors.log_bug`), exit status 1.  Progress goes to
+traceback (:func:`core.errors.log_bug`), exit status 1.  Ctrl-C (and a
+SIGTERM or SIGHUP) stops a run in one line, exit status 128 + the signal
+(130 for Ctrl-C); an unfinished output is removed, a finished one stays.  Progress goes to
 stderr, a short summary to stdout.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
 import sys
+import threading
 import time
 
 from core import __version__, request
-from core.errors import InputError, bug_message, log_bug
+from core.errors import InputError, bug_line
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -126,18 +132,65 @@ def _model_options(p: argparse.ArgumentParser) -> None:
                         units=request.UNITS)
 
 
+#: Signals that stop a run like Ctrl-C does (SIGINT raises KeyboardInterrupt by itself).
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop signal (SIGTERM, SIGHUP) turned into an interruption, so that the run unwinds
+    (temporary folders removed, the output left as it was) as on Ctrl-C."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop(signum, frame):
+    raise Stopped(signum)
+
+
+@contextlib.contextmanager
+def _stop_signals():
+    """SIGTERM and SIGHUP raise :class:`Stopped` in the main thread for the ``with`` block."""
+    if not STOP_SIGNALS or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = {s: signal.signal(s, _stop) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug)."""
+    """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug,
+    128 + the signal when stopped: 130 for Ctrl-C)."""
+    for stream in (sys.stdout, sys.stderr):       # a file name that is not UTF-8 prints escaped
+        with contextlib.suppress(AttributeError, ValueError):
+            stream.reconfigure(errors="backslashreplace")
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
                "stability": _stability}.get(args.command, _fabricate)
     try:
-        return command(args)
+        with _stop_signals():
+            return command(args)
+    except BrokenPipeError:                         # stdout piped into a reader that quit
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
         return 2
+    except KeyboardInterrupt as stop:
+        with contextlib.suppress(ValueError):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signum = getattr(stop, "signum", signal.SIGINT)
+        what = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        sys.stderr.write(f"stopped by {what}: nothing half-written was left behind\n")
+        return 128 + int(signum)
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
-        sys.stderr.write(bug_message(exc, log_bug(exc, f"python -m core {args.command}")) + "\n")
+        sys.stderr.write(bug_line(exc, f"python -m core {args.command}") + "\n")
         return 1
 
 
@@ -216,17 +269,16 @@ def _watch(args) -> int:
     """The ``watch`` command: each new file fabricated with the same settings as
     ``fabricate``, as an iteration on the last output of a version of the same model
     (:class:`core.watch.Versions`, the one version rule the workbench uses too)."""
-    from pathlib import Path
-
-    from core import pipeline, watch
+    from core import output_dir, pipeline, watch
 
     progress = None if args.quiet else _progress_printer(sys.stderr)
-    root, runs = Path(args.out), 0
     job = request.from_options(args, "watched")
+    timeout = request.timeout_seconds(args.timeout)
+    files = watch.watch(args.folder, include_existing=args.existing, timeout_s=timeout)
+    root, runs, built = output_dir.check_root(args.out), 0, 0
     versions = watch.Versions(first=job.previous)
-    files = watch.watch(args.folder, include_existing=args.existing, timeout_s=args.timeout)
-    sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
     try:
+        sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")
         for path in files:
             runs += 1
             out = root / f"{path.stem}-{runs}"
@@ -237,10 +289,11 @@ def _watch(args) -> int:
             except InputError as err:
                 sys.stderr.write(f"error: {path.name}: {err}\n")
                 continue
+            built += 1
             _summary(doc, out)
             versions.record(path, out)
     except KeyboardInterrupt:
-        sys.stderr.write(f"stopped after {runs} version(s)\n")
+        sys.stderr.write(f"stopped after {built} version(s) built\n")
     return 0
 
 
@@ -258,7 +311,11 @@ def _calibration_strip(args) -> int:
 
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
+    if doc["model"]["repaired"]:
+        sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
     for warning in doc["model"]["warnings"]:
+        sys.stderr.write(f"warning: {warning}\n")
+    for warning in doc.get("warnings", ()):
         sys.stderr.write(f"warning: {warning}\n")
     for note in doc.get("notes", ()):
         sys.stderr.write(f"note: {note}\n")

@@ -97,3 +97,16 @@ def bug_message(exc: BaseException, log_path: str | os.PathLike) -> str:
     what = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
     return (f"bug: {what} — this is a bug in Fabrickator, not your input; "
             f"the traceback is in {os.fspath(log_path)}; please report it")
+
+
+def bug_line(exc: BaseException, context: str) -> str:
+    """The one line for a bug: :func:`bug_message` naming the log :func:`log_bug` wrote, or,
+    when no log folder can be written (a full disk, a read-only home), the same line
+    saying that instead.  Never raises."""
+    try:
+        return bug_message(exc, log_bug(exc, context))
+    except OSError as err:
+        first = next((line.strip() for line in str(exc).splitlines() if line.strip()), "")
+        what = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+        return (f"bug: {what} — this is a bug in Fabrickator, not your input; no log of it "
+                f"could be written ({err.__cause__ or err}); please report it")

@@ -18,7 +18,8 @@ from __future__ import annotations
 import io
 import math
 import os
-import tempfile
+import re
+import stat
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from core import output_dir
 from core.errors import InputError
 from core.model import CELL_MM
 from core.request import UNITS
@@ -49,6 +51,15 @@ LARGEST_PLAUSIBLE_MM = 2000.0
 #: vertex merging works on integers at 1e-8 mm.
 ABSURD_MM = 1.0e9
 
+#: Coarsest step (mm) a model's coordinates may have in a 32-bit float; a model reaching
+#: further from the origin (131 m and more) is moved to it (:func:`load_model`).
+PRECISE_MM = 0.01
+
+#: A piece of surface whose corners spread less than this across (mm, standard deviation)
+#: and less than a millionth of the model's size is flat: it encloses no volume and is
+#: dropped (:func:`repair`).
+FLAT_MM = 1e-3
+
 #: FreeCAD link properties through which one object consumes another's shape
 #: (a Body its features and Tip, a Boolean its inputs, a pattern its originals).
 _CONSUMING = frozenset({"Group", "Tip", "BaseFeature", "Base", "Tool", "Shapes",
@@ -68,7 +79,9 @@ class LoadedModel:
     shared by exactly two consistently wound faces; ``repaired`` has one
     line per repair done; ``warnings`` one line per doubt about the input;
     ``brep`` is the OCP ``TopoDS_Shape`` of the solid(s) in mm for STEP, BREP and
-    FCStd input, ``None`` for meshes.
+    FCStd input, ``None`` for meshes.  ``offset_mm`` is the translation the loader
+    applied to bring a model that lies too far from the origin for 0.01 mm in 32-bit
+    floats back to it (:func:`load_model`; zeros when it did not move it).
     """
 
     mesh: trimesh.Trimesh
@@ -79,10 +92,11 @@ class LoadedModel:
     repaired: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     brep: object | None = None
+    offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
-               tolerance_mm: float = 0.05) -> LoadedModel:
+               tolerance_mm: float = 0.05, recentre: bool = True) -> LoadedModel:
     """Load the model at ``path`` and repair it.
 
     Coordinates are multiplied by ``UNITS[units] * scale``.  B-rep input
@@ -93,6 +107,14 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     mesh of which nothing encloses volume.  Never raises another exception
     for a bad file; a ``tolerance_mm`` that is not a positive number (the
     caller's) is a ValueError.
+
+    A surface that is not closed after repair (open, non-manifold or
+    one-sided) is said in one line of ``warnings`` (:func:`surface_warning`).
+    With ``recentre``, a model whose coordinates reach where a 32-bit float
+    (STL, the printed parts' files) is coarser than :data:`PRECISE_MM` is
+    moved to the origin (x and y centred, lowest point at z = 0): ``repaired``
+    says so and ``offset_mm`` holds the move (region files are loaded without
+    it and moved with their model).
     """
     factor = _unit_factor(units, scale)
     if not (isinstance(tolerance_mm, (int, float)) and math.isfinite(tolerance_mm)
@@ -101,6 +123,7 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     file = _check_file(path)
     fmt = FORMATS[file.suffix.lower()]
     warnings: list[str] = []
+    read: list[str] = []
     brep = None
     if fmt in ("step", "brep", "fcstd"):
         readers = {"step": _read_step, "brep": _read_brep}
@@ -108,15 +131,30 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
         brep = _scaled_shape(shape, factor, file.name)
         vertices, faces = _tessellate(brep, tolerance_mm, file.name)
     else:
-        vertices, faces = _read_mesh(file, fmt)
+        vertices, faces = _read_mesh(file, fmt, read)
         vertices = vertices * factor
     _check_arrays(vertices, faces, file.name)
     triangles = len(faces)
     mesh, repaired = repair(vertices, faces, file.name, report_merges=fmt in ("obj", "ply", "3mf"))
+    repaired = read + repaired
     warnings.extend(size_warnings(mesh.extents, units))
     watertight = bool(mesh.is_watertight and mesh.is_winding_consistent)
+    if not watertight:
+        warnings.extend(surface_warning(mesh))
+    offset = np.zeros(3)
+    reach = float(np.abs(mesh.bounds).max())
+    if recentre and np.spacing(np.float32(reach)) > PRECISE_MM:
+        lo, hi = mesh.bounds
+        offset = 0.0 - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+        mesh = mesh.copy()
+        mesh.apply_translation(offset)
+        brep = None if brep is None else _translated_shape(brep, offset, file.name)
+        repaired.append(f"moved by {', '.join(f'{v:.6g}' for v in offset)} mm to the origin: its "
+                        f"coordinates reach {reach:.6g} mm, where a 32-bit float (STL, the printed "
+                        f"parts' files) holds only {float(np.spacing(np.float32(reach))):g} mm steps")
     return LoadedModel(mesh=mesh, path=str(path), format=fmt, triangles=triangles,
-                       watertight=watertight, repaired=repaired, warnings=warnings, brep=brep)
+                       watertight=watertight, repaired=repaired, warnings=warnings, brep=brep,
+                       offset_mm=tuple(float(v) for v in offset))
 
 
 def _unit_factor(units: str, scale: float) -> float:
@@ -133,25 +171,54 @@ def _unit_factor(units: str, scale: float) -> float:
 
 
 def _check_file(path: str | os.PathLike) -> Path:
-    """The path as a Path if it names a non-empty, readable file of a known format."""
+    """The path as a Path if it names a non-empty, readable regular file of a known format.
+
+    Only regular files are read: a named pipe, a socket or a device is refused
+    before it is opened (reading a pipe would wait for a writer for ever), and
+    the file is opened without blocking to find out whether it can be read.
+    """
     file = Path(path)
-    if not file.exists():
-        raise InputError(f"{file}: no such file")
-    if file.is_dir():
+    try:
+        st = os.stat(file)
+    except FileNotFoundError:
+        raise InputError(f"{file}: no such file") from None
+    except PermissionError:
+        raise InputError(f"{file}: permission denied: a folder on its path may not be "
+                         f"searched by you") from None
+    except OSError as exc:
+        raise InputError(f"{file}: cannot be read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
         raise InputError(f"{file}: is a directory, not a model file")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{file}: is {_special_kind(st.st_mode)}, not a regular file: "
+                         f"only files are read as models and regions")
     if file.suffix.lower() not in FORMATS:
         known = ", ".join(sorted({s.lstrip(".").upper() for s in FORMATS}))
         raise InputError(f"{file.name}: unknown file type {file.suffix or '(none)'!r}: "
                          f"use one of {known}")
     try:
-        size = file.stat().st_size
-        with open(file, "rb"):
-            pass
+        fd = os.open(file, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        try:
+            opened = os.fstat(fd)
+        finally:
+            os.close(fd)
+    except PermissionError:
+        raise InputError(f"{file}: permission denied: you may not read this file "
+                         f"(mode {stat.filemode(st.st_mode)}, owner uid {st.st_uid})") from None
     except OSError as exc:
         raise InputError(f"{file}: cannot be read ({exc.strerror or exc})") from None
-    if size == 0:
+    if not stat.S_ISREG(opened.st_mode):
+        raise InputError(f"{file}: is {_special_kind(opened.st_mode)}, not a regular file")
+    if opened.st_size == 0:
         raise InputError(f"{file.name}: the file is empty (0 bytes)")
     return file
+
+
+def _special_kind(mode: int) -> str:
+    """What a file of ``mode`` that is neither a folder nor a regular file is, in words."""
+    return ("a named pipe (FIFO)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "a character device" if stat.S_ISCHR(mode) else "a block device"
+            if stat.S_ISBLK(mode) else "a special file")
 
 
 def _first_line(exc: BaseException) -> str:
@@ -160,11 +227,41 @@ def _first_line(exc: BaseException) -> str:
     return (text[0][:160] if text else type(exc).__name__)
 
 
-def _read_mesh(file: Path, fmt: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and faces of every mesh in a trimesh-readable file, transforms applied."""
+#: An OBJ face corner with vertex index 0 (OBJ counts from 1): a face line with a 0 token.
+_OBJ_ZERO = re.compile(rb"(?m)^[ \t]*f[ \t][^\r\n]*?(?<![\w.+-])0(?=[/ \t\r\n]|$)")
+_OBJ_FACE = re.compile(rb"(?m)^([ \t]*f[ \t])([^\r\n#]*)")
+_OBJ_NUMBER = re.compile(rb"-?\d+")
+
+
+def _obj_source(file: Path, repaired: list[str]):
+    """What trimesh reads of the OBJ ``file``: the file itself, or, when its faces count
+    vertices from 0 (the format counts from 1; some exporters get it wrong), its text with
+    every face index raised by one (said in ``repaired``).  InputError for a file that
+    mixes index 0 with relative (negative) indices or refers past its vertices."""
+    data = file.read_bytes()
+    if not _OBJ_ZERO.search(data):
+        return str(file)
+    numbers = np.array([int(n) for line in _OBJ_FACE.findall(data)
+                        for n in _OBJ_NUMBER.findall(line[1])], dtype=np.int64)
+    vertices = len(re.findall(rb"(?m)^[ \t]*v[ \t]", data))
+    if numbers.min() < 0 or numbers.max() >= max(vertices, 1):
+        raise InputError(f"{file.name}: malformed OBJ: a face refers to vertex 0, which does not "
+                         f"exist (OBJ counts vertices from 1), and the indices are not 0-based "
+                         f"either")
+    fixed = _OBJ_FACE.sub(lambda m: m[1] + _OBJ_NUMBER.sub(lambda n: b"%d" % (int(n[0]) + 1), m[2]),
+                          data)
+    repaired.append("read the faces as counting vertices from 0: the file refers to vertex 0, "
+                    "which OBJ does not have (it counts from 1)")
+    return io.BytesIO(fixed)
+
+
+def _read_mesh(file: Path, fmt: str, repaired: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of every mesh in a trimesh-readable file, transforms applied
+    (an OBJ with 0-based faces read as such, :func:`_obj_source`, said in ``repaired``)."""
     kwargs = {"skip_materials": True} if fmt == "obj" else {}
+    source = _obj_source(file, [] if repaired is None else repaired) if fmt == "obj" else str(file)
     try:
-        loaded = trimesh.load(str(file), file_type=fmt, process=False, **kwargs)
+        loaded = trimesh.load(source, file_type=fmt, process=False, **kwargs)
         geometries = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
     except ImportError:
         raise InputError(f"{file.name}: not a valid {_FORMAT_NAMES[fmt]} file "
@@ -278,6 +375,20 @@ def _scaled_shape(shape, factor: float, name: str):
                          f"{_first_line(exc)}") from None
 
 
+def _translated_shape(shape, offset, name: str):
+    """``shape`` moved by the vector ``offset`` (mm)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+    from OCP.gp import gp_Trsf, gp_Vec
+
+    trsf = gp_Trsf()
+    trsf.SetTranslation(gp_Vec(*(float(v) for v in offset)))
+    try:
+        return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
+    except Exception as exc:
+        raise InputError(f"{name}: the solid cannot be moved to the origin: "
+                         f"{_first_line(exc)}") from None
+
+
 def _tessellate(shape, tolerance_mm: float, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of ``shape`` meshed at linear deflection ``tolerance_mm``.
 
@@ -292,7 +403,7 @@ def _tessellate(shape, tolerance_mm: float, name: str) -> tuple[np.ndarray, np.n
     failed = InputError(f"{name}: the solid could not be tessellated")
     writer = StlAPI_Writer()
     writer.ASCIIMode = False
-    with tempfile.TemporaryDirectory(prefix="fabrickator-") as tmp:
+    with output_dir.scratch("stl") as tmp:
         out = os.path.join(tmp, "tessellation.stl")
         try:
             BRepTools.Clean_s(shape)
@@ -532,6 +643,28 @@ def size_warnings(extents: np.ndarray, units: str = "mm") -> list[str]:
     return []
 
 
+def surface_warning(mesh: trimesh.Trimesh) -> list[str]:
+    """One line on a repaired surface that is not closed, or none: how many edges border
+    one triangle only (open), how many are shared by more than two (non-manifold), whether
+    it cannot be oriented (one-sided, like a Möbius strip), and what legofy does with it."""
+    _, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    open_edges = int(np.count_nonzero(counts == 1))
+    shared = int(np.count_nonzero(counts > 2))
+    what = []
+    if open_edges:
+        what.append(f"{_n(open_edges, 'edge')} border{'s' if open_edges == 1 else ''} one triangle only "
+                    f"(holes larger than the repair fills)")
+    if shared:
+        what.append(f"{_n(shared, 'edge')} {'is' if shared == 1 else 'are'} shared by more than two "
+                    f"triangles (non-manifold)")
+    if not mesh.is_winding_consistent:
+        what.append("it cannot be oriented (one-sided, like a Möbius strip)")
+    if not what:
+        return []
+    return [f"the surface is not closed: {'; '.join(what)}; it encloses no volume of its own, so "
+            f"its holes were capped to decide which cells are inside: check the cells filled"]
+
+
 # --- repair ------------------------------------------------------------------
 
 def repair(vertices: np.ndarray, faces: np.ndarray, name: str = "the model",
@@ -654,7 +787,10 @@ def _pieces_with_volume(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray
     """Per piece, whether it may enclose volume: 4 faces or more, not all in one plane.
 
     Flatness is judged from the smallest principal extent of the piece's
-    corners (vectorised covariance per piece), relative to the whole model.
+    corners (vectorised covariance per piece): flat is at most FLAT_MM *and*
+    at most a millionth of the model's size (so a long thin bar is no
+    flatter than a short one, and a tiny part read in the wrong unit is not
+    flat either).
     """
     pieces = int(labels.max()) + 1
     count = np.bincount(labels, minlength=pieces)
@@ -673,7 +809,7 @@ def _pieces_with_volume(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray
                                                / n - mean[:, i] * mean[:, j])
     thinnest = np.sqrt(np.clip(np.linalg.eigvalsh(cov)[:, 0], 0.0, None))
     scale = float(np.linalg.norm(np.ptp(corners, axis=0)))
-    return (count >= 4) & (thinnest > 1e-6 * scale)
+    return (count >= 4) & (thinnest > min(FLAT_MM, 1e-6 * scale))
 
 
 def _consistent_winding(mesh: trimesh.Trimesh) -> np.ndarray:

@@ -4,7 +4,9 @@
 also writes the output folder of the headless contract (DESIGN.md):
 ``report.json``, ``layout.json`` and ``layout.png``.  The folder is
 written to a temporary sibling and renamed into place only when complete,
-so a failed run never leaves a folder that looks finished.
+so a failed run never leaves a folder that looks finished
+(:class:`core.output_dir.OutputFolder`: the place is checked and locked
+before the run starts).
 """
 
 from __future__ import annotations
@@ -13,8 +15,6 @@ import dataclasses
 import json
 import os
 import re
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +25,7 @@ import numpy as np
 from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
 from core import layout as layout_stage, result
-from core import mesh_io, printed as printed_stage, print_time as print_time_stage
+from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
 from core import stability as stability_stage, voxelize
 from core.errors import InputError
@@ -35,9 +35,6 @@ from core.request import Request, request as request_of
 
 Progress = Callable[[float, str], None]
 
-#: Files that mark a folder as an output of ours (and so safe to replace).
-OUTPUT_MARKERS = ("report.json", "layout.json")
-
 
 @dataclass
 class Fabrication:
@@ -46,7 +43,8 @@ class Fabrication:
     ``regions`` are the high-res regions in the layout's frame (what the
     snapshot records for a later iteration); ``order`` the build order,
     whose step numbers the layout's bricks carry; ``iteration`` what the
-    iteration branch added (None for a fresh run).
+    iteration branch added (None for a fresh run); ``warnings`` what the
+    user should look at (a high-res region that marks no cell).
     """
 
     request: Request
@@ -69,6 +67,7 @@ class Fabrication:
     plates: list | None = None
     forces: forces_stage.Forces | None = None
     reinforced: reinforce_stage.Reinforced | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def seed(self) -> int:
@@ -167,6 +166,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale)
               for p in req.high_res_solids]
     regions = high_res_stage.Regions.of(req.high_res, loaded)
+    if any(model.offset_mm):
+        shift = np.asarray(model.offset_mm)
+        loaded = [dataclasses.replace(r, mesh=r.mesh.copy().apply_translation(shift)) for r in loaded]
+        regions = (high_res_stage.Regions.of(req.high_res).moved(_translation(shift))
+                   + high_res_stage.Regions.of((), loaded))
     notes: list[str] = []
     before = alignment = None
     if req.previous is not None:
@@ -182,6 +186,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
 
+    given = regions
     fit = diff = None
     if before is None:
         if req.fit_grid and regions:
@@ -201,6 +206,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             regions = iterate_stage.previous_regions(before) + regions
 
     marked = timed("high_res", 0.3, regions.cells, grid)
+    warnings = _unmarked(given, grid, req, marked.any())
     cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
     plan = rings = None
     if before is not None:
@@ -254,8 +260,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
-                      fit=fit, iteration=iteration, notes=notes, forces=force,
-                      reinforced=reinforced)
+                      fit=fit, iteration=iteration, notes=notes, warnings=warnings,
+                      forces=force, reinforced=reinforced)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -269,6 +275,30 @@ def _slicer_settings(req: Request) -> dict[str, str]:
         return print_time_stage.load_profile(req.profile)
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
+
+
+def _translation(shift) -> np.ndarray:
+    """The 4x4 matrix that moves by the vector ``shift``."""
+    m = np.eye(4)
+    m[:3, 3] = shift
+    return m
+
+
+def _unmarked(regions: high_res_stage.Regions, grid: Grid, req: Request, any_marked: bool) -> list[str]:
+    """One warning per high-res box of ``req`` that marks no filled cell of ``grid``, and per
+    region solid when no region marks any (``regions``: the request's own, in the grid's
+    frame, boxes first; ``any_marked``: whether all regions together mark a cell)."""
+    lo = grid.origin
+    hi = grid.origin + np.asarray(grid.shape) * grid.cell
+    span = " to ".join(",".join(f"{v:g}" for v in np.round(c, 1)) for c in (lo, hi))
+    boxes = [(f"high-res box {b}" if isinstance(b, str) else f"high-res box {n + 1}", box)
+             for n, (b, box) in enumerate(zip(req.high_res, regions.boxes))]
+    unmarked = [name for name, box in boxes
+                if not (high_res_stage.box_cells(grid, box) & grid.filled).any()]
+    if not any_marked:
+        unmarked += [f"high-res region {Path(p).name}" for p in req.high_res_solids]
+    return [f"{name} marks no cell of the part (its grid spans {span} mm): nothing is printed "
+            f"for it" for name in unmarked]
 
 
 def iterate_moved_out(req: Request, alignment) -> bool:
@@ -306,17 +336,14 @@ def print_times(fab: Fabrication) -> Fabrication:
     without a slicer), so the parts' times add up to the plates'.  ``fab``
     itself is not changed.
     """
-    from concurrent.futures import ThreadPoolExecutor
-
     from core.export import plates
     printing = fab.to_print
     beds = plates(printing, profile=fab.profile)
     profile = {} if fab.profile is None else {"profile": fab.profile}
-    with tempfile.TemporaryDirectory(prefix="fabrickator-slice-") as work:
+    with output_dir.scratch("slice") as work:
         full = print_time_stage.print_time([fab.model.mesh], work, **profile)
-        with ThreadPoolExecutor(max_workers=2) as pool:
-            results = list(pool.map(lambda items: print_time_stage.print_time(
-                [m for _, m, _ in items], work, **profile), beds))
+        results = print_time_stage.in_parallel(lambda items: print_time_stage.print_time(
+            [m for _, m, _ in items], work, **profile), beds, 2)
     methods = sorted({r.method for r in results})
     parts = print_time_stage.PrintEstimate(
         sum(r.seconds for r in results),
@@ -532,17 +559,9 @@ def report(fab: Fabrication) -> dict:
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
         "timings_s": dict(fab.timings_s),
         "notes": list(fab.notes),
+        "warnings": list(fab.warnings),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
-
-
-def _prepare_out(out: Path) -> None:
-    """Refuse an ``out`` that exists and is not an (empty or earlier) output folder."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not any((out / f).exists() for f in OUTPUT_MARKERS):
-        raise InputError(f"--out {out} is a folder with other files in it; "
-                         "choose an empty or new folder")
 
 
 def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
@@ -590,68 +609,78 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     ``out``; returns the report.  Reads ``fab`` only.
 
     Everything is written into a temporary sibling folder first and moved
-    into place at the end, replacing an earlier output.  ``report_doc`` is
+    into place at the end, replacing an earlier output atomically
+    (:class:`core.output_dir.OutputFolder`; ``out`` may be one already open,
+    as :func:`fabricate` opens it before the run).  ``report_doc`` is
     the report to write instead of :func:`report`'s (a stored result's,
-    :func:`stored`), with its ``changes`` page written too.
+    :func:`stored`), with its ``changes`` page written too.  Raises
+    InputError for a place that cannot take the output (refused before
+    anything is written) or that fails while writing (a full disk: the
+    unfinished output is removed).
     """
+    if not isinstance(out, output_dir.OutputFolder):
+        with output_dir.OutputFolder(out, inputs=_inputs(fab.request)) as folder:
+            return write_outputs(fab, folder, progress, report_doc)
     progress = progress or _noop
-    out = Path(out)
-    _prepare_out(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    tmp.chmod(0o755)
-    title = Path(fab.model.path).name
-    try:
-        start = time.perf_counter()
-        placed = {}
-        if fab.printed:
-            from core import export
-            progress(0.9, "export")
-            _, parts = export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
-                                           slicer="none" if fab.print_full is None else "auto",
-                                           beds=fab.plates if fab.iteration is None else None)
-            placed = {p.id: p for p in parts}
-        progress(0.92, "instructions")
-        from core import instructions
-        assembly = instructions.write_assembly(
-            fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
-            seconds_per_part=fab.seconds_per_part, order=fab.order)
-        (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
-        if fab.request.picture:
-            progress(0.95, "picture")
-            from core import render
-            render.render_layout(fab.layout, tmp / "layout.png",
-                                 title=f"{title}: {len(fab.layout.bricks)} bricks",
-                                 palette=fab.request.palette)
-            if fab.forces is not None and fab.forces.utilisation:
-                render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
-                                     colours=colours.stress_rgb(
-                                         [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]))
-        result.snapshot(fab, tmp)
-        doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
-        for entry in doc["printed_parts"]:
-            if entry["id"] in placed:
-                p = placed[entry["id"]]
-                entry.update(stl=p.stl, step=p.step, pose=p.pose)
-        if doc.get("changes"):
-            changes_page.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
-        doc.setdefault("timings_s", {})["write"] = round(time.perf_counter() - start, 4)
-        doc["assembly"] = assembly
-        doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
-        (tmp / "report.json").write_text(json.dumps(doc, indent=2))
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-        progress(1.0, "done")
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+    folder, tmp = out, out.temp
+    title = Path(fab.model.path).name.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    start = time.perf_counter()
+    placed = {}
+    if fab.printed:
+        from core import export
+        progress(0.9, "export")
+        _, parts = export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
+                                       slicer="none" if fab.print_full is None else "auto",
+                                       beds=fab.plates if fab.iteration is None else None)
+        placed = {p.id: p for p in parts}
+    progress(0.92, "instructions")
+    from core import instructions
+    assembly = instructions.write_assembly(
+        fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
+        seconds_per_part=fab.seconds_per_part, order=fab.order)
+    (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
+    if fab.request.picture:
+        progress(0.95, "picture")
+        from core import render
+        render.render_layout(fab.layout, tmp / "layout.png",
+                             title=f"{title}: {len(fab.layout.bricks)} bricks",
+                             palette=fab.request.palette)
+        if fab.forces is not None and fab.forces.utilisation:
+            render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
+                                 colours=colours.stress_rgb(
+                                     [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]))
+    result.snapshot(fab, tmp)
+    doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
+    for entry in doc["printed_parts"]:
+        if entry["id"] in placed:
+            p = placed[entry["id"]]
+            entry.update(stl=p.stl, step=p.step, pose=p.pose)
+    if doc.get("changes"):
+        changes_page.changes_page(doc["changes"], fab.layout, tmp / "changes.html", title)
+    doc.setdefault("timings_s", {})["write"] = round(time.perf_counter() - start, 4)
+    doc["assembly"] = assembly
+    doc["outputs"] = sorted(p.name for p in tmp.iterdir()) + ["report.json"]
+    (tmp / "report.json").write_text(json.dumps(doc, indent=2))
+    folder.install()
+    progress(1.0, "done")
+    if folder.notes:
+        doc["notes"] = list(doc.get("notes", ())) + folder.notes
     return doc
+
+
+def _inputs(req: Request) -> list[str]:
+    """The files a run of ``req`` reads (an output folder must not hold them)."""
+    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else [])]
 
 
 def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:
     """Run the driver on ``job`` (a :class:`Request`, or a model path with ``settings``
-    as Request fields) and write its outputs into ``out``; returns the report."""
+    as Request fields) and write its outputs into ``out``; returns the report.
+
+    The output place is checked and locked before the run starts
+    (:class:`core.output_dir.OutputFolder`): InputError in one line for one
+    that cannot be written, holds an input or other files, or another run
+    is writing."""
     req = as_request(job, **settings)
-    _prepare_out(Path(out))
-    return write_outputs(run(req, progress=progress), out, progress=progress)
+    with output_dir.OutputFolder(out, inputs=_inputs(req)) as folder:
+        return write_outputs(run(req, progress=progress), folder, progress=progress)

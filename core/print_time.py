@@ -38,6 +38,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
@@ -49,7 +50,7 @@ import numpy as np
 import trimesh
 from scipy.optimize import nnls
 
-from core import slicer_profile
+from core import output_dir, slicer_profile
 from core.errors import InputError
 
 #: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
@@ -631,10 +632,9 @@ def fastest_pose(mesh: trimesh.Trimesh, workdir: str | os.PathLike | None = None
     if binary is None:
         return replace(ranked[0][0], chosen_by=f"by the estimate ({reason})")
     kept = ranked[:sliced]
-    with (nullcontext(workdir) if workdir is not None else
-          tempfile.TemporaryDirectory(prefix="fabrickator-pose-")) as work, \
-            ThreadPoolExecutor(max_workers=SLICER_PROCESSES) as pool:
-        results = list(pool.map(lambda w: _slice_or_reason(w[1], work, profile, binary, w[0].supports), kept))
+    with nullcontext(workdir) if workdir is not None else output_dir.scratch("pose") as work:
+        results = in_parallel(lambda w: _slice_or_reason(w[1], work, profile, binary, w[0].supports),
+                              kept, SLICER_PROCESSES)
     timed = []
     for (pose, _), result in zip(kept, results):
         if isinstance(result, PrintEstimate):
@@ -700,7 +700,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
         command = [slicer, "--loglevel", "1", "--dont-arrange", "--export-gcode", "--output", str(gcode),
                    str(plate)]
         try:
-            run = subprocess.run(command, cwd=folder, capture_output=True, text=True,
+            run = subprocess.run(dying_with_us(command), cwd=folder, capture_output=True, text=True,
                                  timeout=SLICER_TIMEOUT_S, stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             raise _SlicerFailed(f"{Path(slicer).name} timed out after {SLICER_TIMEOUT_S:.0f} s") from None
@@ -725,6 +725,32 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
                      if text)
     return PrintEstimate(seconds, f"{name} ({profile_label(config)}{needed})", str(gcode),
                          supports=settings.get("support_material") == "1")
+
+
+def dying_with_us(command: list[str]) -> list[str]:
+    """``command`` so that the process it starts is killed when the thread that starts it
+    ends, whatever ends it (a kill of the run included): on Linux, run through
+    util-linux ``setpriv --pdeathsig KILL`` when that is installed; elsewhere as it is
+    (a Ctrl-C at the terminal reaches the slicer too, it shares our process group)."""
+    if not sys.platform.startswith("linux"):
+        return command
+    setpriv = shutil.which("setpriv")
+    return [setpriv, "--pdeathsig", "KILL", "--", *command] if setpriv else command
+
+
+def in_parallel(fn, items, workers: int) -> list:
+    """``[fn(item) for item in items]``, ``workers`` at a time in threads.  When the caller
+    is interrupted (Ctrl-C, a failure) it does not wait for the running calls: the pool is
+    shut down at once, the calls not started are cancelled (a slicer already running dies
+    with the run, :func:`dying_with_us`)."""
+    pool = ThreadPoolExecutor(max_workers=workers)
+    try:
+        results = list(pool.map(fn, items))
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return results
 
 
 def bed_rectangle(config: dict[str, str]) -> np.ndarray:

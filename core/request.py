@@ -125,14 +125,15 @@ class Request:
         """This request with its values normalised (tuples, floats, str paths).
 
         Raises :class:`InputError` with one line naming the first setting
-        out of range: scale not a positive finite
+        out of range: units not in :data:`UNITS`, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
         palette :func:`core.colours.check_palette` refuses, a
-        stud or socket fit :meth:`Fit.check` refuses (the units are checked
-        where the model is loaded, :func:`core.mesh_io.load_model`).
+        stud or socket fit :meth:`Fit.check` refuses.
         """
         if not self.model:
             raise InputError("no model file given")
+        if self.units not in UNITS:
+            raise InputError(f"--units {self.units!r} is not a unit: use one of {', '.join(UNITS)}")
         if not _number(self.scale) or not (math.isfinite(self.scale) and self.scale > 0):
             raise InputError(f"--scale {self.scale!r} must be a positive number")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 32:
@@ -192,6 +193,17 @@ def parse_load(text) -> Load:
     if any(b - a <= 0 for a, b in zip(lo, hi)):
         raise InputError(f"--load {text!r}: the box is empty (each side must be longer than 0 mm)")
     return Load(tuple(float(v) for v in lo), tuple(float(v) for v in hi), grams)
+
+
+def timeout_seconds(value, flag: str = "--timeout") -> float | None:
+    """``value`` as a timeout in seconds: None stays None (no timeout); anything else must
+    be a finite number above 0, else InputError naming ``flag``."""
+    if value is None:
+        return None
+    if not _number(value) or value <= 0:
+        raise InputError(f"{flag} {value!r} must be a number of seconds above 0 "
+                         f"(leave it out to run until Ctrl-C)")
+    return float(value)
 
 
 def _number(value) -> bool:

@@ -75,10 +75,11 @@ EPS_MM = 1e-6
 #: An extent within this (mm) of a whole number of cells gets exactly that many.
 WHOLE_CELL_TOL_MM = 1e-6
 #: Vertex coordinates this close (mm) to a cell boundary of a grid are put on it
-#: by :func:`snap_to_lattice` (times the model's size over 250 mm when larger):
-#: an STL stores float32 and CAD tessellates in floats, so a face meant to lie on
-#: a boundary (a re-export, a wall at whole millimetres) comes back some 1e-5 mm
-#: off it, and legofy would count that as filling the next cell.
+#: by :func:`snap_to_lattice`: an STL stores float32 and CAD tessellates in floats,
+#: so a face meant to lie on a boundary (a re-export, a wall at whole millimetres)
+#: comes back some 1e-5 mm off it, and legofy would count that as filling the next
+#: cell.  Absolute: where the model sits does not change it (a model too far from
+#: the origin for float32 is moved to it when loaded, :mod:`core.mesh_io`).
 LATTICE_SNAP_MM = 1e-4
 #: Sample point of each cell, in cells from the cell's min corner.
 SAMPLE_FRACTION = (0.5 + 0.1234567, 0.5 + 0.0765432, 0.5 + 0.1471)
@@ -122,11 +123,9 @@ def snap_to_lattice(mesh: trimesh.Trimesh, origin, cell) -> trimesh.Trimesh:
     v = np.asarray(mesh.vertices, dtype=np.float64)
     if len(v) == 0:
         return mesh
-    size = float(np.abs(v).max())
-    tol = LATTICE_SNAP_MM * max(1.0, size / 250.0)
     rel = (v - origin) / cell
     near = np.rint(rel)
-    close = np.abs(rel - near) * cell < tol
+    close = np.abs(rel - near) * cell < LATTICE_SNAP_MM
     if not close.any():
         return mesh
     out = mesh.copy()

@@ -9,10 +9,14 @@ system and inside FreeCAD's Qt timer):
 * a file is *new or changed* when its (size, modification time) differs
   from what was last reported for that name;
 * it is reported only once it is *complete*: the signature has stayed the
-  same for :data:`SETTLE_S` seconds and the format's own end marker is
-  there (:func:`is_complete`: a binary STL's size matches its triangle
-  count, an ASCII STL ends with ``endsolid``, a STEP file with
-  ``END-ISO-10303-21;``, a 3MF is a whole zip archive);
+  same for :data:`SETTLE_S` seconds and the file parses as far as its
+  format tells its end (:func:`is_complete`: a binary STL's size matches its
+  triangle count, an ASCII STL ends with ``endsolid``, a STEP file with
+  ``END-ISO-10303-21;``, a 3MF is a whole zip archive, a PLY holds the
+  vertices and faces its header counts); an OBJ, whose end is not marked,
+  must end with a whole line whose faces refer to vertices it has, and stay
+  the same for :data:`UNMARKED_SETTLE_S` seconds (a tool writing it in parts
+  with longer pauses is picked up too early: write it aside and rename it);
 * hidden files (``.name``) and other suffixes (``.part``, ``.tmp``) are
   ignored, so a writer that writes aside and renames is picked up at the
   rename.
@@ -60,6 +64,10 @@ from core.errors import InputError
 WATCHED_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".step", ".stp")
 #: Seconds a file's size and time must stay the same before it counts as written.
 SETTLE_S = 1.0
+#: Seconds a file of a format without an end marker (OBJ) must stay the same.
+UNMARKED_SETTLE_S = 5.0
+#: Formats whose end :func:`is_complete` cannot see.
+UNMARKED_SUFFIXES = (".obj",)
 #: Seconds between two scans of :func:`watch`.
 POLL_S = 0.5
 #: A version suffix at the end of a file's stem (module docstring): a separated
@@ -122,9 +130,12 @@ def is_complete(path: str | os.PathLike) -> bool:
 
     Binary STL: the size is 84 + 50 x the triangle count in its header.
     ASCII STL: it ends with an ``endsolid`` line.  STEP: it ends with
-    ``END-ISO-10303-21;``.  3MF: a readable zip archive.  OBJ, PLY: not
-    empty (their end is not marked; the settle time decides).  A file that
-    cannot be read is not complete.
+    ``END-ISO-10303-21;``.  3MF: a readable zip archive.  PLY: a whole
+    header, and after it at least the vertices and faces it counts (ASCII:
+    lines; binary: bytes, faces taken as triangles).  OBJ: ends with a line
+    break, and every face refers to a vertex the file has (its end is not
+    marked; the settle time decides the rest).  A file that cannot be read
+    is not complete.
     """
     p = Path(path)
     try:
@@ -147,9 +158,53 @@ def is_complete(path: str | os.PathLike) -> bool:
         if suffix == ".3mf":
             with zipfile.ZipFile(p) as archive:
                 return archive.testzip() is None
+        if suffix == ".ply":
+            return _ply_complete(p.read_bytes())
+        if suffix == ".obj":
+            return _obj_complete(p.read_bytes())
         return True
-    except (OSError, zipfile.BadZipFile, struct.error):
+    except (OSError, zipfile.BadZipFile, struct.error, ValueError, KeyError, IndexError):
         return False
+
+
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2,
+              "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4,
+              "float32": 4, "double": 8, "float64": 8}
+
+
+def _ply_complete(data: bytes) -> bool:
+    """Whether PLY ``data`` holds the whole header and at least what it counts."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        return False
+    body = data[data.index(b"\n", end) + 1:] if b"\n" in data[end:] else b""
+    header = data[:end].decode("ascii", "replace").split("\n")
+    ascii_format, elements = False, []
+    for line in (h.split() for h in header):
+        if line[:1] == ["format"]:
+            ascii_format = line[1] == "ascii"
+        elif line[:1] == ["element"]:
+            elements.append([int(line[2]), 0])
+        elif line[:2] == ["property", "list"] and elements:
+            elements[-1][1] += _PLY_SIZES[line[2]] + 3 * _PLY_SIZES[line[3]]
+        elif line[:1] == ["property"] and elements:
+            elements[-1][1] += _PLY_SIZES[line[1]]
+    if ascii_format:
+        return body.endswith(b"\n") and len(body.split(b"\n")) - 1 >= sum(n for n, _ in elements)
+    return len(body) >= sum(n * size for n, size in elements)
+
+
+def _obj_complete(data: bytes) -> bool:
+    """Whether OBJ ``data`` ends with a line break and its faces refer to vertices it has."""
+    if not data.endswith(b"\n"):
+        return False
+    vertices = len(re.findall(rb"(?m)^[ \t]*v[ \t]", data))
+    for line in re.findall(rb"(?m)^[ \t]*f[ \t]([^\r\n#]*)", data):
+        for corner in line.split():
+            index = int(corner.split(b"/")[0])
+            if index == 0 or abs(index) > vertices:
+                return False
+    return True
 
 
 @dataclass
@@ -158,7 +213,7 @@ class FolderWatcher:
 
     Files present when the watcher is made count as already seen unless
     ``include_existing``.  Raises :class:`InputError` when ``folder`` is
-    not a folder.
+    not a folder or cannot be read.
     """
 
     folder: Path
@@ -166,6 +221,7 @@ class FolderWatcher:
     settle_s: float = SETTLE_S
     include_existing: bool = False
     clock: Callable[[], float] = time.monotonic
+    unmarked_settle_s: float = UNMARKED_SETTLE_S
     _reported: dict[str, tuple[int, int]] = field(default_factory=dict, init=False, repr=False)
     _pending: dict[str, tuple[tuple[int, int], float]] = field(default_factory=dict, init=False,
                                                                repr=False)
@@ -175,8 +231,9 @@ class FolderWatcher:
         if not self.folder.is_dir():
             raise InputError(f"watch folder {self.folder} does not exist or is not a folder")
         self.suffixes = tuple(s.lower() for s in self.suffixes)
+        present = dict(self._scan())            # InputError now when it cannot be read
         if not self.include_existing:
-            self._reported = dict(self._scan())
+            self._reported = present
 
     def _scan(self) -> Iterator[tuple[str, tuple[int, int]]]:
         """(name, (size, mtime_ns)) of every watched file in the folder now."""
@@ -211,7 +268,9 @@ class FolderWatcher:
             if pending is None or pending[0] != signature:
                 self._pending[name] = (signature, now)
                 continue
-            if now - pending[1] >= self.settle_s and is_complete(self.folder / name):
+            settle = (max(self.settle_s, self.unmarked_settle_s)
+                      if name.lower().endswith(UNMARKED_SUFFIXES) else self.settle_s)
+            if now - pending[1] >= settle and is_complete(self.folder / name):
                 self._reported[name] = signature
                 del self._pending[name]
                 ready.append(self.folder / name)
@@ -225,13 +284,25 @@ def watch(folder: str | os.PathLike, suffixes: tuple[str, ...] = WATCHED_SUFFIXE
           stop: Callable[[], bool] | None = None, timeout_s: float | None = None,
           sleep: Callable[[float], None] = time.sleep,
           clock: Callable[[], float] = time.monotonic) -> Iterator[Path]:
-    """Yield each model file of ``folder`` that appears or changes, once it is complete.
+    """An iterator over each model file of ``folder`` that appears or changes, once it is
+    complete.
 
     Polls every ``poll_s`` seconds until ``stop()`` returns True or
     ``timeout_s`` seconds have passed (forever by default; a CLI ends it
-    with Ctrl-C).  Raises :class:`InputError` when ``folder`` is not a folder.
+    with Ctrl-C).  Raises :class:`InputError` at once (before the first
+    file) when ``folder`` is not a folder or ``timeout_s`` is not a finite
+    number above 0.
     """
+    from core.request import timeout_seconds
+
+    timeout_s = timeout_seconds(timeout_s)
     watcher = FolderWatcher(Path(folder), suffixes, settle_s, include_existing, clock)
+    return _polled(watcher, poll_s, stop, timeout_s, sleep, clock)
+
+
+def _polled(watcher: FolderWatcher, poll_s: float, stop, timeout_s: float | None, sleep,
+            clock) -> Iterator[Path]:
+    """The files of :func:`watch`, one poll of ``watcher`` at a time."""
     start = clock()
     while True:
         yield from watcher.poll()

@@ -428,8 +428,9 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     if result.snapshot is not None:
         obj.IterationState = result.snapshot
         shutil.rmtree(os.path.dirname(result.snapshot), ignore_errors=True)
-    warnings = len(report["model"]["warnings"])
+    lines = list(report["model"]["warnings"]) + list(report.get("warnings", ()))
+    warnings = len(lines)
     obj.Status = (f"ok: {obj.Bricks} bricks ({obj.LegoBricks} LEGO), {obj.PrintedParts} printed "
                   f"part(s), {obj.Steps} steps" + (f"; {warnings} warning(s)" if warnings else ""))
-    for line in report["model"]["warnings"]:
+    for line in lines:
         log.warning(f"{obj.Label}: {line}")

@@ -11,7 +11,7 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: stages as the driver runs them (regions are read before the grid is fitted to them),
 #: then the exports, then the drivers and tools that use them all.
 ORDER = [
-    "errors", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
+    "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
     "thickness", "mesh_io", "voxelize", "high_res", "grid_fit", "layout", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "print_time", "export", "render", "picture",
     "ldraw", "bom", "instructions", "changes_page", "picking", "face_region", "lower_bound",
