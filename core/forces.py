@@ -372,6 +372,17 @@ class BuildChecker:
         self.layout = layout
         self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
         self._printed, self._clamp, self._profile = printed, clamp, profile
+        # bricks on bricks (lower, upper; by position in layout.bricks), and bricks with a cell
+        # above nothing (not on the ground): what a partial build's checks need, once
+        lab = self.model.lab
+        lower, upper = lab[:, :, :-1], lab[:, :, 1:]
+        pairs = np.stack([lower.ravel(), upper.ravel()], 1)
+        pairs = pairs[(pairs[:, 0] >= 0) & (pairs[:, 1] >= 0) & (pairs[:, 0] != pairs[:, 1])]
+        self._pairs = np.unique(pairs, axis=0)
+        self._hangs = np.zeros(len(layout.bricks), dtype=bool)
+        self._hangs[np.unique(upper[(lower < 0) & (upper >= 0)])] = True
+        self._grounded = np.zeros(len(layout.bricks), dtype=bool)
+        self._grounded[np.unique(lab[:, :, 0][lab[:, :, 0] >= 0])] = True
         self.solves = 0
         self.fresh = 0
         self._highs = None
@@ -403,11 +414,11 @@ class BuildChecker:
         present = np.asarray(present, dtype=bool)
         body_present = np.zeros(m.nbody, dtype=bool)
         body_present[m.body_of[present]] = True
-        lab = np.where(m.lab >= 0, present[np.maximum(m.lab, 0)], False)
-        if self._held(body_present, lab) is False:
+        if not self._held(present):
             return False, math.inf
-        if _supported_below(lab):
-            return True, 0.0
+        on = present[self._pairs[:, 1]]
+        if not (present & self._hangs).any() and present[self._pairs[on, 0]].all():
+            return True, 0.0                     # every present cell rests on a present cell
         if self._highs is None:
             self._setup()
         self._apply(body_present)
@@ -437,19 +448,22 @@ class BuildChecker:
         worst = _worst(float(h.getSolution().col_value[self.factor]))
         return bool(worst <= FAIL_ABOVE), worst
 
-    def _held(self, body_present: np.ndarray, lab: np.ndarray) -> bool:
-        """Every present body joined to the ground through present bodies."""
+    def _held(self, present: np.ndarray) -> bool:
+        """Every present brick joined to the ground through present bricks (printed parts
+        count as one piece through their joints: a part's bricks all go in together)."""
         m = self.model
-        blab = np.where(lab, m.blab, -1)
-        lower, upper = blab[:, :, :-1], blab[:, :, 1:]
-        i, j, k = np.nonzero((lower >= 0) & (upper >= 0) & (lower != upper))
-        n = m.nbody
-        ground = np.unique(blab[:, :, 0][blab[:, :, 0] >= 0])
-        rows = np.concatenate([blab[i, j, k], ground])
-        cols = np.concatenate([blab[i, j, k + 1], np.full(len(ground), n)])
-        graph = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+        n = len(present)
+        keep = present[self._pairs[:, 0]] & present[self._pairs[:, 1]]
+        a, b = m.body_of[self._pairs[keep, 0]], m.body_of[self._pairs[keep, 1]]
+        ground = np.unique(m.body_of[np.flatnonzero(present & self._grounded)])
+        nb = m.nbody
+        rows = np.concatenate([a, ground])
+        cols = np.concatenate([b, np.full(len(ground), nb)])
+        graph = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(nb + 1, nb + 1))
         _, comp = connected_components(graph, directed=False)
-        return bool(np.all(comp[:n][body_present] == comp[n]))
+        body_present = np.zeros(nb, dtype=bool)
+        body_present[m.body_of[present]] = True
+        return bool(np.all(comp[:nb][body_present] == comp[nb])) if n else True
 
     def _apply(self, body_present: np.ndarray) -> None:
         """Bounds for the bodies now present: absent bodies' rows free, their forces zero."""
@@ -648,9 +662,14 @@ class _Model:
 
     # -- the programs ------------------------------------------------------------------------
     def verdict(self, detail: bool) -> Forces:
-        """Phase 1: the largest load factor (gravity and loads times it) the joints carry with
-        their clutch; the worst utilisation is its inverse.  Phase 2 (``detail``): at the real
+        """A build whose every cell rests on a cell or the ground stands without any pull
+        (no program).  Otherwise phase 1: the largest load factor (gravity and loads times
+        it) the joints carry with their clutch; the worst utilisation is its inverse.  Phase 2 (``detail``): at the real
         loads, each joint's utilisation, the sum of them least, none above phase 1's worst."""
+        if _supported_below(self.blab >= 0):
+            # every cell rests on a cell (or the ground): it all stands in pure compression
+            util = {b.id: 0.0 for b in self.layout.bricks} if detail else {}
+            return self._forces(True, 0.0, util, [], [], [])
         prog, parts = self._program(detail=False)
         status, x = prog.solve()
         factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
