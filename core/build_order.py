@@ -320,7 +320,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     of ``layout``, in its order) stand, as (bool, worst utilisation) — e.g.
     :meth:`core.forces.BuildChecker.stands`.  Step by step, the next planned
     step is taken if the build then stands; else the first of the next
-    ``lookahead`` steps that can be placed (each of its units on the ground or
+    ``lookahead`` steps (2 right after a step that did not stand) that can be placed (each of its units on the ground or
     touching a placed unit, a printed part only once every unit under it is
     placed) and leaves a standing build; else the planned step anyway, recorded
     in ``unstable`` with the reason.  Promises: the same steps with the same
@@ -356,7 +356,9 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     moved = 0
     while remaining:
         pick, fallback = None, None
-        for n in remaining[:lookahead]:
+        # once the build does not stand, later steps rarely save it: look less far ahead
+        ahead = lookahead if not unstable or unstable[-1]["step"] < len(chosen) else 2
+        for n in remaining[:ahead]:
             if n != remaining[0] and not placeable(n):
                 continue
             trial = present.copy()

@@ -229,6 +229,8 @@ def _stability(args) -> int:
           f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g"
           + (f", resting leaning {result.tilt_deg:.1f}° on its lower points"
              if result.tilt_deg >= 1 else ""))
+    for topple in result.topples:
+        print(f"  {topple['why']}")
     for failure in result.failures[:20]:
         print(f"  brick {failure['brick']}: {failure['why']}")
     if len(result.failures) > 20:
@@ -334,6 +336,8 @@ def _summary(doc: dict, out) -> None:
                  if force["failing_bricks"] else "")
               + (f"; it rests leaning {force['rests_tilted_deg']:.0f}° on its lower points"
                  if force.get("rests_tilted_deg", 0) >= 1 else ""))
+        for topple in force.get("topples", ()):
+            sys.stderr.write(f"warning: {topple['why']}\n")
         build = st.get("build") or {}
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")

@@ -120,6 +120,7 @@ class Forces:
     loads: list[dict] = field(default_factory=list)
     seconds: float = 0.0
     tilt_deg: float = 0.0
+    topples: list[dict] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The ``stability.force`` block of report.json (inf written as null)."""
@@ -134,6 +135,7 @@ class Forces:
                 "mass_g": round(self.mass_g, 2), "clutch_n": self.clutch_n,
                 "loads": list(self.loads), "seconds": round(self.seconds, 3),
                 "rests_tilted_deg": round(self.tilt_deg, 2),
+                "topples": list(self.topples),
                 "explain": FORCE_MEANS}
 
 
@@ -583,6 +585,7 @@ class _Model:
             np.asarray(clamp[0], bool), np.asarray(clamp[1], bool))
         self._masses(printed, profile)
         self.held = self._held()
+        self.topples: list[dict] = []
 
     # -- masses ------------------------------------------------------------------------------
     def _masses(self, printed, profile) -> None:
@@ -849,6 +852,7 @@ class _Model:
         pts, body = self._table_points()
         active = np.zeros(len(pts), dtype=bool)
         tilt = 0.0
+        self.topples = []
         i, j, k = self._stud_joints()
         a, b = self.blab[i, j, k], self.blab[i, j, k + 1]
         keep = present[a] & present[b]
@@ -867,16 +871,37 @@ class _Model:
             low = p[:, 2].min()
             flat = p[:, 2] <= low + 1e-9
             facet = _facet_under(p, com[:2], ConvexHull, QhullError)
-            if facet is None:
-                continue
-            normal, offset = facet
-            on = np.abs(p @ normal + offset) <= 1e-6
-            lean = 0.0 if flat[on].all() else math.degrees(math.acos(min(1.0, abs(normal[2]))))
-            if lean > MAX_TILT_DEG:
+            lean = None
+            if facet is not None:
+                normal, offset = facet
+                on = np.abs(p @ normal + offset) <= 1e-6
+                lean = 0.0 if flat[on].all() else math.degrees(math.acos(min(1.0, abs(normal[2]))))
+            if lean is None or lean > MAX_TILT_DEG:
+                self.topples.append(self._topple(members, com, p[flat], lean))
                 continue
             active[sel[on]] = True
             tilt = max(tilt, lean)
         return active, tilt
+
+    def _topple(self, members: np.ndarray, com: np.ndarray, bottom: np.ndarray, lean) -> dict:
+        """A structure that falls over on the table, in a builder's words: where its centre of
+        mass is, how far beyond the outline of its bottom layer, how far it would fall."""
+        from scipy.spatial import ConvexHull, QhullError
+        com_mm = com * self.unit
+        beyond = 0.0
+        try:
+            plan = ConvexHull(bottom[:, :2])
+            beyond = max(0.0, float(np.max(plan.equations[:, :2] @ com[:2] + plan.equations[:, 2])))
+        except (QhullError, ValueError):
+            pass
+        bricks = int(np.isin(self.body_of, np.flatnonzero(members)).sum())
+        fall = "falls over" if lean is None else f"would lie {lean:.0f}° over"
+        return {"bricks": bricks, "centre_of_mass_mm": [round(float(v), 1) for v in com_mm],
+                "beyond_bottom_mm": round(beyond * self.unit, 1),
+                "would_lean_deg": None if lean is None else round(lean, 1),
+                "why": (f"The build ({bricks} bricks) {fall} on a table: its centre of mass lies "
+                        f"{beyond * self.unit:.1f} mm beyond the outline of its bottom layer. Build "
+                        "it on a baseplate, weigh down or widen its base, or lay it on another side")}
 
     def _table(self, prog, eq, present: np.ndarray):
         """Bodies on a table press down where the build rests (:meth:`resting`; the other
@@ -975,7 +1000,8 @@ class _Model:
         return Forces(stable=stable, ground=self.ground, max_utilisation=worst, utilisation=util,
                       failing_bricks=failing, unsupported=unsupported, failures=failures,
                       mass_g=float(self.mass_g.sum()), clutch_n=self.clutch_n,
-                      loads=[x.to_json() for x in self.loads], tilt_deg=getattr(self, "tilt", 0.0))
+                      loads=[x.to_json() for x in self.loads], tilt_deg=getattr(self, "tilt", 0.0),
+                      topples=list(self.topples))
 
     def _detail(self, x, parts, stable, worst, tips) -> Forces:
         """Utilisation per brick from phase 2's solution ``x``; failing and unsupported bricks."""
@@ -1034,8 +1060,8 @@ class _Model:
                "bending": f"The {what} {where} bends with {util:.2f} times the moment it takes: "
                           "it breaks",
                "floats": f"The {what} {where} is not joined to anything standing on the ground",
-               "tips": f"The {what} {where} cannot be held in balance: the part it belongs to "
-                       "tips over whatever its studs do"}[mode]
+               "tips": f"The {what} {where} cannot be held in balance: the structure it belongs "
+                       "to tips over whatever its studs do (see topples)"}[mode]
         return {"brick": int(brick.id), "part": brick.part, "kind": brick.kind,
                 "printed_part": brick.printed_part, "layer": int(brick.cell[2]) + 1,
                 "cell": [int(v) for v in brick.cell],

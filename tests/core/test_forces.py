@@ -317,6 +317,12 @@ def test_a_build_that_would_lean_past_20_degrees_has_fallen_over():
     layout = layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3))])
     result = forces.analyse(layout, ground="table")
     assert not result.stable and result.unsupported == [1, 2]
+    # the report says why: centre of mass at (0.43 * 4 + 1.57 * 16) / 2.0 = 13.4 mm, the 1x1
+    # brick's outline ends at 7.9 mm (0.1 mm of play)
+    (topple,) = result.topples
+    assert topple["would_lean_deg"] == pytest.approx(math.degrees(math.atan(9.6 / 24.0)), abs=0.05)
+    assert topple["beyond_bottom_mm"] == pytest.approx((0.43 * 4 + 1.57 * 16) / 2.0 - 7.9, abs=0.06)
+    assert "on a baseplate" in topple["why"]
 
 
 def arm_of_plates() -> Layout:
