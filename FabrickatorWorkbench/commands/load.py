@@ -59,14 +59,13 @@ def add_load(fab, where, grams: float):
     the Load, or None when it failed (then the document is as it was and the Report view
     says why)."""
     doc = fab.Document
-    made = None
+    name = None
     with transaction(doc, "Add load"):
         made = make.make_load(doc, fab, where, grams)
+        name = made.Name
         recompute_or_fail(fab)
         log.message(f"{fab.Label}: {made.Label}: {fab.Forces}")
-    if made is not None and doc.getObject(made.Name) is not None:
-        return made
-    return None
+    return doc.getObject(name) if name is not None else None
 
 
 def ask_grams() -> float:
