@@ -10,6 +10,7 @@ what it made.
 
 from __future__ import annotations
 
+from FabrickatorWorkbench import log
 from FabrickatorWorkbench.viewproviders import stress
 from FabrickatorWorkbench.viewproviders.base import ViewProvider
 
@@ -44,7 +45,10 @@ class ViewProviderFabrication(ViewProvider):
     def onChanged(self, vobj, prop):
         """Switching the display mode recolours the bricks."""
         if prop == "DisplayMode":
-            stress.apply(vobj.Object, vobj.DisplayMode == stress.STRESS)
+            on = vobj.DisplayMode == stress.STRESS
+            if not stress.apply(vobj.Object, on) and on and getattr(vobj.Object, "LayoutJson", ""):
+                log.message(f"{vobj.Object.Label}: no force check in this result yet: recompute "
+                            f"it to see the Stress colours")
 
     def updateData(self, obj, prop):
         """A new result in the Stress mode gets its stress colours."""

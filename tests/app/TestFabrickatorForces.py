@@ -109,6 +109,11 @@ class TestLoads(FabrickatorTestCase):
         self.doc.recompute()
         self.assertEqual((force(f)["ground"], force(f)["clutch_n"]), ("baseplate", 0.5))
         self.assertTrue(f.Stands)
+        f.Clutch = 0.0
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("failed"), f.Status)
+        self.assertIn("--clutch", f.Status)
+        self.assertAlmostEqual(float(f.Clutch.getValueAs("N")), 0.5)
 
     def test_a_load_touching_no_brick_fails_and_keeps_the_result(self):
         f = self.computed()
