@@ -8,6 +8,8 @@ is up)::
     f = fab.make_fabrication(doc.Body)              # a solid, or a mesh feature
     fab.mark_high_res(f, box=(-54, 25, 25.5, -9, 36, 70.5))
     doc.recompute()                                 # runs the core
+    fab.make_load(doc, f, (-40, 40, 88, 40, 80, 92), 170)   # a phone on top (g)
+    doc.recompute()
     fab.export(f, "/tmp/parts")                     # STL, STEP, 3MF, instructions
     fab.report(f)["speedup"]
 
@@ -19,6 +21,7 @@ commands do that around them).
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import tempfile
 from pathlib import Path
@@ -36,6 +39,7 @@ from FabrickatorWorkbench.objects.fabricate import edits
 from FabrickatorWorkbench.objects.fabrication import Fabrication, is_fabrication
 from FabrickatorWorkbench.objects.high_res_region import HighResRegion
 from FabrickatorWorkbench.objects.high_res_region import boxes as region_boxes
+from FabrickatorWorkbench.objects.load import Load
 from FabrickatorWorkbench.viewproviders import attach_missing
 
 #: Model formats Legofy reads from a file: B-rep ones become Part features,
@@ -147,6 +151,62 @@ def mark_high_res(fab, box=None, boxes=(), solid=None, faces=None, bricks=(), la
     region.Proxy.execute(region)
     fab.touch()
     return region
+
+
+def make_load(doc, fab, where, grams: float, label: str | None = None):
+    """A new Load of ``fab`` in ``doc``: ``grams`` resting on the bricks ``where`` touches.
+
+    ``where`` is a box (X0, Y0, Z0, X1, Y1, Z1) in the Source's mm, a
+    ``Part.Shape`` or an object with one (its bounding box: a phone modelled
+    in the document), or a list of brick objects or brick ids of the current
+    layout (the box around them).  The Load is listed in the Fabrication's
+    ``Loads`` and touches it; recompute to check the forces with it.  Raises
+    ValueError for a mass not above 0 g or an empty box.
+    """
+    grams = float(grams)
+    if not (math.isfinite(grams) and grams > 0):
+        raise ValueError(f"a load's mass must be more than 0 g, not {grams!r}")
+    lo, hi = _load_box(fab, where)
+    if any(h - l <= 0 for l, h in zip(lo, hi)):
+        raise ValueError(f"the load's box {list(lo)}..{list(hi)} is empty: each side must be "
+                         f"longer than 0 mm")
+    obj = doc.addObject("Part::FeaturePython", "Load")
+    Load(obj)
+    obj.Placement = App.Placement(App.Vector(*lo), App.Rotation())
+    obj.Length, obj.Width, obj.Height = (h - l for l, h in zip(lo, hi))
+    obj.Mass = grams
+    obj.Label = label or f"Load {grams:g} g"
+    fab.Loads = list(fab.Loads) + [obj]
+    if App.GuiUp:
+        attach_missing(obj)
+    obj.Proxy.execute(obj)
+    fab.touch()
+    return obj
+
+
+def _load_box(fab, where) -> tuple[tuple, tuple]:
+    """(lo, hi) of the box ``where`` names (see :func:`make_load`), in the Source's mm."""
+    shape = where if isinstance(where, Part.Shape) else getattr(where, "Shape", None)
+    if shape is not None:
+        if shape.isNull():
+            raise ValueError("the load's shape is empty")
+        b = shape.BoundBox
+        return (b.XMin, b.YMin, b.ZMin), (b.XMax, b.YMax, b.ZMax)
+    values = list(where)
+    if len(values) == 6 and all(isinstance(v, (int, float)) for v in values):
+        values = [float(v) for v in values]
+        return (tuple(min(values[n], values[n + 3]) for n in range(3)),
+                tuple(max(values[n], values[n + 3]) for n in range(3)))
+    boxes = brick_boxes(fab, values)
+    if not boxes:
+        raise ValueError("make_load needs a box, a shape or bricks")
+    return (tuple(min(b[n] for b in boxes) for n in range(3)),
+            tuple(max(b[n + 3] for b in boxes) for n in range(3)))
+
+
+def loads(fab) -> list:
+    """The Load objects of ``fab``."""
+    return list(getattr(fab, "Loads", ()))
 
 
 def unmark(fab, bricks) -> int:
@@ -452,6 +512,7 @@ def recompute(fab) -> bool:
 
 
 __all__ = ["make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "unmark",
+           "make_load", "loads",
            "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
            "report", "steps", "layout", "export", "remove_owned",
            "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",

@@ -12,14 +12,14 @@ from __future__ import annotations
 import FreeCADGui as Gui
 
 from FabrickatorWorkbench.commands import (assembly, brushes, calibration, export, layout, legofy,
-                                           report, watch)
+                                           load, report, watch)
 
 
 def register() -> list[str]:
     """Add every command to FreeCADGui; the names in toolbar order."""
     commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), brushes.MergeBrush(),
-                brushes.SplitBrush(), export.Export(), assembly.Assembly(), report.Report(),
-                watch.WatchFolder(), calibration.CalibrationStrip()]
+                brushes.SplitBrush(), load.AddLoad(), export.Export(), assembly.Assembly(),
+                report.Report(), watch.WatchFolder(), calibration.CalibrationStrip()]
     for command in commands:
         Gui.addCommand(command.NAME, command)
     return [c.NAME for c in commands]

@@ -1,5 +1,6 @@
-"""Report: brick counts, printed parts, print times, assembly time and speed-up, in words;
-its weak points and incomplete studs are listed and a click selects them in the 3D view."""
+"""Report: brick counts, printed parts, print times, assembly time and speed-up, the force
+check, in words; its failing bricks, weak points and incomplete studs are listed and a click
+selects them in the 3D view."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import FreeCADGui as Gui
 from PySide import QtCore, QtGui
 
 from FabrickatorWorkbench import log, make
+from FabrickatorWorkbench.objects.fabricate import force_words
 from FabrickatorWorkbench.commands.base import (Command, recompute_or_fail, selected_fabrication,
                                                 transaction)
 
@@ -50,6 +52,8 @@ def summary(fab) -> list[str]:
               "of the build)" if weak else "no weak points"),
              (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
               "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
+    if st.get("force"):
+        lines.append(f"force check: {force_words(st['force'])}")
     times = doc.get("print_time_s")
     if times:
         lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "
@@ -65,10 +69,11 @@ def summary(fab) -> list[str]:
 
 def items(fab) -> list[dict]:
     """What the report points at in the model, each ``{"kind", "title", "text", "bricks",
-    "parts"}``: every weak point (its brick) and every printed part with incomplete
-    studs (the part), with the core's explanation."""
+    "parts"}``: every failing brick of the force check (its brick, or its printed part),
+    every weak point (its brick) and every printed part with incomplete studs (the
+    part), with the core's explanation."""
     st = make.report(fab)["stability"]
-    out = []
+    out = force_items(st.get("force"))
     details = {d["brick"]: d for d in st.get("weak_point_details", ())}
     for brick in st.get("weak_point_bricks", ()):
         d = details.get(brick)
@@ -87,6 +92,23 @@ def items(fab) -> list[dict]:
                     "title": f"Incomplete studs: printed part {entry['part']}, {entry['count']} "
                              f"in layer(s) {', '.join(map(str, entry['layers']))}",
                     "text": entry["why"], "bricks": [], "parts": [entry["part"]]})
+    return out
+
+
+def force_items(force: dict | None) -> list[dict]:
+    """One report item per failure of the force check (report.json ``stability.force``
+    ``failures``): where the brick is, how hard it works and the core's ``why``."""
+    out = []
+    for f in (force or {}).get("failures", ()):
+        printed = f.get("printed_part")
+        where = f"printed part {printed}" if printed else f"LEGO {f.get('part', '')}".rstrip()
+        u = f.get("utilisation")
+        how = "unsupported" if u is None else f"utilisation {u:.2f}"
+        out.append({"kind": "force",
+                    "title": f"Fails: {where}, layer {f['layer']}, cell {f['cell'][0]}, "
+                             f"{f['cell'][1]} ({how})",
+                    "text": f["why"], "bricks": [int(f["brick"])],
+                    "parts": [printed] if printed else []})
     return out
 
 
@@ -121,6 +143,10 @@ def report_html(fab) -> str:
         meaning += f"<p><b>Weak points.</b> {esc(explain['weak_point'])}</p>"
     if st["incomplete_studs"] and explain.get("incomplete_stud"):
         meaning += f"<p><b>Incomplete studs.</b> {esc(explain['incomplete_stud'])}</p>"
+    force = st.get("force") or {}
+    if force.get("failing_bricks") and force.get("explain"):
+        meaning += (f"<p><b>Failing bricks.</b> {esc(force['explain'])} The Stress display mode "
+                    f"of the Fabrication draws them white.</p>")
     if meaning:
         meaning += "<p>Click one in the list below to select it in the 3D view.</p>"
     times = doc.get("print_time_s") or {}

@@ -26,12 +26,12 @@ from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM
 from FabrickatorWorkbench import bridge, deps, log, preferences
-from FabrickatorWorkbench.objects import high_res_region, tree
+from FabrickatorWorkbench.objects import high_res_region, load, tree
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
 PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick",
-              "SecondsPerPart", "SlicePrintTimes", "FitGrid")
+              "SecondsPerPart", "SlicePrintTimes", "FitGrid", "Ground", "Clutch")
 
 
 #: Milliseconds the status bar says that a recompute was stopped with Esc.
@@ -157,7 +157,8 @@ def _ids(ids: list[int], shown: int = 12) -> str:
 def request(obj, path: str, boxes, solids, previous: str | None = None):
     """The :class:`core.request.Request` of Fabrication ``obj`` for its Source written at
     ``path``: its properties, the preferences' slicer profile, the regions (``boxes``,
-    ``solids``) and brush edits; ``previous`` an unpacked snapshot to iterate on.
+    ``solids``) and brush edits, its Ground, Clutch and Loads (:func:`load_texts`);
+    ``previous`` an unpacked snapshot to iterate on.
 
     The workbench sends all of its regions every time (``previous_regions``
     off) and lays a moved Source out anew where it stands (``iterate_moved``
@@ -173,7 +174,14 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
-        previous_regions=False, iterate_moved=False).checked()
+        previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
+        clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale)).checked()
+
+
+def load_texts(obj, scale: float) -> tuple[str, ...]:
+    """The Loads of Fabrication ``obj`` as ``Request.loads`` ("X0,Y0,Z0,X1,Y1,Z1:GRAMS" in the
+    core's model mm: the Source's mm times ``scale``)."""
+    return tuple(load.request_text(x, scale) for x in obj.Loads if load.is_load(x))
 
 
 def run_core(obj) -> Result:
@@ -195,7 +203,8 @@ def run_core(obj) -> Result:
         raise InputError(f"the Source {source.Label} has no solid and no mesh")
     from core import pipeline
 
-    inputs = {"parameters": parameters(obj), "regions": region_signature(obj)}
+    inputs = {"parameters": parameters(obj), "regions": region_signature(obj),
+              "loads": list(load_texts(obj, 1.0))}
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
             _slicer(bool(obj.SlicePrintTimes)), \
             _progress(f"Fabrickator: {obj.Label}", obj.Document) as progress:
@@ -404,6 +413,29 @@ def _restore_parameters(obj) -> None:
             log.warning(f"{obj.Label}: {name} put back to {value!r}, the last value that worked")
 
 
+def force_words(force: dict | None) -> str:
+    """The force check of report.json (``stability.force``) in one line."""
+    if not force:
+        return "not checked"
+    worst = ("infinite (something floats or tips)" if force["max_utilisation"] is None
+             else f"{force['max_utilisation']:.2f}")
+    failing = len(force["failing_bricks"])
+    return (f"{'stands' if force['stable'] else 'does not stand'} on a {force['ground']} with "
+            f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
+            + (f", {failing} failing brick(s)" if failing else ""))
+
+
+def _store_forces(obj, force: dict | None) -> None:
+    """The force check's verdict into Stands, FailingBricks and Forces (words); the
+    Report view says it when the build does not stand."""
+    obj.Stands = bool(force and force["stable"])
+    obj.FailingBricks = len(force["failing_bricks"]) if force else 0
+    obj.Forces = force_words(force)
+    if force and not force["stable"]:
+        log.warning(f"{obj.Label}: {obj.Forces} (the Report lists them; the Stress display "
+                    f"mode shows them white)")
+
+
 def _store(obj, result: Result, kept: int, changed: int) -> None:
     """Write the result's numbers and JSON into the Fabrication's properties."""
     fab, report = result.fab, result.report
@@ -421,6 +453,7 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     obj.Components = int(report["stability"]["components"])
     obj.WeakPoints = int(report["stability"]["weak_points"])
     obj.SpeedUp = float(report["speedup"] or 0.0)
+    _store_forces(obj, report["stability"].get("force"))
     obj.BricksKept, obj.BricksChanged = kept, changed
     obj.GridOrigin = bridge.vector(fab.grid.origin)
     obj.CellSize = bridge.vector(fab.grid.cell)

@@ -2,7 +2,8 @@
 
 An ``App::FeaturePython`` whose proxy is :class:`Fabrication`.
 Its inputs are the Source (any solid or a mesh feature), the brick set,
-stud and socket fit, seed, scale, the high-res regions and the merge/split edits;
+stud and socket fit, seed, scale, the high-res regions, the merge/split edits and,
+for the force check, the Ground, the Clutch and the Loads (:mod:`.load`);
 its recompute runs the core pipeline (:mod:`.fabricate`) and keeps the
 result in the document: the layout, report and steps as JSON properties,
 one tree object per brick grouped by layer, and PrintedPart objects.  So a
@@ -30,6 +31,20 @@ QT = App.Qt.QT_TRANSLATE_NOOP
 
 #: Value of the hidden ``FabrickatorRole`` property that marks a Fabrication.
 ROLE = "Fabrication"
+
+
+def grounds() -> list[str]:
+    """The grounds of the force check (:data:`core.forces.GROUNDS`), the default of the
+    one table of defaults first (an enumeration takes its first item)."""
+    from core.forces import GROUNDS
+
+    first = setting_default("ground")
+    return [first] + [g for g in GROUNDS if g != first]
+
+
+def clutch():
+    """The default clutch of the one table of defaults (``clutch_n``, N) as a force."""
+    return App.Units.Quantity(f"{float(setting_default('clutch_n'))} N")
 
 PROPERTIES = (
     Prop("App::PropertyString", "FabrickatorRole", "Base",
@@ -74,6 +89,16 @@ PROPERTIES = (
                              "and the regions did not change and reprint only changed printed "
                              "parts (not when the seed or scale changed or the Source moved)"),
          True),
+    Prop("App::PropertyEnumeration", "Ground", "Forces",
+         QT("App::Property", "What the build stands on for the force check: table (its bottom "
+                             "layer only presses down) or baseplate (clamped to a LEGO "
+                             "baseplate)"), grounds),
+    Prop("App::PropertyForce", "Clutch", "Forces",
+         QT("App::Property", "Tension one stud contact point holds (a LEGO stud is gripped at 3 "
+                             "points under 2-wide bricks, 4 under 1-wide)"), clutch),
+    Prop("App::PropertyLinkList", "Loads", "Forces",
+         QT("App::Property", "Loads: masses resting on the bricks (a phone, a lens, a battery)"),
+         None, READ_ONLY),
     Prop("App::PropertyLinkList", "Regions", "Fabrication",
          QT("App::Property", "High-res regions: what must be printed exactly"), None, READ_ONLY),
     Prop("App::PropertyLinkList", "Contents", "Fabrication",
@@ -99,6 +124,15 @@ PROPERTIES = (
          QT("App::Property", "Separate pieces the bricks form"), 0, READ_ONLY),
     Prop("App::PropertyInteger", "WeakPoints", "Result",
          QT("App::Property", "Bricks whose removal splits the structure"), 0, READ_ONLY),
+    Prop("App::PropertyBool", "Stands", "Result",
+         QT("App::Property", "The force check: every brick is held with its loads (no joint "
+                             "works above what it holds)"), False, READ_ONLY),
+    Prop("App::PropertyInteger", "FailingBricks", "Result",
+         QT("App::Property", "Bricks whose joints cannot carry them (utilisation above 1, or "
+                             "unsupported); the Stress display mode shows them white"), 0, READ_ONLY),
+    Prop("App::PropertyString", "Forces", "Result",
+         QT("App::Property", "The force check in words: worst joint utilisation, mass carried"),
+         "", READ_ONLY),
     Prop("App::PropertyFloat", "SpeedUp", "Result",
          QT("App::Property", "Full print time / (printed parts' print time + assembly); "
                              "0 when not sliced"), 0.0, READ_ONLY),
@@ -149,6 +183,14 @@ class Fabrication(FeatureProxy):
 
     def execute(self, obj):
         fabricate.recompute(obj)
+
+    def utilisations(self, obj) -> list[tuple] | None:
+        """What the Stress display mode colours: (object, utilisation) for every LEGO brick
+        and printed part of ``obj``, from its report's force check (``stability.force``).
+        A printed part has the largest of its bricks'; an unsupported brick has ``inf``, a
+        brick the check did not cover None.  None when the report has no force check (a
+        result made before it)."""
+        return tree.utilisations(obj)
 
     def remove_owned(self, obj) -> None:
         """Delete everything Fabrication ``obj`` made (:func:`.tree.remove_owned`) and show

@@ -5,7 +5,7 @@ Every brick is an ``App::Link`` to the prototype of its part and colour
 Cell, Size, Layer, Kind, Step, PrintedPart, BrickId and Changed (group
 "Brick").  Bricks sit in one ``App::DocumentObjectGroup`` per plate layer;
 printed parts in a "Printed parts" group, regions in a "High-res regions"
-group, all inside the Fabrication.
+group, loads (if any) in a "Loads" group, all inside the Fabrication.
 
 :func:`sync` brings the tree in line with a new core result and keeps every
 brick object whose brick is still in the layout (after a design iteration:
@@ -50,6 +50,7 @@ BRICK_ROLE = "Brick"
 LAYER_ROLE = "Layer"
 PRINTED_GROUP_ROLE = "PrintedParts"
 REGIONS_GROUP_ROLE = "Regions"
+LOADS_GROUP_ROLE = "Loads"
 PROTOTYPES_ROLE = "Prototypes"
 GHOST_ROLE = "RemovedBrick"
 GHOSTS_GROUP_ROLE = "RemovedBricks"
@@ -155,18 +156,19 @@ def owned(fab) -> list:
     for g in fab.Contents:
         if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, GHOSTS_GROUP_ROLE):
             out += [c for c in g.Group if role(c) in (BRICK_ROLE, "PrintedPart", GHOST_ROLE)]
-        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, REGIONS_GROUP_ROLE, GHOSTS_GROUP_ROLE):
+        if role(g) in (LAYER_ROLE, PRINTED_GROUP_ROLE, REGIONS_GROUP_ROLE, LOADS_GROUP_ROLE,
+                       GHOSTS_GROUP_ROLE):
             out.append(g)
     return out
 
 
 def remove_owned(fab) -> None:
     """Delete everything ``fab`` made (bricks, ghosts, layer groups, printed parts, the
-    region group); the regions themselves and the Source stay, prototypes no other
-    object uses go."""
+    region and load groups); the regions and loads themselves and the Source stay,
+    prototypes no other object uses go."""
     doc = fab.Document
     for obj in owned(fab):
-        if role(obj) == REGIONS_GROUP_ROLE:
+        if role(obj) in (REGIONS_GROUP_ROLE, LOADS_GROUP_ROLE):
             obj.Group = []
         if doc.getObject(obj.Name) is not None:
             doc.removeObject(obj.Name)
@@ -255,8 +257,9 @@ def sync(fab, result) -> tuple[int, int]:
     printed_group.Group = _sync_printed(fab, printed_group, result, made)
     regions_group = _group(fab, REGIONS_GROUP_ROLE, "High-res regions", made)
     regions_group.Group = list(fab.Regions)
-    fab.Contents = ([regions_group, printed_group] + ([ghost_group] if ghost_group else [])
-                    + layers)
+    loads_group = _sync_loads(fab, made)
+    fab.Contents = ([regions_group] + ([loads_group] if loads_group else []) + [printed_group]
+                    + ([ghost_group] if ghost_group else []) + layers)
     made += protos.made
     for obj in made + owned(fab) + protos.touched():
         if "Touched" in obj.State:
@@ -270,6 +273,28 @@ def sync(fab, result) -> tuple[int, int]:
         for ghost in ghosts(fab):
             apply_ghost_look(ghost)
     return kept, changed
+
+
+def utilisations(fab) -> list[tuple] | None:
+    """(object, utilisation) for every LEGO brick and printed part of ``fab`` from its
+    report's ``stability.force`` (unsupported: ``inf``; not covered: None; a printed part
+    the largest of its bricks'); None when the report has no force check."""
+    force = json.loads(fab.ReportJson).get("stability", {}).get("force") if fab.ReportJson else None
+    if not force:
+        return None
+    values = force.get("utilisation", {})
+
+    def of(brick_id: int):
+        key = str(int(brick_id))
+        if key not in values:
+            return None
+        return float("inf") if values[key] is None else float(values[key])
+
+    out = [(b, of(b.BrickId)) for b in bricks(fab) if b.Kind != "printed"]
+    for part in printed_parts(fab):
+        known = [u for u in (of(i) for i in part.BrickIds) if u is not None]
+        out.append((part, max(known) if known else None))
+    return out
 
 
 def clear_changes(fab) -> int:
@@ -405,6 +430,21 @@ def _same_placement(a: App.Placement, b: App.Placement, tol: float = 1e-9) -> bo
     """Whether two placements are equal to ``tol`` (position and quaternion)."""
     values = zip(tuple(a.Base) + tuple(a.Rotation.Q), tuple(b.Base) + tuple(b.Rotation.Q))
     return all(abs(x - y) <= tol for x, y in values)
+
+
+def _sync_loads(fab, made: list):
+    """The "Loads" group holding the Fabrication's Loads (made if missing), or None (the
+    group removed) when it has none."""
+    loads = list(getattr(fab, "Loads", ()))
+    if not loads:
+        for group in child_groups(fab, LOADS_GROUP_ROLE):
+            group.Group = []
+            fab.Document.removeObject(group.Name)
+        return None
+    group = _group(fab, LOADS_GROUP_ROLE, "Loads", made)
+    if list(group.Group) != loads:
+        group.Group = loads
+    return group
 
 
 def _group(fab, wanted: str, label: str, made: list):

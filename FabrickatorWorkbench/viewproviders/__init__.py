@@ -13,12 +13,13 @@ from __future__ import annotations
 
 from FabrickatorWorkbench.viewproviders.base import ICONS, icon
 from FabrickatorWorkbench.viewproviders.fabrication import ViewProviderFabrication
+from FabrickatorWorkbench.viewproviders.load import ViewProviderLoad
 from FabrickatorWorkbench.viewproviders.printed_part import ViewProviderPrintedPart
 from FabrickatorWorkbench.viewproviders.region import ViewProviderRegion
 
 #: The view provider of each Fabrickator role (the objects' ``FabrickatorRole``).
 BY_ROLE = {"Fabrication": ViewProviderFabrication, "PrintedPart": ViewProviderPrintedPart,
-           "HighResRegion": ViewProviderRegion}
+           "HighResRegion": ViewProviderRegion, "Load": ViewProviderLoad}
 
 __all__ = ["ICONS", "icon", "attach_missing", "BY_ROLE"]
 

@@ -1,5 +1,6 @@
 """View provider of a Fabrication: its icon, its groups as children; double-click opens
-the brush panel.
+the brush panel; two display modes, Normal (LEGO colours) and Stress (the force check's
+utilisation of every brick, :mod:`.stress`).
 
 The view provider sits below the commands and task panels: it opens the brush
 panel by running the brush command (:data:`EDIT_COMMAND`, by name) on its
@@ -9,6 +10,8 @@ what it made.
 
 from __future__ import annotations
 
+from FabrickatorWorkbench import log
+from FabrickatorWorkbench.viewproviders import stress
 from FabrickatorWorkbench.viewproviders.base import ViewProvider
 
 #: The command a double-click (edit mode 0) runs on the Fabrication: the high-res brush.
@@ -22,6 +25,36 @@ class ViewProviderFabrication(ViewProvider):
 
     #: The task panel open on this Fabrication, if any (the commands set it).
     panel = None
+
+    def attach(self, vobj):
+        super().attach(vobj)
+        from pivy import coin
+
+        for mode in stress.MODES:
+            vobj.addDisplayMode(coin.SoGroup(), mode)
+
+    def getDisplayModes(self, vobj):
+        return list(stress.MODES)
+
+    def getDefaultDisplayMode(self):
+        return stress.NORMAL
+
+    def setDisplayMode(self, mode):
+        return mode
+
+    def onChanged(self, vobj, prop):
+        """Switching the display mode recolours the bricks."""
+        if prop == "DisplayMode":
+            on = vobj.DisplayMode == stress.STRESS
+            if not stress.apply(vobj.Object, on) and on and getattr(vobj.Object, "LayoutJson", ""):
+                log.message(f"{vobj.Object.Label}: no force check in this result yet: recompute "
+                            f"it to see the Stress colours")
+
+    def updateData(self, obj, prop):
+        """A new result in the Stress mode gets its stress colours."""
+        view = getattr(obj, "ViewObject", None)
+        if prop == "ReportJson" and view is not None and view.DisplayMode == stress.STRESS:
+            stress.apply(obj, True)
 
     def claimChildren(self):
         return list(self.Object.Contents) if hasattr(self.Object, "Contents") else []

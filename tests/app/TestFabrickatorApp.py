@@ -220,7 +220,7 @@ class TestPackage(unittest.TestCase):
         self.assertTrue((ROOT / workbench.Subdirectory / workbench.Icon).is_file())
         icons = ROOT / "FabrickatorWorkbench" / "resources" / "icons"
         for name in ("Legofy", "Layout", "HighResBrush", "MergeBrush", "SplitBrush", "Export",
-                     "Assembly", "Report", "WatchFolder", "CalibrationStrip"):
+                     "Assembly", "Report", "WatchFolder", "CalibrationStrip", "Load"):
             self.assertTrue((icons / f"{name}.svg").is_file(), name)
 
 
@@ -936,3 +936,5 @@ from TestFabrickatorUndo import TestUndo  # noqa: E402,F401
 from TestFabrickatorLookApp import TestLookApp  # noqa: E402,F401
 # The Addon Manager's install in a clean FreeCAD user folder runs with these.
 from TestFabrickatorInstall import TestAddonManagerInstall, TestInstallWithoutNetwork  # noqa: E402,F401
+# The force check's Loads, Ground and Clutch (issue 14), and its parity with the command line.
+from TestFabrickatorForces import TestForceParity, TestLoads  # noqa: E402,F401

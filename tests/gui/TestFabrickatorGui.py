@@ -29,7 +29,8 @@ from PySide import QtCore, QtGui
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "tests" / "gui" / "artifacts"
 COMMANDS = ["Fabrickator_Legofy", "Fabrickator_Layout", "Fabrickator_HighResBrush",
-            "Fabrickator_MergeBrush", "Fabrickator_SplitBrush", "Fabrickator_Export",
+            "Fabrickator_MergeBrush", "Fabrickator_SplitBrush", "Fabrickator_AddLoad",
+            "Fabrickator_Export",
             "Fabrickator_Assembly", "Fabrickator_Report", "Fabrickator_WatchFolder",
             "Fabrickator_CalibrationStrip"]
 
@@ -202,8 +203,8 @@ class TestWorkbench(GuiTestCase):
         self.assertTrue(bars)
         actions = [a for a in bars[0].actions() if a.text()]
         self.assertEqual(len(actions), len(COMMANDS))
-        from FabrickatorWorkbench.commands import brushes, legofy
-        for command in (legofy.Legofy(), brushes.SplitBrush()):
+        from FabrickatorWorkbench.commands import brushes, legofy, load
+        for command in (legofy.Legofy(), brushes.SplitBrush(), load.AddLoad()):
             self.assertTrue(os.path.isfile(command.GetResources()["Pixmap"]))
 
     def test_plot_and_fem_still_work(self):
@@ -712,3 +713,4 @@ from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
 from TestFabrickatorInstallGui import TestInstallInTheGui  # noqa: E402,F401
+from TestFabrickatorStress import TestStress  # noqa: E402,F401
