@@ -4,7 +4,8 @@ The core's force check (:mod:`core.forces`, report.json ``stability.force``)
 gives every brick a *utilisation*: the pull on its studs against the clutch
 they hold, or its bending against what it takes; up to 1 the brick holds.
 In the Stress mode every LEGO brick and printed part is drawn dark at 0,
-red at 1 (linearly in between) and white above 1 or when it is unsupported:
+red at 1 and white above 1 (the scale of ``stress.png``,
+:func:`core.colours.stress_rgb`) or when it is unsupported:
 the white bricks are the failing ones, the reddest the closest to failing.
 A brick the check did not cover keeps its LEGO colour.  The Normal mode
 gives every brick its LEGO colour back.
@@ -17,28 +18,19 @@ parts.
 
 from __future__ import annotations
 
-import math
 
 from FabrickatorWorkbench.viewproviders.printed_part import PRINTED_COLOUR
 
-#: Colour at utilisation 0 (a joint that carries nothing).
-DARK = (0.13, 0.13, 0.15)
-#: Colour at utilisation 1 (a joint at what it holds).
-RED = (0.86, 0.07, 0.05)
-#: Colour above 1 and of unsupported bricks (the failing ones).
-WHITE = (1.0, 1.0, 1.0)
 #: The display modes of a Fabrication.
 NORMAL, STRESS = "Normal", "Stress"
 MODES = [NORMAL, STRESS]
 
 
 def colour(utilisation: float) -> tuple[float, float, float]:
-    """Dark at 0, red at 1, linear in between; white above 1 (and for inf or NaN)."""
-    u = float(utilisation)
-    if not math.isfinite(u) or u > 1.0:
-        return WHITE
-    t = max(u, 0.0)
-    return tuple(d + (r - d) * t for d, r in zip(DARK, RED))
+    """The stress colour of ``utilisation``: the scale of :func:`core.colours.stress_rgb`
+    (dark at 0, red at 1, white above 1 and for inf), the same as ``stress.png``'s."""
+    from core.colours import stress_rgb
+    return tuple(float(v) for v in stress_rgb([float(utilisation)])[0])
 
 
 def apply(fab, stress: bool) -> int:
