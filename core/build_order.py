@@ -323,9 +323,13 @@ def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRIC
     return float(seconds_per_brick) * lego + float(seconds_per_part) * parts
 
 
-def callout(layout: Layout, step: Step) -> list[tuple[str, int]]:
-    """The LEGO parts of a step as (design number, count), most frequent first."""
-    index = {b.id: b for b in layout.bricks}
+def callout(layout: Layout, step: Step, index: dict | None = None) -> list[tuple[str, int]]:
+    """The LEGO parts of a step as (design number, count), most frequent first.
+
+    ``index`` is ``{brick id: brick}`` of ``layout`` (made here when None; pass it when
+    calling for every step, so the steps cost what their bricks do).
+    """
+    index = {b.id: b for b in layout.bricks} if index is None else index
     counts: dict[str, int] = {}
     if step.printed_part is None:
         for bid in step.bricks:

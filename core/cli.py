@@ -106,7 +106,7 @@ def _calibration_parser(sub) -> None:
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "seed", "parts", "high_res", "high_res_solids",
-                            "stud_fit", "socket_fit"), units=request.UNITS)
+                            "stud_fit", "socket_fit", "hollow"), units=request.UNITS)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -188,6 +188,9 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
+    hollow = doc.get("hollow")
+    if hollow and (hollow["on"] or hollow["setting"] != "auto" or hollow["cells_solid"] >= 50_000):
+        print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]

@@ -40,7 +40,6 @@ design number, name, colour), the layer being built and the time estimate.
 
 from __future__ import annotations
 
-import heapq
 import html
 import json
 import os
@@ -48,6 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
@@ -83,37 +83,78 @@ def brick_boxes(layout: Layout) -> np.ndarray:
     return np.stack([c * cell, (c + s) * cell], axis=1)
 
 
-def _front_pairs(boxes: np.ndarray, block: int = 512) -> tuple[np.ndarray, np.ndarray]:
-    """(back, front) index pairs of boxes whose pictures overlap, back drawn first."""
+def _front_pairs(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(back, front) index pairs of boxes whose pictures overlap, back drawn first.
+
+    Pictures overlap when the boxes' intervals along the three picture
+    directions ``x - y``, ``x + z``, ``y + z`` all overlap.  The boxes are
+    binned on the first two directions with bins as wide as the widest
+    interval, so each box is compared only with the boxes of its own and the
+    eight neighbouring bins: the cost is the number of overlapping pairs, not
+    the square of the number of boxes.
+    """
+    n = len(boxes)
+    if n < 2:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lo, hi = boxes[:, 0], boxes[:, 1]
-    # interval of each picture direction: x - y, x + z, y + z
     a_lo = np.stack([lo[:, 0] - hi[:, 1], lo[:, 0] + lo[:, 2], lo[:, 1] + lo[:, 2]], axis=1)
     a_hi = np.stack([hi[:, 0] - lo[:, 1], hi[:, 0] + hi[:, 2], hi[:, 1] + hi[:, 2]], axis=1)
+    span = a_hi.max(axis=0) - a_lo.min(axis=0)
+    width = np.maximum((a_hi - a_lo).max(axis=0)[:2], 1e-9)
+    # at most about 4 million bins
+    width = np.maximum(width, span[:2] / 2000.0)
+    b = np.floor((a_lo[:, :2] - a_lo[:, :2].min(axis=0)) / width).astype(np.int64)
+    nb = b.max(axis=0) + 1
+    key = b[:, 0] * nb[1] + b[:, 1]
+    order = np.argsort(key, kind="stable")
+    start = np.searchsorted(key[order], np.arange(nb[0] * nb[1] + 1))
+    args = (np.ascontiguousarray(lo), np.ascontiguousarray(hi), np.ascontiguousarray(a_lo),
+            np.ascontiguousarray(a_hi), b, int(nb[0]), int(nb[1]), order, start)
+    count = _pairs_kernel(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
+    back, front = np.empty(count, np.int64), np.empty(count, np.int64)
+    _pairs_kernel(*args, back, front, True)
+    return back, front
+
+
+@njit(cache=True)
+def _pairs_kernel(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, fill):
+    """Count (``fill`` False) or write the (back, front) pairs of :func:`_front_pairs`."""
     eps = 1e-6
-    backs, fronts = [], []
-    n = len(boxes)
-    for s in range(0, n, block):
-        i = np.arange(s, min(n, s + block))
-        over = np.ones((len(i), n), dtype=bool)
-        for d in range(3):
-            over &= (a_lo[i, d][:, None] < a_hi[None, :, d] - eps) & \
-                    (a_lo[None, :, d] < a_hi[i, d][:, None] - eps)
-        over[np.arange(len(i)), i] = False
-        over[:, :s] = False
-        ii, jj = np.nonzero(over)
-        ii = i[ii]
-        # i in front of j: separated with i on the near side
-        i_front = (hi[ii, 0] <= lo[jj, 0] + eps) | (hi[ii, 1] <= lo[jj, 1] + eps) | \
-                  (lo[ii, 2] >= hi[jj, 2] - eps)
-        j_front = (hi[jj, 0] <= lo[ii, 0] + eps) | (hi[jj, 1] <= lo[ii, 1] + eps) | \
-                  (lo[jj, 2] >= hi[ii, 2] - eps)
-        keep_i = i_front & ~j_front
-        keep_j = j_front & ~i_front
-        backs += [jj[keep_i], ii[keep_j]]
-        fronts += [ii[keep_i], jj[keep_j]]
-    if not backs:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(backs), np.concatenate(fronts)
+    m = 0
+    for i in range(lo.shape[0]):
+        for d0 in range(-1, 2):
+            c0 = b[i, 0] + d0
+            if c0 < 0 or c0 >= nb0:
+                continue
+            for d1 in range(-1, 2):
+                c1 = b[i, 1] + d1
+                if c1 < 0 or c1 >= nb1:
+                    continue
+                cell = c0 * nb1 + c1
+                for t in range(start[cell], start[cell + 1]):
+                    j = order[t]
+                    if j <= i:
+                        continue
+                    over = True
+                    for d in range(3):
+                        if not (a_lo[i, d] < a_hi[j, d] - eps and a_lo[j, d] < a_hi[i, d] - eps):
+                            over = False
+                            break
+                    if not over:
+                        continue
+                    i_front = (hi[i, 0] <= lo[j, 0] + eps) or (hi[i, 1] <= lo[j, 1] + eps) \
+                        or (lo[i, 2] >= hi[j, 2] - eps)
+                    j_front = (hi[j, 0] <= lo[i, 0] + eps) or (hi[j, 1] <= lo[i, 1] + eps) \
+                        or (lo[j, 2] >= hi[i, 2] - eps)
+                    if i_front == j_front:
+                        continue
+                    if fill:
+                        if i_front:
+                            back[m], front[m] = j, i
+                        else:
+                            back[m], front[m] = i, j
+                    m += 1
+    return m
 
 
 def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
@@ -121,7 +162,8 @@ def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
 
     Without occlusion cycles the order is exact and stays exact for every
     subset of the boxes (see the module docstring); where the sort stalls on a
-    cycle, the farthest remaining box goes first and is counted.
+    cycle, the farthest remaining box goes first and is counted.  Among the
+    boxes free to go, the farthest goes first (ties: the lower index).
     """
     n = len(boxes)
     if n == 0:
@@ -130,31 +172,91 @@ def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
     order_e = np.argsort(back, kind="stable")
     back, front = back[order_e], front[order_e]
     start = np.searchsorted(back, np.arange(n + 1))
-    indeg = np.bincount(front, minlength=n)
-    depth = (boxes.mean(axis=1) @ VIEW)
-    heap = [(-depth[v], int(v)) for v in np.flatnonzero(indeg == 0)]
-    heapq.heapify(heap)
-    done = np.zeros(n, dtype=bool)
-    out: list[int] = []
+    indeg = np.bincount(front, minlength=n).astype(np.int64)
+    depth = np.ascontiguousarray(boxes.mean(axis=1) @ VIEW)
+    out = np.empty(n, np.int64)
+    cycles = _kahn(start, front.astype(np.int64), indeg, depth, out)
+    return out, int(cycles)
+
+
+@njit(cache=True, inline="always")
+def _before(key, ids, a, b):
+    """Whether heap slot ``a`` comes before slot ``b``: larger depth, then lower index."""
+    return key[a] > key[b] or (key[a] == key[b] and ids[a] < ids[b])
+
+
+@njit(cache=True)
+def _heap_push(key, ids, size, k, v):
+    key[size], ids[size] = k, v
+    c = size
+    while c > 0:
+        p = (c - 1) // 2
+        if _before(key, ids, c, p):
+            key[c], key[p] = key[p], key[c]
+            ids[c], ids[p] = ids[p], ids[c]
+            c = p
+        else:
+            break
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(key, ids, size):
+    v = ids[0]
+    size -= 1
+    key[0], ids[0] = key[size], ids[size]
+    c = 0
+    while True:
+        l, r, best = 2 * c + 1, 2 * c + 2, c
+        if l < size and _before(key, ids, l, best):
+            best = l
+        if r < size and _before(key, ids, r, best):
+            best = r
+        if best == c:
+            break
+        key[c], key[best] = key[best], key[c]
+        ids[c], ids[best] = ids[best], ids[c]
+        c = best
+    return v, size
+
+
+@njit(cache=True)
+def _kahn(start, front, indeg, depth, out):
+    """Kahn's topological sort of the pairs (CSR ``start``/``front`` by back box) into
+    ``out``, the farthest free box first; on a cycle the farthest box left goes. Returns
+    the number of cycles broken."""
+    n = depth.shape[0]
+    cap = 2 * n + 1
+    key = np.empty(cap, np.float64)
+    ids = np.empty(cap, np.int64)
+    size = 0
+    for v in range(n):
+        if indeg[v] == 0:
+            size = _heap_push(key, ids, size, depth[v], v)
+    done = np.zeros(n, np.bool_)
+    placed = 0
     cycles = 0
-    front_list = front.tolist()
-    while len(out) < n:
-        if not heap:
-            left = np.flatnonzero(~done)
-            v = int(left[np.argmax(depth[left])])
+    while placed < n:
+        if size == 0:
+            v = -1
+            for w in range(n):
+                if not done[w] and (v < 0 or depth[w] > depth[v]):
+                    v = w
             cycles += 1
             indeg[v] = 0
-            heapq.heappush(heap, (-depth[v], v))
-        _, v = heapq.heappop(heap)
+            size = _heap_push(key, ids, size, depth[v], v)
+        v, size = _heap_pop(key, ids, size)
         if done[v]:
             continue
         done[v] = True
-        out.append(v)
-        for w in front_list[start[v]:start[v + 1]]:
+        out[placed] = v
+        placed += 1
+        for e in range(start[v], start[v + 1]):
+            w = front[e]
             indeg[w] -= 1
             if indeg[w] == 0 and not done[w]:
-                heapq.heappush(heap, (-depth[w], w))
-    return np.array(out, dtype=np.int64), cycles
+                size = _heap_push(key, ids, size, depth[w], w)
+    return cycles
 
 
 def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -415,10 +517,11 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
     info = {p.id: p for p in printed_parts}
     out = []
     lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
+    index = {b.id: b for b in layout.bricks}
     for s in order.steps:
         item = {"n": s.number, "k": s.layer, "a": s.attached, "e": s.early,
                 "nb": len(s.bricks), "p": s.printed_part, "c": []}
-        for number, count in build_order.callout(layout, s):
+        for number, count in build_order.callout(layout, s, index):
             part = BY_NUMBER.get(number)
             item["c"].append([number, part.name if part else number, count, lego_color])
         if s.printed_part is not None:

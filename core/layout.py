@@ -293,11 +293,22 @@ def patch_groups(filled: np.ndarray) -> np.ndarray:
             taken[cols, k0:k0 + 3] = True
             flat[cols, k0:k0 + 3] = k0
             continue
-        mask = np.zeros(nx * ny, dtype=bool)
-        mask[cols[free]] = True
-        for part in _patches(mask, (nx, ny)):
+        for part in _patches_of(cols[free], ny):
             push(part, k0)
     return base
+
+
+def _patches_of(cols: np.ndarray, ny: int) -> list[np.ndarray]:
+    """:func:`_patches` of the mask of the flat column indices ``cols`` (rows of ``ny``
+    columns), labelled within their bounding box only: the same patches in the same order."""
+    if cols.size == 0:
+        return []
+    i, j = np.divmod(cols, ny)
+    i0, j0 = int(i.min()), int(j.min())
+    h, w = int(i.max()) - i0 + 1, int(j.max()) - j0 + 1
+    mask = np.zeros(h * w, dtype=bool)
+    mask[(i - i0) * w + (j - j0)] = True
+    return [(a // w + i0) * ny + (a % w + j0) for a in _patches(mask, (h, w))]
 
 
 def _patches(mask: np.ndarray, shape: tuple[int, int]) -> list[np.ndarray]:

@@ -23,7 +23,8 @@ from typing import Callable
 import numpy as np
 
 from core import build_order, catalog, connectors as connectors_stage, grid_fit
-from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
+from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
+from core import iterate as iterate_stage
 from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
 from core import stability as stability_stage, voxelize
@@ -66,6 +67,7 @@ class Fabrication:
     print_full: print_time_stage.PrintEstimate | None = None
     print_parts: print_time_stage.PrintEstimate | None = None
     plates: list | None = None
+    hollowing: hollow_stage.Hollowing | None = None
 
     @property
     def seed(self) -> int:
@@ -124,6 +126,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     2. **legofy**: fresh, on a grid centred on the part or shifted so that
        the regions mark the least (:func:`core.grid_fit.fit`); iterating,
        on the previous lattice, diffed with it (:func:`core.iterate.legofy_on`).
+       Fresh, the grid's size is checked before (:func:`core.voxelize.check_size`),
+       and then **hollow** keeps a shell, its pillars and the high-res cells
+       (:func:`core.hollow.decide`, the request's ``hollow``; not when iterating).
     3. **high_res**: the regions mark cells (:meth:`core.high_res.Regions.cells`;
        iterating, the previous run's regions too when ``previous_regions``),
        and unless ``connectors`` is off, anchor tabs are added
@@ -177,7 +182,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
 
-    fit = diff = None
+    fit = diff = hollowing = None
     if before is None:
         if req.fit_grid and regions:
             fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, regions.boxes, loaded,
@@ -189,6 +194,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         if grid.count == 0:
             raise InputError(f"{Path(req.model).name}: the part fills no cell of the "
                              f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
+        hollowing = timed("hollow", 0.25, hollow_stage.decide, grid, req.hollow,
+                          regions.cells(grid) if regions else None)
+        grid = hollowing.grid
     else:
         diff = timed("legofy", 0.2, iterate_stage.legofy_on, before, model)
         grid = diff.grid
@@ -239,7 +247,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
-                      fit=fit, iteration=iteration, notes=notes)
+                      fit=fit, iteration=iteration, notes=notes, hollowing=hollowing)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -478,9 +486,44 @@ def report(fab: Fabrication) -> dict:
                           "full print / (parts print + all assembly)",
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
         "timings_s": dict(fab.timings_s),
+        "hollow": hollow_report(fab),
         "notes": list(fab.notes),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
+
+
+def hollow_report(fab: Fabrication) -> dict | None:
+    """The ``hollow`` block of the report: what the hollow stage did (:mod:`core.hollow`) and
+    the bricks and assembly time with and without hollowing, None for an iteration.
+
+    A hollowed run gives the solid part's bricks as a lower bound: no catalog
+    part covers more cells than the largest, so the solid part needs at least
+    its cells over the largest part's cells (within a few percent of a real
+    solid layout, whose interior is mostly the largest brick).  The bench
+    (bench/bench_big.py) lays out both.
+    """
+    h = fab.hollowing
+    if h is None:
+        return None
+    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
+    doc = h.to_json()
+    doc.update(bricks={"built": lego}, assembly_s={"built": round(lego * fab.seconds_per_brick, 1)})
+    if not h.on:
+        return doc
+    largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in fab.parts)
+    solid = -(-h.solid_cells // largest)
+    doc["bricks"]["solid_at_least"] = solid
+    doc["assembly_s"]["solid_at_least"] = round(solid * fab.seconds_per_brick, 1)
+    doc["compare"] = (f"{lego:,} LEGO bricks, about {_hours(lego * fab.seconds_per_brick)} to build; "
+                      f"solid it would take at least {solid:,} bricks and "
+                      f"{_hours(solid * fab.seconds_per_brick)}")
+    return doc
+
+
+def _hours(seconds: float) -> str:
+    """``seconds`` as ``3 h 05 min`` or ``12 min``."""
+    m = int(round(seconds / 60.0))
+    return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"
 
 
 def _prepare_out(out: Path) -> None:

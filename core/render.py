@@ -32,6 +32,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
+from scipy import ndimage
 
 from core.colours import PRINTED_COLOR, rgb as colour_rgb
 from core.colours import brick_colours as decided_colours
@@ -94,14 +95,24 @@ def brick_colours(layout: Layout, labels: np.ndarray, palette: str = "bom") -> n
     return decided_colours(layout, palette, labels)
 
 
+def _outside(empty: np.ndarray) -> np.ndarray:
+    """The cells of the bool grid ``empty`` (padded by one empty cell all round) that
+    are joined to the outside through empty cells (6-connected): an enclosed cavity
+    (a hollowed part's inside) is not, and nothing facing it can be seen."""
+    lab, _ = ndimage.label(empty)
+    return lab == lab[0, 0, 0]
+
+
 def _scene(layout: Layout, palette: str = "bom"):
     """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
 
-    kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.
+    kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.  Faces
+    and studs facing an enclosed cavity (:func:`_outside`) are left out.
     """
     cell = np.asarray(layout.grid.cell, dtype=float)
     labels = layout.labels()
     padded = np.pad(labels, 1, constant_values=-1)
+    outside = _outside(padded < 0)
     rgb = brick_colours(layout, labels, palette)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
     cells = np.argwhere(labels >= 0)
@@ -112,13 +123,17 @@ def _scene(layout: Layout, palette: str = "bom"):
         p = at + offset
         return padded[p[..., 0], p[..., 1], p[..., 2]]
 
+    def open_at(offset) -> np.ndarray:
+        p = at + offset
+        return outside[p[..., 0], p[..., 1], p[..., 2]]
+
     def depth(index: np.ndarray) -> np.ndarray:
         return ((index + 0.5) * cell) @ VIEW
 
     edges = _edge_directions()
     polys, keys, sub, kinds, colours = [], [], [], [], []
     for f, normal in enumerate(FACE_NORMALS):
-        exposed = label_at(normal) < 0
+        exposed = open_at(normal)
         c, lab = cells[exposed], own[exposed]
         corners = _project((c[:, None, :] + FACE_CORNERS[f][None]) * cell)
         polys.append(_pad(corners))
@@ -135,7 +150,7 @@ def _scene(layout: Layout, palette: str = "bom"):
             kinds.append(np.ones(len(seg), dtype=np.int64))
             colours.append(np.zeros((len(seg), 3)))
 
-    tops = (label_at(FACE_NORMALS[2]) < 0) & is_lego[own]
+    tops = open_at(FACE_NORMALS[2]) & is_lego[own]
     c = cells[tops]
     centre = (c + [0.5, 0.5, 1.0]) * cell
     r = STUD_DIAMETER_MM / 2
