@@ -13,10 +13,10 @@ returns a new :class:`~core.model.Grid` with the cells to keep:
   erosion), and the shell is the filled cells that are not interior;
 * **pillars**: the interior cells of the columns ``(i, j)`` with
   ``i mod PILLAR_PITCH < PILLAR_STUDS`` and ``j mod PILLAR_PITCH <
-  PILLAR_STUDS`` (2 x 2-stud pillars on an 8-stud lattice), which run from
+  PILLAR_STUDS`` (2 x 2-stud pillars on a 12-stud lattice), which run from
   the floor shell to the roof shell of every hollow.  A roof of a hollow
   closed shell standing on a table has nothing under it but air: the
-  pillars carry it from below, at most 6 studs apart, and keep it
+  pillars carry it from below, at most 10 studs (80 mm) apart, and keep it
   connected to the floor where the walls are far;
 * every cell of ``keep`` (the high-res regions: they are printed from the
   model and stay solid).
@@ -50,7 +50,7 @@ from core.model import Grid
 SHELL_STUDS = 2
 #: Pillar footprint (studs per side) and the pitch (studs) of their lattice.
 PILLAR_STUDS = 2
-PILLAR_PITCH = 8
+PILLAR_PITCH = 12
 #: Automatic hollowing needs at least this many filled cells (about a 25 cm cube)...
 AUTO_MIN_CELLS = 50_000
 #: ...and must keep at most this share of them (save more than a third).

@@ -31,7 +31,7 @@ from core import stability as stability_stage, voxelize
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
-from core.request import Request, request as request_of
+from core.request import UNITS, Request, request as request_of
 
 Progress = Callable[[float, str], None]
 
@@ -184,6 +184,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
 
     fit = diff = hollowing = None
     if before is None:
+        voxelize.check_size(model.mesh, req.units, Path(req.model).name, unit_mm=UNITS)
         if req.fit_grid and regions:
             fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, regions.boxes, loaded,
                         closed=model.watertight)
@@ -197,6 +198,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         hollowing = timed("hollow", 0.25, hollow_stage.decide, grid, req.hollow,
                           regions.cells(grid) if regions else None)
         grid = hollowing.grid
+        voxelize.check_cells(grid.count, req.hollow)
     else:
         diff = timed("legofy", 0.2, iterate_stage.legofy_on, before, model)
         grid = diff.grid
