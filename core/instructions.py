@@ -319,6 +319,34 @@ def _face_paths(lo, hi) -> tuple[str, str, str]:
             path(base, ex * L[0], ez * L[2]))
 
 
+def _all_face_paths(lo: np.ndarray, hi: np.ndarray) -> list[tuple[str, str, str]]:
+    """:func:`_face_paths` of many boxes at once (``lo``, ``hi``: (n, 3) mm), the same text."""
+    lo, hi = np.asarray(lo, float).reshape(-1, 3), np.asarray(hi, float).reshape(-1, 3)
+    ex, ey, ez = screen(np.eye(3))
+    size = hi - lo
+    top0 = screen(np.column_stack([lo[:, 0], lo[:, 1], hi[:, 2]])).tolist()
+    base = screen(lo).tolist()
+    u_x, u_y, u_z = (np.outer(size[:, d], e) for d, e in enumerate((ex, ey, ez)))
+    u_x, u_y, u_z, m_x, m_y = (a.tolist() for a in (u_x, u_y, u_z, -u_x, -u_y))
+    cache: dict[float, str] = {}
+
+    def one(v: float) -> str:
+        out = cache.get(v)
+        if out is None:
+            out = cache[v] = fmt(v)
+        return out
+
+    def pair(p) -> str:
+        y = one(p[1])
+        return one(p[0]) + ("" if y.startswith("-") else " ") + y
+
+    def path(start, u, v, mu) -> str:
+        return f"M{pair(start)}l{pair(u)}l{pair(v)}l{pair(mu)}z"
+
+    return [(path(top0[n], u_x[n], u_y[n], m_x[n]), path(base[n], u_y[n], u_z[n], m_y[n]),
+             path(base[n], u_x[n], u_z[n], m_x[n])) for n in range(len(lo))]
+
+
 def _column_paths(lo, hi, brick_lo, brick_hi) -> tuple[list[tuple[str, str]], str]:
     """Faces (class, path data) and outline path data of a 1 x 1 column of a split brick.
 
@@ -438,7 +466,9 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
                             [0, ny * cell[1], 0]]))
     ground = " ".join(f"{fmt(x)},{fmt(y)}" for x, y in base)
     groups = []
-    for piece in order_idx:
+    whole = np.all(pieces == boxes[owner], axis=(1, 2)).tolist()
+    faces_of = _all_face_paths(boxes[:, 0], boxes[:, 1])
+    for piece in order_idx.tolist():
         n = int(owner[piece])
         b = layout.bricks[n]
         s = step_of.get(b.id, 0)
@@ -449,8 +479,8 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
         if printed and b.printed_part in meshed:
             body = "".join(f'<path class="{c}" d="{d}"/>' for c, d in meshed[b.printed_part][1].get(int(piece), ()))
             groups.append(f'{head}{body}</g>')
-        elif np.array_equal(pieces[piece], boxes[n]):
-            top, left, front = _face_paths(boxes[n, 0], boxes[n, 1])
+        elif whole[piece]:
+            top, left, front = faces_of[n]
             groups.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'
                           f'<path class="{top_class}" d="{top}"/></g>')
         else:

@@ -35,7 +35,8 @@
    count above :data:`BRICK_BUDGET` times the fewest bricks of any merge.
    The number of attempts is bounded, so the result is deterministic.
 
-All per-cell work runs in numba; Python loops over candidates, repair
+All per-cell work runs in numba (the candidates of step 2 two at a time, in
+threads); Python loops over candidates, repair
 attempts and the final bricks.  Randomness comes only from ``seed``.
 """
 
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -106,6 +108,10 @@ BRICK_BUDGET = 1.1
 #: in columns, when patches of brick groups are chosen.
 ALIGN_BONUS = 0.5
 
+#: Merge candidates laid out at once (threads: the merge kernel releases the GIL);
+#: each holds its own labels and records, so memory grows with this too.
+MERGE_THREADS = 2
+
 #: Bricks a weak point and an extra component are worth when choosing
 #: among merged layouts (the repair usually joins components cheaply).
 WEAK_COST = 2.0
@@ -156,17 +162,21 @@ def lay_out(grid: Grid, parts: tuple[Part, ...] = CATALOG, seed: int = 0,
     else:
         bases = [np.where(filled, -1, -2).astype(np.int32)]
     region_count = regions(filled)[1]
-    keys = []
-    for n, base in enumerate(bases):
-        report(0.05 + 0.25 * n / len(bases), "layout: merging plates")
+
+    def merged(base):
         state = _State(filled, base.copy(), plates, bricks, noise, region_count)
         state.place_all()
-        keys.append(state.quality()[0])
+        return state.quality()[0], state.snapshot()
+
+    report(0.05, f"layout: merging plates, {len(bases)} ways")
+    with ThreadPoolExecutor(max_workers=max(1, min(MERGE_THREADS, len(bases)))) as pool:
+        results = list(pool.map(merged, bases))
+    keys = [key for key, _ in results]
     budget = int(min(key[2] for key in keys) * BRICK_BUDGET)
     best = min(range(len(bases)), key=lambda n: (_rank(keys[n], budget, region_count), n))
-    if best != len(bases) - 1:
-        state = _State(filled, bases[best], plates, bricks, noise, region_count)
-        state.place_all()
+    state = _State(filled, bases[best], plates, bricks, noise, region_count)
+    state.restore(results[best][1])
+    del results
     report(0.3, "layout: repairing weak points")
     state.repair(report, budget)
     report(1.0, "layout: done")
@@ -435,6 +445,23 @@ class _State:
         self.count = np.zeros(1, dtype=np.int64)
         self.parent = np.arange(cap, dtype=np.int64)
         self.region_count = region_count
+
+    def snapshot(self) -> tuple:
+        """The merged layout in few bytes (labels as int32, live records): :meth:`restore` it."""
+        n = int(self.count[0])
+        return (self.lab.astype(np.int32), self.base.copy(), self.rec[:n].copy(),
+                self.alive[:n].copy())
+
+    def restore(self, snap: tuple) -> None:
+        """Take the layout of :meth:`snapshot` ``snap`` (union-find reset by the repair)."""
+        lab, base, rec, alive = snap
+        n = len(rec)
+        self.lab[...] = lab
+        self.base = base
+        self.rec[:n] = rec
+        self.alive[:] = False
+        self.alive[:n] = alive
+        self.count[0] = n
 
     def place_all(self):
         """Merge all filled cells."""
@@ -842,7 +869,7 @@ def _hangs_from(r, x0, y0, w, h, k, lab, filled):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _place(todo, filled, base, lab, rec, alive, count, parent,
            pw, ph, pp, bw, bh, bp, weights, noise, variant, box, trials):
     """Merge the uncovered ``todo`` cells in ``box`` into parts, bottom-up.
