@@ -1025,19 +1025,21 @@ def _put(x0, y0, k, w, h, layers, part, nbr, nd, lab, rec, alive, count, parent)
 
 
 def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,
-                   seed: int = 0) -> Layout:
+                   seed: int = 0, progress: Progress | None = None) -> Layout:
     """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
 
     The filled cells outside ``cells`` and those inside are laid out on
     their own (:func:`core.layout.lay_out`, same parts and seed), and the two
     brick lists joined (ids renumbered 0..n-1, the outside bricks first).
     So the bricks touching ``cells`` cover exactly the marked filled cells.
+    ``progress`` hears of the outside's layout (the bulk of the work).
     """
     filled = np.asarray(grid.filled, dtype=bool)
     inside = filled & np.asarray(cells, dtype=bool)
     bricks = []
-    for mask in (filled & ~inside, inside):
+    for n, mask in enumerate((filled & ~inside, inside)):
         if mask.any():
-            part = lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed)
+            part = lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed,
+                           progress=progress if n == 0 else None)
             bricks += part.bricks
     return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])

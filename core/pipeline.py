@@ -212,9 +212,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
                                       chosen, req.seed)
     elif cells.any():
-        layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
+        layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed,
+                       progress=within(progress, 0.4, 0.6))
     else:
-        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
+        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed,
+                       progress=within(progress, 0.4, 0.6))
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -254,6 +256,22 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
     return fab
+
+
+def within(progress: Progress, lo: float, hi: float, step: float = 0.05,
+           every_s: float = 5.0) -> Progress:
+    """``progress`` for a stage that runs from ``lo`` to ``hi`` of the whole run: the
+    stage's fraction mapped into that range, passed on only when it moved by ``step``
+    of the stage or ``every_s`` seconds passed (a stage may report thousands of times)."""
+    last = {"fraction": -1.0, "time": 0.0}
+
+    def report(fraction: float, message: str) -> None:
+        now = time.perf_counter()
+        if fraction - last["fraction"] >= step or now - last["time"] >= every_s:
+            last.update(fraction=fraction, time=now)
+            progress(lo + (hi - lo) * min(max(fraction, 0.0), 1.0), message)
+
+    return report
 
 
 def iterate_moved_out(req: Request, alignment) -> bool:
