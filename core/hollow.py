@@ -28,15 +28,22 @@ Removing interior cells never separates the shell: the shell surrounds
 each removed cell.  So the kept cells form as many 6-connected regions as
 the part.
 
-:func:`decide` applies the request's setting: ``-1`` (automatic) hollows
-when the part has at least :data:`AUTO_MIN_CELLS` cells and hollowing keeps
-at most two thirds of them (saves more than a third of the cells, and so
-about as many bricks), ``0`` keeps the part solid, ``n >= 1`` hollows with
-an ``n``-stud shell.
+:func:`decide` applies the request's setting: ``-1`` (automatic) proposes
+a 2-stud shell when the part has at least :data:`AUTO_MIN_CELLS` cells and
+the shell keeps at most two thirds of them, ``0`` keeps the part solid,
+``n >= 1`` hollows with an ``n``-stud shell.  Fewer cells need not mean
+fewer bricks: the shell of an uneven part is made of small bricks (the
+Stanford bunny at 47 cm: 7,345 bricks hollow, 6,734 solid), while a solid
+interior is mostly the largest brick.  So the driver keeps an automatic
+shell only when its layout has fewer than two thirds of the solid part's
+bricks: surely so when it is below two thirds of the solid part's lower
+bound (:func:`surely_saves`), else by laying out the solid part too
+(:func:`compared`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -80,6 +87,8 @@ class Hollowing:
     pillar_cells: int
     kept_solid_cells: int
     why: str
+    bricks_hollow: int | None = None
+    bricks_solid: int | None = None
 
     @property
     def on(self) -> bool:
@@ -92,7 +101,10 @@ class Hollowing:
                 "pillar_pitch_studs": PILLAR_PITCH if self.on else 0,
                 "cells_solid": self.solid_cells, "cells_kept": self.kept_cells,
                 "cells_pillars": self.pillar_cells, "cells_kept_high_res": self.kept_solid_cells,
-                "why": self.why}
+                "why": self.why,
+                **({} if self.bricks_solid is None else
+                   {"laid_out_both": {"hollow_bricks": self.bricks_hollow,
+                                      "solid_bricks": self.bricks_solid}})}
 
 
 def check_setting(value) -> int:
@@ -173,3 +185,24 @@ def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None) -> Hol
            f"{PILLAR_STUDS}x{PILLAR_STUDS}-stud pillars every {PILLAR_PITCH} studs keeps "
            f"{kept:,} of {solid:,} cells ({share:.0%}); --hollow=0 builds it solid")
     return Hollowing(out, setting, studs, layers, solid, kept, pillars, kept_solid, why)
+
+
+def surely_saves(h: Hollowing, bricks: int, largest_cells: int) -> bool:
+    """Whether the hollow layout of ``bricks`` bricks surely saves more than a third of
+    the bricks of the solid part: no part covers more than ``largest_cells`` cells, so
+    the solid part needs at least ``solid_cells / largest_cells`` bricks."""
+    return bricks < AUTO_KEEP_SHARE * math.ceil(h.solid_cells / largest_cells)
+
+
+def compared(h: Hollowing, solid: Grid, bricks_hollow: int, bricks_solid: int) -> Hollowing:
+    """The automatic choice once both were laid out: hollow (``h``) only when its
+    ``bricks_hollow`` are fewer than two thirds of ``bricks_solid``, else solid."""
+    if bricks_hollow < AUTO_KEEP_SHARE * bricks_solid:
+        return dataclasses.replace(h, bricks_hollow=bricks_hollow, bricks_solid=bricks_solid,
+                                   why=h.why.replace("the cells", "the bricks", 1) +
+                                   f" ({bricks_hollow:,} bricks instead of {bricks_solid:,})")
+    return Hollowing(solid, h.setting, 0, 0, h.solid_cells, h.solid_cells, 0, 0,
+                     f"kept solid: hollow it would take {bricks_hollow:,} bricks, solid "
+                     f"{bricks_solid:,} (automatic hollowing needs it to save more than a third; "
+                     f"a shell of an uneven part is all small bricks); --hollow builds it hollow",
+                     bricks_hollow, bricks_solid)

@@ -195,6 +195,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         if grid.count == 0:
             raise InputError(f"{Path(req.model).name}: the part fills no cell of the "
                              f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
+        solid = grid
         hollowing = timed("hollow", 0.25, hollow_stage.decide, grid, req.hollow,
                           regions.cells(grid) if regions else None)
         grid = hollowing.grid
@@ -205,18 +206,30 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         if req.previous_regions:
             regions = iterate_stage.previous_regions(before) + regions
 
-    marked = timed("high_res", 0.3, regions.cells, grid)
-    cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
+    def fresh_layout(grid_: Grid, name: str, span=(0.4, 0.6)):
+        marked_ = timed("high_res", 0.3, regions.cells, grid_)
+        cells_ = high_res_stage.anchor(grid_, marked_) if req.connectors else marked_
+        lay = layout_stage.lay_out_around if cells_.any() else layout_stage.lay_out
+        extra = (cells_,) if cells_.any() else ()
+        return marked_, cells_, timed(name, span[0], lay, grid_, *extra, chosen, seed=req.seed,
+                                      progress=within(progress, *span))
+
     plan = rings = None
     if before is not None:
+        marked = timed("high_res", 0.3, regions.cells, grid)
+        cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
                                       chosen, req.seed)
-    elif cells.any():
-        layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed,
-                       progress=within(progress, 0.4, 0.6))
     else:
-        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed,
-                       progress=within(progress, 0.4, 0.6))
+        marked, cells, layout = fresh_layout(grid, "layout")
+        largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
+        if hollowing.on and hollowing.setting < 0 \
+                and not hollow_stage.surely_saves(hollowing, len(layout.bricks), largest):
+            solid_marked, solid_cells, solid_layout = fresh_layout(solid, "layout_solid", (0.6, 0.78))
+            hollowing = hollow_stage.compared(hollowing, solid, len(layout.bricks),
+                                              len(solid_layout.bricks))
+            if not hollowing.on:
+                grid, marked, cells, layout = solid, solid_marked, solid_cells, solid_layout
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -516,11 +529,12 @@ def hollow_report(fab: Fabrication) -> dict | None:
     """The ``hollow`` block of the report: what the hollow stage did (:mod:`core.hollow`) and
     the bricks and assembly time with and without hollowing, None for an iteration.
 
-    A hollowed run gives the solid part's bricks as a lower bound: no catalog
-    part covers more cells than the largest, so the solid part needs at least
-    its cells over the largest part's cells (within a few percent of a real
-    solid layout, whose interior is mostly the largest brick).  The bench
-    (bench/bench_big.py) lays out both.
+    A hollowed run gives the solid part's bricks as laid out when the driver
+    compared both (:func:`core.hollow.compared`), else as a lower bound: no
+    catalog part covers more cells than the largest, so the solid part needs
+    at least its cells over the largest part's cells (within a few percent of
+    a real solid layout of a big block, whose interior is mostly the largest
+    brick).  The bench (bench/bench_big.py) lays out both.
     """
     h = fab.hollowing
     if h is None:
@@ -531,12 +545,14 @@ def hollow_report(fab: Fabrication) -> dict | None:
     if not h.on:
         return doc
     largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in fab.parts)
-    solid = -(-h.solid_cells // largest)
-    doc["bricks"]["solid_at_least"] = solid
-    doc["assembly_s"]["solid_at_least"] = round(solid * fab.seconds_per_brick, 1)
+    if h.bricks_solid is not None:
+        solid, key, words = h.bricks_solid, "solid", "solid it takes"
+    else:
+        solid, key, words = -(-h.solid_cells // largest), "solid_at_least", "solid it would take at least"
+    doc["bricks"][key] = solid
+    doc["assembly_s"][key] = round(solid * fab.seconds_per_brick, 1)
     doc["compare"] = (f"{lego:,} LEGO bricks, about {_hours(lego * fab.seconds_per_brick)} to build; "
-                      f"solid it would take at least {solid:,} bricks and "
-                      f"{_hours(solid * fab.seconds_per_brick)}")
+                      f"{words} {solid:,} bricks and {_hours(solid * fab.seconds_per_brick)}")
     return doc
 
 

@@ -169,3 +169,15 @@ def test_too_many_filled_cells_to_lay_out_is_refused(monkeypatch, box_stl):
     monkeypatch.setattr(voxelize, "MAX_LAYOUT_CELLS", 5000)
     with pytest.raises(InputError, match="fills 8,000 cells.*hollow"):
         pipeline.run(box_stl, slice_parts=False, hollow=0)
+
+
+def test_automatic_hollowing_needs_a_third_fewer_bricks():
+    grid = box_grid(40, 40, 60)
+    proposed = hollow.decide(grid, -1)
+    # 96,000 cells: a solid layout needs at least 2,000 bricks of at most 48 cells
+    assert hollow.surely_saves(proposed, 1333, 48) and not hollow.surely_saves(proposed, 1334, 48)
+    kept = hollow.compared(proposed, grid, 1000, 1600)
+    assert kept.on and kept.bricks_solid == 1600 and "1,000 bricks instead of 1,600" in kept.why
+    declined = hollow.compared(proposed, grid, 1100, 1600)
+    assert not declined.on and declined.grid is grid and declined.kept_cells == 96_000
+    assert declined.to_json()["laid_out_both"] == {"hollow_bricks": 1100, "solid_bricks": 1600}
