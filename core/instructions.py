@@ -110,15 +110,19 @@ def _front_pairs(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     start = np.searchsorted(key[order], np.arange(nb[0] * nb[1] + 1))
     args = (np.ascontiguousarray(lo), np.ascontiguousarray(hi), np.ascontiguousarray(a_lo),
             np.ascontiguousarray(a_hi), b, int(nb[0]), int(nb[1]), order, start)
-    count = _pairs_kernel(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
-    back, front = np.empty(count, np.int64), np.empty(count, np.int64)
-    _pairs_kernel(*args, back, front, True)
-    return back, front
+    guess = 64 * n
+    back, front = np.empty(guess, np.int64), np.empty(guess, np.int64)
+    count = _pairs_kernel(*args, back, front, True)
+    if count > guess:
+        back, front = np.empty(count, np.int64), np.empty(count, np.int64)
+        _pairs_kernel(*args, back, front, True)
+    return back[:count].copy(), front[:count].copy()
 
 
 @njit(cache=True)
 def _pairs_kernel(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, fill):
-    """Count (``fill`` False) or write the (back, front) pairs of :func:`_front_pairs`."""
+    """Count the (back, front) pairs of :func:`_front_pairs`, writing them (``fill``)
+    while they fit in ``back`` and ``front``."""
     eps = 1e-6
     m = 0
     for i in range(lo.shape[0]):
@@ -148,7 +152,7 @@ def _pairs_kernel(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, fi
                         or (lo[j, 2] >= hi[i, 2] - eps)
                     if i_front == j_front:
                         continue
-                    if fill:
+                    if fill and m < back.shape[0]:
                         if i_front:
                             back[m], front[m] = j, i
                         else:
@@ -157,18 +161,19 @@ def _pairs_kernel(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, fi
     return m
 
 
-def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
+def painter_order(boxes: np.ndarray, pairs=None) -> tuple[np.ndarray, int]:
     """Drawing order of boxes (n, 2, 3), back to front, and the number of cycles broken.
 
     Without occlusion cycles the order is exact and stays exact for every
     subset of the boxes (see the module docstring); where the sort stalls on a
     cycle, the farthest remaining box goes first and is counted.  Among the
-    boxes free to go, the farthest goes first (ties: the lower index).
+    boxes free to go, the farthest goes first (ties: the lower index).  ``pairs``
+    are the boxes' :func:`_front_pairs` when already found.
     """
     n = len(boxes)
     if n == 0:
         return np.zeros(0, np.int64), 0
-    back, front = _front_pairs(boxes)
+    back, front = _front_pairs(boxes) if pairs is None else pairs
     order_e = np.argsort(back, kind="stable")
     back, front = back[order_e], front[order_e]
     start = np.searchsorted(back, np.arange(n + 1))
@@ -294,7 +299,7 @@ def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
             pieces.append(np.stack([lo, hi], axis=1))
             owners.append(np.full(len(ij), b, dtype=np.int64))
         boxes, owner = np.concatenate(pieces), np.concatenate(owners)
-    order, _ = painter_order(boxes)
+    order, _ = painter_order(boxes, None if split.any() else (back, front))
     return boxes, owner, order, int(split.sum())
 
 

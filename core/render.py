@@ -115,7 +115,8 @@ def _scene(layout: Layout, palette: str = "bom"):
     outside = _outside(padded < 0)
     rgb = brick_colours(layout, labels, palette)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
-    cells = np.argwhere(labels >= 0)
+    near_outside = outside[:-2, 1:-1, 1:-1] | outside[1:-1, :-2, 1:-1] | outside[1:-1, 1:-1, 2:]
+    cells = np.argwhere((labels >= 0) & near_outside)
     own = labels[tuple(cells.T)]
     at = cells + 1
 
