@@ -185,6 +185,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     fit = diff = hollowing = None
     if before is None:
         voxelize.check_size(model.mesh, req.units, Path(req.model).name, unit_mm=UNITS)
+        voxelize.check_volume(model.mesh, model.watertight, req.hollow)
         if req.fit_grid and regions:
             fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, regions.boxes, loaded,
                         closed=model.watertight)

@@ -194,12 +194,21 @@ def _largest_piece_extent(mesh) -> float | None:
     return float((hi[ok] - lo[ok]).max())
 
 
-def check_cells(count: int, hollow_setting: int) -> None:
+def check_volume(mesh: trimesh.Trimesh, closed: bool, hollow_setting: int, cell=CELL_MM) -> None:
+    """:func:`check_cells` before legofy for a part built solid (``hollow_setting`` 0): a
+    closed part of volume V fills at least V / (cell volume) cells, since its filled
+    cells cover it."""
+    if hollow_setting == 0 and closed:
+        least = int(abs(float(mesh.volume)) / float(np.prod(_cell_size(cell))))
+        check_cells(least, hollow_setting, "at least ")
+
+
+def check_cells(count: int, hollow_setting: int, least: str = "") -> None:
     """One-line InputError when ``count`` filled cells are more than :data:`MAX_LAYOUT_CELLS`."""
     if count > MAX_LAYOUT_CELLS:
         advice = ("build it hollow (leave out --hollow=0) or smaller (--scale)"
                   if hollow_setting == 0 else "build it smaller (--scale) or with a thinner shell")
-        raise InputError(f"the part fills {count:,} cells: more than the {MAX_LAYOUT_CELLS:,} "
+        raise InputError(f"the part fills {least}{count:,} cells: more than the {MAX_LAYOUT_CELLS:,} "
                          f"this machine lays out in minutes; {advice}")
 
 

@@ -167,8 +167,10 @@ def test_too_big_is_refused_in_one_line_before_allocating(tmp_path, case):
 def test_too_many_filled_cells_to_lay_out_is_refused(monkeypatch, box_stl):
     from core import voxelize
     monkeypatch.setattr(voxelize, "MAX_LAYOUT_CELLS", 5000)
-    with pytest.raises(InputError, match="fills 8,000 cells.*hollow"):
+    with pytest.raises(InputError, match="fills at least 8,000 cells.*hollow"):
         pipeline.run(box_stl, slice_parts=False, hollow=0)
+    with pytest.raises(InputError, match="fills 8,000 cells"):
+        voxelize.check_cells(8000, 0)
 
 
 def test_automatic_hollowing_needs_a_third_fewer_bricks():
