@@ -183,3 +183,14 @@ def test_automatic_hollowing_needs_a_third_fewer_bricks():
     declined = hollow.compared(proposed, grid, 1100, 1600)
     assert not declined.on and declined.grid is grid and declined.kept_cells == 96_000
     assert declined.to_json()["laid_out_both"] == {"hollow_bricks": 1100, "solid_bricks": 1600}
+
+
+def test_the_layout_stage_reports_progress_through_the_pipeline(box_stl):
+    heard = []
+    pipeline.run(box_stl, slice_parts=False, progress=lambda f, m: heard.append((f, m)))
+    names = [m for _, m in heard]
+    assert names[:3] == ["load", "legofy", "hollow"]
+    inside = [(f, m) for f, m in heard if m.startswith("layout: ")]
+    assert inside and all(0.4 <= f <= 0.6 for f, _ in inside)
+    assert any("merging plates" in m for _, m in inside)
+    assert names.index("layout") < names.index(inside[0][1]) < names.index("stability")
