@@ -180,7 +180,7 @@ def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None) -> Hol
         return Hollowing(grid, setting, 0, 0, solid, solid, 0, 0,
                          f"kept solid: a {studs}-stud shell would keep {share:.0%} of the "
                          f"{solid:,} cells (automatic hollowing needs it to save more than a third)")
-    how = "automatically, as it saves more than a third of the cells" if setting < 0 else "as asked"
+    how = "automatically" if setting < 0 else "as asked"
     why = (f"hollowed {how}: a {studs}-stud shell ({layers} layers top and bottom) with "
            f"{PILLAR_STUDS}x{PILLAR_STUDS}-stud pillars every {PILLAR_PITCH} studs keeps "
            f"{kept:,} of {solid:,} cells ({share:.0%}); --hollow=0 builds it solid")
@@ -194,13 +194,24 @@ def surely_saves(h: Hollowing, bricks: int, largest_cells: int) -> bool:
     return bricks < AUTO_KEEP_SHARE * math.ceil(h.solid_cells / largest_cells)
 
 
+def judged(h: Hollowing, bricks: int, largest_cells: int) -> Hollowing | None:
+    """An automatic shell of ``bricks`` bricks kept because it :func:`surely_saves` a third of
+    the bricks (its ``why`` says so), or None when only a solid layout can tell."""
+    if not surely_saves(h, bricks, largest_cells):
+        return None
+    least = math.ceil(h.solid_cells / largest_cells)
+    return dataclasses.replace(h, bricks_hollow=bricks, why=h.why + (
+        f"; it saves more than a third of the bricks ({bricks:,}, where solid needs at least "
+        f"{least:,}: no part covers more than {largest_cells} cells)"))
+
+
 def compared(h: Hollowing, solid: Grid, bricks_hollow: int, bricks_solid: int) -> Hollowing:
     """The automatic choice once both were laid out: hollow (``h``) only when its
     ``bricks_hollow`` are fewer than two thirds of ``bricks_solid``, else solid."""
     if bricks_hollow < AUTO_KEEP_SHARE * bricks_solid:
         return dataclasses.replace(h, bricks_hollow=bricks_hollow, bricks_solid=bricks_solid,
-                                   why=h.why.replace("the cells", "the bricks", 1) +
-                                   f" ({bricks_hollow:,} bricks instead of {bricks_solid:,})")
+                                   why=h.why + f"; it saves more than a third of the bricks: "
+                                   f"{bricks_hollow:,} instead of {bricks_solid:,} solid")
     return Hollowing(solid, h.setting, 0, 0, h.solid_cells, h.solid_cells, 0, 0,
                      f"kept solid: hollow it would take {bricks_hollow:,} bricks, solid "
                      f"{bricks_solid:,} (automatic hollowing needs it to save more than a third; "

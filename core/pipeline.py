@@ -224,8 +224,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     else:
         marked, cells, layout = fresh_layout(grid, "layout")
         largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
-        if hollowing.on and hollowing.setting < 0 \
-                and not hollow_stage.surely_saves(hollowing, len(layout.bricks), largest):
+        sure = hollowing.on and hollowing.setting < 0 and \
+            hollow_stage.judged(hollowing, len(layout.bricks), largest)
+        if sure:
+            hollowing = sure
+        elif hollowing.on and hollowing.setting < 0:
             solid_marked, solid_cells, solid_layout = fresh_layout(solid, "layout_solid", (0.6, 0.78))
             hollowing = hollow_stage.compared(hollowing, solid, len(layout.bricks),
                                               len(solid_layout.bricks))

@@ -66,7 +66,7 @@ def test_automatic_setting_hollows_only_big_parts_that_save_a_third():
     big = hollow.decide(box_grid(40, 40, 60), -1)
     # interior 36 x 36 x 50 = 64,800; pillars: i, j in 2..37 -> {12, 13, 24, 25, 36, 37}
     assert big.on and big.studs == 2 and big.solid_cells == 96_000
-    assert big.kept_cells == 96_000 - 64_800 + 36 * 50 and "automatically" in big.why
+    assert big.kept_cells == 96_000 - 64_800 + 36 * 50 and "hollowed automatically" in big.why
     solid = hollow.decide(box_grid(40, 40, 60), 0)
     assert not solid.on and solid.grid.count == 96_000
     with pytest.raises(InputError):
@@ -179,7 +179,9 @@ def test_automatic_hollowing_needs_a_third_fewer_bricks():
     # 96,000 cells: a solid layout needs at least 2,000 bricks of at most 48 cells
     assert hollow.surely_saves(proposed, 1333, 48) and not hollow.surely_saves(proposed, 1334, 48)
     kept = hollow.compared(proposed, grid, 1000, 1600)
-    assert kept.on and kept.bricks_solid == 1600 and "1,000 bricks instead of 1,600" in kept.why
+    assert kept.on and kept.bricks_solid == 1600 and "1,000 instead of 1,600 solid" in kept.why
+    sure = hollow.judged(proposed, 1333, 48)
+    assert sure.on and "at least 2,000:" in sure.why and hollow.judged(proposed, 1334, 48) is None
     declined = hollow.compared(proposed, grid, 1100, 1600)
     assert not declined.on and declined.grid is grid and declined.kept_cells == 96_000
     assert declined.to_json()["laid_out_both"] == {"hollow_bricks": 1100, "solid_bricks": 1600}
