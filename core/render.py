@@ -66,6 +66,10 @@ FACE_CORNERS = np.array([
     [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
 ], dtype=float)
 
+#: Studs narrower than this in the picture (pixels) are not drawn (a 2 m part at
+#: 1200 x 900 pixels: half a million studs of 2 pixels).
+MIN_STUD_PX = 2.5
+
 #: Vertices per stud half-outline; every polygon is padded to 2 * this.
 _ARC = 9
 _VERTS = 2 * _ARC
@@ -103,11 +107,12 @@ def _outside(empty: np.ndarray) -> np.ndarray:
     return lab == lab[0, 0, 0]
 
 
-def _scene(layout: Layout, palette: str = "bom"):
+def _scene(layout: Layout, palette: str = "bom", studs: bool = True):
     """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
 
     kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.  Faces
-    and studs facing an enclosed cavity (:func:`_outside`) are left out.
+    and studs facing an enclosed cavity (:func:`_outside`) are left out, and
+    all studs when ``studs`` is False.
     """
     cell = np.asarray(layout.grid.cell, dtype=float)
     labels = layout.labels()
@@ -151,7 +156,7 @@ def _scene(layout: Layout, palette: str = "bom"):
             kinds.append(np.ones(len(seg), dtype=np.int64))
             colours.append(np.zeros((len(seg), 3)))
 
-    tops = open_at(FACE_NORMALS[2]) & is_lego[own]
+    tops = open_at(FACE_NORMALS[2]) & is_lego[own] & studs
     c = cells[tops]
     centre = (c + [0.5, 0.5, 1.0]) * cell
     r = STUD_DIAMETER_MM / 2
@@ -184,7 +189,7 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
 
     Bricks are shaded boxes with black outlines along brick edges and studs
-    on their exposed tops, in the colours :mod:`core.colours` decides for
+    on their exposed tops (unless they would be under :data:`MIN_STUD_PX` wide), in the colours :mod:`core.colours` decides for
     ``palette`` (printed bricks orange); ``title`` goes above.
     A layout without bricks gives a picture that says so.  Raises
     ValueError for a size that is not two integers from 16 to 20000 and
@@ -218,7 +223,12 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
         fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
         return
 
-    polys, kinds, colours = _scene(layout, palette)
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    extent = _project(corners * np.asarray(layout.grid.shape) * np.asarray(layout.grid.cell))
+    span_mm = np.maximum(extent.max(axis=0) - extent.min(axis=0), 1e-9)
+    stud_px = STUD_DIAMETER_MM * min(0.98 * width / span_mm[0],
+                                     (top_margin - 0.02) * height / span_mm[1])
+    polys, kinds, colours = _scene(layout, palette, studs=stud_px >= MIN_STUD_PX)
     lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
     span = np.maximum(hi - lo, 1e-9) * 1.04
     box_w, box_h = 0.98 * width, (top_margin - 0.01) * height
