@@ -541,7 +541,10 @@ class _State:
         side; then every brick hanging from a weak brick alone (a leaf),
         then the other weak bricks themselves.
         """
-        sites = [tuple(int(v) for v in s) for s in _seam_cells(self.lab, comp)]
+        live = comp[np.flatnonzero(self.alive[:len(comp)])]
+        # components of different regions never meet side by side: no seam to look for
+        seams = _seam_cells(self.lab, comp) if np.unique(live).size > self.region_count else ()
+        sites = [tuple(int(v) for v in s) for s in seams]
         indptr, indices = graph
         degree = np.diff(indptr)
         weak = np.flatnonzero(art)
