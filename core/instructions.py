@@ -47,7 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
@@ -110,55 +110,68 @@ def _front_pairs(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     start = np.searchsorted(key[order], np.arange(nb[0] * nb[1] + 1))
     args = (np.ascontiguousarray(lo), np.ascontiguousarray(hi), np.ascontiguousarray(a_lo),
             np.ascontiguousarray(a_hi), b, int(nb[0]), int(nb[1]), order, start)
-    guess = 64 * n
-    back, front = np.empty(guess, np.int64), np.empty(guess, np.int64)
-    count = _pairs_kernel(*args, back, front, True)
-    if count > guess:
-        back, front = np.empty(count, np.int64), np.empty(count, np.int64)
-        _pairs_kernel(*args, back, front, True)
-    return back[:count].copy(), front[:count].copy()
+    counts = np.zeros(n, np.int64)
+    _pair_counts(*args, counts)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    back, front = np.empty(offsets[-1], np.int64), np.empty(offsets[-1], np.int64)
+    _pair_fill(*args, offsets, back, front)
+    return back, front
 
 
-@njit(cache=True)
-def _pairs_kernel(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, fill):
-    """Count the (back, front) pairs of :func:`_front_pairs`, writing them (``fill``)
-    while they fit in ``back`` and ``front``."""
+@njit(cache=True, inline="always")
+def _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, m, fill):
+    """The (back, front) pairs of box ``i`` with the boxes ``j > i`` of its own and the
+    neighbouring bins, written from ``m`` on when ``fill``; returns ``m`` plus their number."""
     eps = 1e-6
-    m = 0
-    for i in range(lo.shape[0]):
-        for d0 in range(-1, 2):
-            c0 = b[i, 0] + d0
-            if c0 < 0 or c0 >= nb0:
+    for d0 in range(-1, 2):
+        c0 = b[i, 0] + d0
+        if c0 < 0 or c0 >= nb0:
+            continue
+        for d1 in range(-1, 2):
+            c1 = b[i, 1] + d1
+            if c1 < 0 or c1 >= nb1:
                 continue
-            for d1 in range(-1, 2):
-                c1 = b[i, 1] + d1
-                if c1 < 0 or c1 >= nb1:
+            cell = c0 * nb1 + c1
+            for t in range(start[cell], start[cell + 1]):
+                j = order[t]
+                if j <= i:
                     continue
-                cell = c0 * nb1 + c1
-                for t in range(start[cell], start[cell + 1]):
-                    j = order[t]
-                    if j <= i:
-                        continue
-                    over = True
-                    for d in range(3):
-                        if not (a_lo[i, d] < a_hi[j, d] - eps and a_lo[j, d] < a_hi[i, d] - eps):
-                            over = False
-                            break
-                    if not over:
-                        continue
-                    i_front = (hi[i, 0] <= lo[j, 0] + eps) or (hi[i, 1] <= lo[j, 1] + eps) \
-                        or (lo[i, 2] >= hi[j, 2] - eps)
-                    j_front = (hi[j, 0] <= lo[i, 0] + eps) or (hi[j, 1] <= lo[i, 1] + eps) \
-                        or (lo[j, 2] >= hi[i, 2] - eps)
-                    if i_front == j_front:
-                        continue
-                    if fill and m < back.shape[0]:
-                        if i_front:
-                            back[m], front[m] = j, i
-                        else:
-                            back[m], front[m] = i, j
-                    m += 1
+                over = True
+                for d in range(3):
+                    if not (a_lo[i, d] < a_hi[j, d] - eps and a_lo[j, d] < a_hi[i, d] - eps):
+                        over = False
+                        break
+                if not over:
+                    continue
+                i_front = (hi[i, 0] <= lo[j, 0] + eps) or (hi[i, 1] <= lo[j, 1] + eps) \
+                    or (lo[i, 2] >= hi[j, 2] - eps)
+                j_front = (hi[j, 0] <= lo[i, 0] + eps) or (hi[j, 1] <= lo[i, 1] + eps) \
+                    or (lo[j, 2] >= hi[i, 2] - eps)
+                if i_front == j_front:
+                    continue
+                if fill:
+                    if i_front:
+                        back[m], front[m] = j, i
+                    else:
+                        back[m], front[m] = i, j
+                m += 1
     return m
+
+
+@njit(cache=True, parallel=True)
+def _pair_counts(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, counts):
+    """Per box, the number of its pairs (:func:`_pairs_of`)."""
+    empty = np.zeros(0, np.int64)
+    for i in prange(lo.shape[0]):
+        counts[i] = _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, empty, empty,
+                              0, False)
+
+
+@njit(cache=True, parallel=True)
+def _pair_fill(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, offsets, back, front):
+    """Write every box's pairs (:func:`_pairs_of`) from its offset on."""
+    for i in prange(lo.shape[0]):
+        _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, offsets[i], True)
 
 
 def painter_order(boxes: np.ndarray, pairs=None) -> tuple[np.ndarray, int]:
