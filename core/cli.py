@@ -189,7 +189,7 @@ def _summary(doc: dict, out) -> None:
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
     hollow = doc.get("hollow")
-    if hollow and (hollow["on"] or hollow["setting"] != "auto" or hollow["cells_solid"] >= 50_000):
+    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
         print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):

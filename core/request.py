@@ -95,7 +95,7 @@ class Request:
                              off="do not render layout.png")
     hollow: int = _setting(-1, "keep a shell STUDS thick (--hollow alone: 2) and the pillars that "
                                "hold its roof; 0 builds solid; default: hollow parts of 50,000 "
-                               "cells or more when that saves more than a third of the cells",
+                               "cells or more when that saves more than a third of the bricks",
                            "--hollow", "STUDS")
     palette: str = _setting("bom", "brick colours of layout.png and the FreeCAD view: bom (the colour "
                                    "the parts list orders) or random (a LEGO colour per brick, to "
