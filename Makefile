@@ -79,6 +79,7 @@ bench: examples/build/hmd.step
 	$(PY) bench/bench_merge.py
 	$(PY) bench/bench_instructions.py
 	$(PY) bench/bench_iterate.py
+	$(PY) bench/bench_big.py
 	$(PY) bench/bench_startup.py
 	$(MAKE) --no-print-directory bench-freecad
 

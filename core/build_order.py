@@ -39,10 +39,10 @@ by its engraved ID, turning it the right way and pressing it onto its studs).
 from __future__ import annotations
 
 import dataclasses
-import heapq
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy import sparse
 
 from core.errors import InputError
@@ -225,44 +225,109 @@ def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
     rank = np.empty(count, dtype=np.int64)
     rank[np.lexsort((np.arange(count), keys[:, 2], keys[:, 1], keys[:, 0], u.k0))] = np.arange(count)
 
-    placed = np.zeros(count, dtype=bool)
-    queued = np.zeros(count, dtype=bool)
-    below_done = np.zeros(count, dtype=np.int64)
-    touching = np.zeros(count, dtype=np.int64)
-    heap: list[tuple[int, int, int]] = []
+    v_order = np.empty(count, np.int64)
+    flags = np.empty((count, 2), np.bool_)
+    _order_units(u.k0.astype(np.int64), rank, is_part, need_below.astype(np.int64),
+                 u.above.indptr.astype(np.int64), u.above.indices.astype(np.int64),
+                 u.below.indptr.astype(np.int64), u.below.indices.astype(np.int64),
+                 v_order, flags)
+    order = list(zip(v_order.tolist(), flags[:, 0].tolist(), flags[:, 1].tolist()))
+    return _group(layout, u, order, bricks_per_step)
 
-    def ready(v: int) -> bool:
-        attaches = u.k0[v] == 0 or touching[v] > 0
-        return attaches and (not is_part[v] or below_done[v] == need_below[v])
 
-    def push(v: int) -> None:
-        if not queued[v] and not placed[v] and ready(v):
+@njit(cache=True, inline="always")
+def _first(key0, key1, ids, a, b):
+    """Whether heap slot ``a`` comes before slot ``b``: lower layer, then lower rank."""
+    return key0[a] < key0[b] or (key0[a] == key0[b] and key1[a] < key1[b])
+
+
+@njit(cache=True)
+def _order_units(k0, rank, is_part, need_below, up_ptr, up_idx, down_ptr, down_idx,
+                 out, flags):
+    """The unit order of :func:`plan` into ``out`` with (attached, early) per unit in
+    ``flags``: a priority queue on (layer, rank) of the units ready to go; when none
+    is, a printed part touching a placed unit (or on the base) goes early, failing
+    that the lowest-ranked unit left goes unattached."""
+    count = k0.shape[0]
+    placed = np.zeros(count, np.bool_)
+    queued = np.zeros(count, np.bool_)
+    below_done = np.zeros(count, np.int64)
+    touching = np.zeros(count, np.int64)
+    key0 = np.empty(count + 1, np.int64)
+    key1 = np.empty(count + 1, np.int64)
+    ids = np.empty(count + 1, np.int64)
+    size = 0
+    for v in range(count):
+        if k0[v] == 0 and not queued[v] and (not is_part[v] or below_done[v] == need_below[v]):
             queued[v] = True
-            heapq.heappush(heap, (int(u.k0[v]), int(rank[v]), v))
-
-    for v in np.flatnonzero(u.k0 == 0):
-        push(int(v))
-    order: list[tuple[int, bool, bool]] = []
-    while len(order) < count:
-        if heap:
-            v = heapq.heappop(heap)[2]
+            key0[size], key1[size], ids[size] = k0[v], rank[v], v
+            c = size
+            size += 1
+            while c > 0 and _first(key0, key1, ids, c, (c - 1) // 2):
+                p = (c - 1) // 2
+                key0[c], key0[p] = key0[p], key0[c]
+                key1[c], key1[p] = key1[p], key1[c]
+                ids[c], ids[p] = ids[p], ids[c]
+                c = p
+    n = 0
+    while n < count:
+        if size > 0:
+            v = ids[0]
+            size -= 1
+            key0[0], key1[0], ids[0] = key0[size], key1[size], ids[size]
+            c = 0
+            while True:
+                l, r, best = 2 * c + 1, 2 * c + 2, c
+                if l < size and _first(key0, key1, ids, l, best):
+                    best = l
+                if r < size and _first(key0, key1, ids, r, best):
+                    best = r
+                if best == c:
+                    break
+                key0[c], key0[best] = key0[best], key0[c]
+                key1[c], key1[best] = key1[best], key1[c]
+                ids[c], ids[best] = ids[best], ids[c]
+                c = best
             attached, early = True, False
         else:
-            left = ~placed
-            hooked = left & is_part & ((touching > 0) | (u.k0 == 0))
-            pool = np.flatnonzero(hooked if hooked.any() else left)
-            v = int(pool[np.argmin(rank[pool])])
-            attached, early = bool(hooked.any()), bool(hooked.any())
+            v = -1
+            for w in range(count):
+                if not placed[w] and is_part[w] and (touching[w] > 0 or k0[w] == 0):
+                    if v < 0 or rank[w] < rank[v]:
+                        v = w
+            hooked = v >= 0
+            if not hooked:
+                for w in range(count):
+                    if not placed[w] and (v < 0 or rank[w] < rank[v]):
+                        v = w
+            attached, early = hooked, hooked
         placed[v] = True
-        order.append((v, attached, early))
-        ups = u.above.indices[u.above.indptr[v]:u.above.indptr[v + 1]]
-        downs = u.below.indices[u.below.indptr[v]:u.below.indptr[v + 1]]
-        below_done[ups] += 1
-        touching[ups] += 1
-        touching[downs] += 1
-        for w in np.concatenate([ups, downs]):
-            push(int(w))
-    return _group(layout, u, order, bricks_per_step)
+        out[n], flags[n, 0], flags[n, 1] = v, attached, early
+        n += 1
+        for e in range(up_ptr[v], up_ptr[v + 1]):
+            w = up_idx[e]
+            below_done[w] += 1
+            touching[w] += 1
+        for e in range(down_ptr[v], down_ptr[v + 1]):
+            touching[down_idx[e]] += 1
+        for half in range(2):
+            ptr, idx = (up_ptr, up_idx) if half == 0 else (down_ptr, down_idx)
+            for e in range(ptr[v], ptr[v + 1]):
+                w = idx[e]
+                attaches = k0[w] == 0 or touching[w] > 0
+                if not queued[w] and not placed[w] and attaches \
+                        and (not is_part[w] or below_done[w] == need_below[w]):
+                    queued[w] = True
+                    key0[size], key1[size], ids[size] = k0[w], rank[w], w
+                    c = size
+                    size += 1
+                    while c > 0 and _first(key0, key1, ids, c, (c - 1) // 2):
+                        p = (c - 1) // 2
+                        key0[c], key0[p] = key0[p], key0[c]
+                        key1[c], key1[p] = key1[p], key1[c]
+                        ids[c], ids[p] = ids[p], ids[c]
+                        c = p
+    return n
 
 
 def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
@@ -433,9 +498,13 @@ def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRIC
     return float(seconds_per_brick) * lego + float(seconds_per_part) * parts
 
 
-def callout(layout: Layout, step: Step) -> list[tuple[str, int]]:
-    """The LEGO parts of a step as (design number, count), most frequent first."""
-    index = {b.id: b for b in layout.bricks}
+def callout(layout: Layout, step: Step, index: dict | None = None) -> list[tuple[str, int]]:
+    """The LEGO parts of a step as (design number, count), most frequent first.
+
+    ``index`` is ``{brick id: brick}`` of ``layout`` (made here when None; pass it when
+    calling for every step, so the steps cost what their bricks do).
+    """
+    index = {b.id: b for b in layout.bricks} if index is None else index
     counts: dict[str, int] = {}
     if step.printed_part is None:
         for bid in step.bricks:

@@ -128,7 +128,7 @@ def _calibration_parser(sub) -> None:
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "seed", "parts", "high_res", "high_res_solids",
-                            "stud_fit", "socket_fit", "ground", "loads", "clutch_n"),
+                            "stud_fit", "socket_fit", "ground", "loads", "clutch_n", "hollow"),
                         units=request.UNITS)
 
 
@@ -341,6 +341,9 @@ def _summary(doc: dict, out) -> None:
         build = st.get("build") or {}
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
+    hollow = doc.get("hollow")
+    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
+        print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]

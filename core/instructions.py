@@ -40,7 +40,6 @@ design number, name, colour), the layer being built and the time estimate.
 
 from __future__ import annotations
 
-import heapq
 import html
 import json
 import os
@@ -48,6 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numba import njit, prange
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
@@ -83,78 +83,198 @@ def brick_boxes(layout: Layout) -> np.ndarray:
     return np.stack([c * cell, (c + s) * cell], axis=1)
 
 
-def _front_pairs(boxes: np.ndarray, block: int = 512) -> tuple[np.ndarray, np.ndarray]:
-    """(back, front) index pairs of boxes whose pictures overlap, back drawn first."""
+def _front_pairs(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(back, front) index pairs of boxes whose pictures overlap, back drawn first.
+
+    Pictures overlap when the boxes' intervals along the three picture
+    directions ``x - y``, ``x + z``, ``y + z`` all overlap.  The boxes are
+    binned on the first two directions with bins as wide as the widest
+    interval, so each box is compared only with the boxes of its own and the
+    eight neighbouring bins: the cost is the number of overlapping pairs, not
+    the square of the number of boxes.
+    """
+    n = len(boxes)
+    if n < 2:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lo, hi = boxes[:, 0], boxes[:, 1]
-    # interval of each picture direction: x - y, x + z, y + z
     a_lo = np.stack([lo[:, 0] - hi[:, 1], lo[:, 0] + lo[:, 2], lo[:, 1] + lo[:, 2]], axis=1)
     a_hi = np.stack([hi[:, 0] - lo[:, 1], hi[:, 0] + hi[:, 2], hi[:, 1] + hi[:, 2]], axis=1)
+    span = a_hi.max(axis=0) - a_lo.min(axis=0)
+    width = np.maximum((a_hi - a_lo).max(axis=0)[:2], 1e-9)
+    # at most about 4 million bins
+    width = np.maximum(width, span[:2] / 2000.0)
+    b = np.floor((a_lo[:, :2] - a_lo[:, :2].min(axis=0)) / width).astype(np.int64)
+    nb = b.max(axis=0) + 1
+    key = b[:, 0] * nb[1] + b[:, 1]
+    order = np.argsort(key, kind="stable")
+    start = np.searchsorted(key[order], np.arange(nb[0] * nb[1] + 1))
+    args = (np.ascontiguousarray(lo), np.ascontiguousarray(hi), np.ascontiguousarray(a_lo),
+            np.ascontiguousarray(a_hi), b, int(nb[0]), int(nb[1]), order, start)
+    counts = np.zeros(n, np.int64)
+    _pair_counts(*args, counts)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    back, front = np.empty(offsets[-1], np.int64), np.empty(offsets[-1], np.int64)
+    _pair_fill(*args, offsets, back, front)
+    return back, front
+
+
+@njit(cache=True, inline="always")
+def _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, m, fill):
+    """The (back, front) pairs of box ``i`` with the boxes ``j > i`` of its own and the
+    neighbouring bins, written from ``m`` on when ``fill``; returns ``m`` plus their number."""
     eps = 1e-6
-    backs, fronts = [], []
-    n = len(boxes)
-    for s in range(0, n, block):
-        i = np.arange(s, min(n, s + block))
-        over = np.ones((len(i), n), dtype=bool)
-        for d in range(3):
-            over &= (a_lo[i, d][:, None] < a_hi[None, :, d] - eps) & \
-                    (a_lo[None, :, d] < a_hi[i, d][:, None] - eps)
-        over[np.arange(len(i)), i] = False
-        over[:, :s] = False
-        ii, jj = np.nonzero(over)
-        ii = i[ii]
-        # i in front of j: separated with i on the near side
-        i_front = (hi[ii, 0] <= lo[jj, 0] + eps) | (hi[ii, 1] <= lo[jj, 1] + eps) | \
-                  (lo[ii, 2] >= hi[jj, 2] - eps)
-        j_front = (hi[jj, 0] <= lo[ii, 0] + eps) | (hi[jj, 1] <= lo[ii, 1] + eps) | \
-                  (lo[jj, 2] >= hi[ii, 2] - eps)
-        keep_i = i_front & ~j_front
-        keep_j = j_front & ~i_front
-        backs += [jj[keep_i], ii[keep_j]]
-        fronts += [ii[keep_i], jj[keep_j]]
-    if not backs:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(backs), np.concatenate(fronts)
+    for d0 in range(-1, 2):
+        c0 = b[i, 0] + d0
+        if c0 < 0 or c0 >= nb0:
+            continue
+        for d1 in range(-1, 2):
+            c1 = b[i, 1] + d1
+            if c1 < 0 or c1 >= nb1:
+                continue
+            cell = c0 * nb1 + c1
+            for t in range(start[cell], start[cell + 1]):
+                j = order[t]
+                if j <= i:
+                    continue
+                over = True
+                for d in range(3):
+                    if not (a_lo[i, d] < a_hi[j, d] - eps and a_lo[j, d] < a_hi[i, d] - eps):
+                        over = False
+                        break
+                if not over:
+                    continue
+                i_front = (hi[i, 0] <= lo[j, 0] + eps) or (hi[i, 1] <= lo[j, 1] + eps) \
+                    or (lo[i, 2] >= hi[j, 2] - eps)
+                j_front = (hi[j, 0] <= lo[i, 0] + eps) or (hi[j, 1] <= lo[i, 1] + eps) \
+                    or (lo[j, 2] >= hi[i, 2] - eps)
+                if i_front == j_front:
+                    continue
+                if fill:
+                    if i_front:
+                        back[m], front[m] = j, i
+                    else:
+                        back[m], front[m] = i, j
+                m += 1
+    return m
 
 
-def painter_order(boxes: np.ndarray) -> tuple[np.ndarray, int]:
+@njit(cache=True, parallel=True)
+def _pair_counts(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, counts):
+    """Per box, the number of its pairs (:func:`_pairs_of`)."""
+    empty = np.zeros(0, np.int64)
+    for i in prange(lo.shape[0]):
+        counts[i] = _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, empty, empty,
+                              0, False)
+
+
+@njit(cache=True, parallel=True)
+def _pair_fill(lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, offsets, back, front):
+    """Write every box's pairs (:func:`_pairs_of`) from its offset on."""
+    for i in prange(lo.shape[0]):
+        _pairs_of(i, lo, hi, a_lo, a_hi, b, nb0, nb1, order, start, back, front, offsets[i], True)
+
+
+def painter_order(boxes: np.ndarray, pairs=None) -> tuple[np.ndarray, int]:
     """Drawing order of boxes (n, 2, 3), back to front, and the number of cycles broken.
 
     Without occlusion cycles the order is exact and stays exact for every
     subset of the boxes (see the module docstring); where the sort stalls on a
-    cycle, the farthest remaining box goes first and is counted.
+    cycle, the farthest remaining box goes first and is counted.  Among the
+    boxes free to go, the farthest goes first (ties: the lower index).  ``pairs``
+    are the boxes' :func:`_front_pairs` when already found.
     """
     n = len(boxes)
     if n == 0:
         return np.zeros(0, np.int64), 0
-    back, front = _front_pairs(boxes)
+    back, front = _front_pairs(boxes) if pairs is None else pairs
     order_e = np.argsort(back, kind="stable")
     back, front = back[order_e], front[order_e]
     start = np.searchsorted(back, np.arange(n + 1))
-    indeg = np.bincount(front, minlength=n)
-    depth = (boxes.mean(axis=1) @ VIEW)
-    heap = [(-depth[v], int(v)) for v in np.flatnonzero(indeg == 0)]
-    heapq.heapify(heap)
-    done = np.zeros(n, dtype=bool)
-    out: list[int] = []
+    indeg = np.bincount(front, minlength=n).astype(np.int64)
+    depth = np.ascontiguousarray(boxes.mean(axis=1) @ VIEW)
+    out = np.empty(n, np.int64)
+    cycles = _kahn(start, front.astype(np.int64), indeg, depth, out)
+    return out, int(cycles)
+
+
+@njit(cache=True, inline="always")
+def _before(key, ids, a, b):
+    """Whether heap slot ``a`` comes before slot ``b``: larger depth, then lower index."""
+    return key[a] > key[b] or (key[a] == key[b] and ids[a] < ids[b])
+
+
+@njit(cache=True)
+def _heap_push(key, ids, size, k, v):
+    key[size], ids[size] = k, v
+    c = size
+    while c > 0:
+        p = (c - 1) // 2
+        if _before(key, ids, c, p):
+            key[c], key[p] = key[p], key[c]
+            ids[c], ids[p] = ids[p], ids[c]
+            c = p
+        else:
+            break
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(key, ids, size):
+    v = ids[0]
+    size -= 1
+    key[0], ids[0] = key[size], ids[size]
+    c = 0
+    while True:
+        l, r, best = 2 * c + 1, 2 * c + 2, c
+        if l < size and _before(key, ids, l, best):
+            best = l
+        if r < size and _before(key, ids, r, best):
+            best = r
+        if best == c:
+            break
+        key[c], key[best] = key[best], key[c]
+        ids[c], ids[best] = ids[best], ids[c]
+        c = best
+    return v, size
+
+
+@njit(cache=True)
+def _kahn(start, front, indeg, depth, out):
+    """Kahn's topological sort of the pairs (CSR ``start``/``front`` by back box) into
+    ``out``, the farthest free box first; on a cycle the farthest box left goes. Returns
+    the number of cycles broken."""
+    n = depth.shape[0]
+    cap = 2 * n + 1
+    key = np.empty(cap, np.float64)
+    ids = np.empty(cap, np.int64)
+    size = 0
+    for v in range(n):
+        if indeg[v] == 0:
+            size = _heap_push(key, ids, size, depth[v], v)
+    done = np.zeros(n, np.bool_)
+    placed = 0
     cycles = 0
-    front_list = front.tolist()
-    while len(out) < n:
-        if not heap:
-            left = np.flatnonzero(~done)
-            v = int(left[np.argmax(depth[left])])
+    while placed < n:
+        if size == 0:
+            v = -1
+            for w in range(n):
+                if not done[w] and (v < 0 or depth[w] > depth[v]):
+                    v = w
             cycles += 1
             indeg[v] = 0
-            heapq.heappush(heap, (-depth[v], v))
-        _, v = heapq.heappop(heap)
+            size = _heap_push(key, ids, size, depth[v], v)
+        v, size = _heap_pop(key, ids, size)
         if done[v]:
             continue
         done[v] = True
-        out.append(v)
-        for w in front_list[start[v]:start[v + 1]]:
+        out[placed] = v
+        placed += 1
+        for e in range(start[v], start[v + 1]):
+            w = front[e]
             indeg[w] -= 1
             if indeg[w] == 0 and not done[w]:
-                heapq.heappush(heap, (-depth[w], w))
-    return np.array(out, dtype=np.int64), cycles
+                size = _heap_push(key, ids, size, depth[w], w)
+    return cycles
 
 
 def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -192,7 +312,7 @@ def drawing_pieces(layout: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
             pieces.append(np.stack([lo, hi], axis=1))
             owners.append(np.full(len(ij), b, dtype=np.int64))
         boxes, owner = np.concatenate(pieces), np.concatenate(owners)
-    order, _ = painter_order(boxes)
+    order, _ = painter_order(boxes, None if split.any() else (back, front))
     return boxes, owner, order, int(split.sum())
 
 
@@ -215,6 +335,34 @@ def _face_paths(lo, hi) -> tuple[str, str, str]:
     return (path(top0, ex * L[0], ey * L[1]),
             path(base, ey * L[1], ez * L[2]),
             path(base, ex * L[0], ez * L[2]))
+
+
+def _all_face_paths(lo: np.ndarray, hi: np.ndarray) -> list[tuple[str, str, str]]:
+    """:func:`_face_paths` of many boxes at once (``lo``, ``hi``: (n, 3) mm), the same text."""
+    lo, hi = np.asarray(lo, float).reshape(-1, 3), np.asarray(hi, float).reshape(-1, 3)
+    ex, ey, ez = screen(np.eye(3))
+    size = hi - lo
+    top0 = screen(np.column_stack([lo[:, 0], lo[:, 1], hi[:, 2]])).tolist()
+    base = screen(lo).tolist()
+    u_x, u_y, u_z = (np.outer(size[:, d], e) for d, e in enumerate((ex, ey, ez)))
+    u_x, u_y, u_z, m_x, m_y = (a.tolist() for a in (u_x, u_y, u_z, -u_x, -u_y))
+    cache: dict[float, str] = {}
+
+    def one(v: float) -> str:
+        out = cache.get(v)
+        if out is None:
+            out = cache[v] = fmt(v)
+        return out
+
+    def pair(p) -> str:
+        y = one(p[1])
+        return one(p[0]) + ("" if y.startswith("-") else " ") + y
+
+    def path(start, u, v, mu) -> str:
+        return f"M{pair(start)}l{pair(u)}l{pair(v)}l{pair(mu)}z"
+
+    return [(path(top0[n], u_x[n], u_y[n], m_x[n]), path(base[n], u_y[n], u_z[n], m_y[n]),
+             path(base[n], u_x[n], u_z[n], m_x[n])) for n in range(len(lo))]
 
 
 def _column_paths(lo, hi, brick_lo, brick_hi) -> tuple[list[tuple[str, str]], str]:
@@ -336,7 +484,9 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
                             [0, ny * cell[1], 0]]))
     ground = " ".join(f"{fmt(x)},{fmt(y)}" for x, y in base)
     groups = []
-    for piece in order_idx:
+    whole = np.all(pieces == boxes[owner], axis=(1, 2)).tolist()
+    faces_of = _all_face_paths(boxes[:, 0], boxes[:, 1])
+    for piece in order_idx.tolist():
         n = int(owner[piece])
         b = layout.bricks[n]
         s = step_of.get(b.id, 0)
@@ -347,8 +497,8 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
         if printed and b.printed_part in meshed:
             body = "".join(f'<path class="{c}" d="{d}"/>' for c, d in meshed[b.printed_part][1].get(int(piece), ()))
             groups.append(f'{head}{body}</g>')
-        elif np.array_equal(pieces[piece], boxes[n]):
-            top, left, front = _face_paths(boxes[n, 0], boxes[n, 1])
+        elif whole[piece]:
+            top, left, front = faces_of[n]
             groups.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'
                           f'<path class="{top_class}" d="{top}"/></g>')
         else:
@@ -416,12 +566,13 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
     out = []
     lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
     warnings = step_warnings(order)
+    index = {b.id: b for b in layout.bricks}
     for s in order.steps:
         item = {"n": s.number, "k": s.layer, "a": s.attached, "e": s.early,
                 "nb": len(s.bricks), "p": s.printed_part, "c": []}
         if s.number in warnings:
             item["w"] = warnings[s.number]
-        for number, count in build_order.callout(layout, s):
+        for number, count in build_order.callout(layout, s, index):
             part = BY_NUMBER.get(number)
             item["c"].append([number, part.name if part else number, count, lego_color])
         if s.printed_part is not None:

@@ -35,7 +35,8 @@
    count above :data:`BRICK_BUDGET` times the fewest bricks of any merge.
    The number of attempts is bounded, so the result is deterministic.
 
-All per-cell work runs in numba; Python loops over candidates, repair
+All per-cell work runs in numba (the candidates of step 2 two at a time, in
+threads); Python loops over candidates, repair
 attempts and the final bricks.  Randomness comes only from ``seed``.
 """
 
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -106,6 +108,10 @@ BRICK_BUDGET = 1.1
 #: in columns, when patches of brick groups are chosen.
 ALIGN_BONUS = 0.5
 
+#: Merge candidates laid out at once (threads: the merge kernel releases the GIL);
+#: each holds its own labels and records, so memory grows with this too.
+MERGE_THREADS = 2
+
 #: Bricks a weak point and an extra component are worth when choosing
 #: among merged layouts (the repair usually joins components cheaply).
 WEAK_COST = 2.0
@@ -156,17 +162,21 @@ def lay_out(grid: Grid, parts: tuple[Part, ...] = CATALOG, seed: int = 0,
     else:
         bases = [np.where(filled, -1, -2).astype(np.int32)]
     region_count = regions(filled)[1]
-    keys = []
-    for n, base in enumerate(bases):
-        report(0.05 + 0.25 * n / len(bases), "layout: merging plates")
+
+    def merged(base):
         state = _State(filled, base.copy(), plates, bricks, noise, region_count)
         state.place_all()
-        keys.append(state.quality()[0])
+        return state.quality()[0], state.snapshot()
+
+    report(0.05, f"layout: merging plates, {len(bases)} ways")
+    with ThreadPoolExecutor(max_workers=max(1, min(MERGE_THREADS, len(bases)))) as pool:
+        results = list(pool.map(merged, bases))
+    keys = [key for key, _ in results]
     budget = int(min(key[2] for key in keys) * BRICK_BUDGET)
     best = min(range(len(bases)), key=lambda n: (_rank(keys[n], budget, region_count), n))
-    if best != len(bases) - 1:
-        state = _State(filled, bases[best], plates, bricks, noise, region_count)
-        state.place_all()
+    state = _State(filled, bases[best], plates, bricks, noise, region_count)
+    state.restore(results[best][1])
+    del results
     report(0.3, "layout: repairing weak points")
     state.repair(report, budget)
     report(1.0, "layout: done")
@@ -293,11 +303,22 @@ def patch_groups(filled: np.ndarray) -> np.ndarray:
             taken[cols, k0:k0 + 3] = True
             flat[cols, k0:k0 + 3] = k0
             continue
-        mask = np.zeros(nx * ny, dtype=bool)
-        mask[cols[free]] = True
-        for part in _patches(mask, (nx, ny)):
+        for part in _patches_of(cols[free], ny):
             push(part, k0)
     return base
+
+
+def _patches_of(cols: np.ndarray, ny: int) -> list[np.ndarray]:
+    """:func:`_patches` of the mask of the flat column indices ``cols`` (rows of ``ny``
+    columns), labelled within their bounding box only: the same patches in the same order."""
+    if cols.size == 0:
+        return []
+    i, j = np.divmod(cols, ny)
+    i0, j0 = int(i.min()), int(j.min())
+    h, w = int(i.max()) - i0 + 1, int(j.max()) - j0 + 1
+    mask = np.zeros(h * w, dtype=bool)
+    mask[(i - i0) * w + (j - j0)] = True
+    return [(a // w + i0) * ny + (a % w + j0) for a in _patches(mask, (h, w))]
 
 
 def _patches(mask: np.ndarray, shape: tuple[int, int]) -> list[np.ndarray]:
@@ -425,6 +446,23 @@ class _State:
         self.parent = np.arange(cap, dtype=np.int64)
         self.region_count = region_count
 
+    def snapshot(self) -> tuple:
+        """The merged layout in few bytes (labels as int32, live records): :meth:`restore` it."""
+        n = int(self.count[0])
+        return (self.lab.astype(np.int32), self.base.copy(), self.rec[:n].copy(),
+                self.alive[:n].copy())
+
+    def restore(self, snap: tuple) -> None:
+        """Take the layout of :meth:`snapshot` ``snap`` (union-find reset by the repair)."""
+        lab, base, rec, alive = snap
+        n = len(rec)
+        self.lab[...] = lab
+        self.base = base
+        self.rec[:n] = rec
+        self.alive[:] = False
+        self.alive[:n] = alive
+        self.count[0] = n
+
     def place_all(self):
         """Merge all filled cells."""
         nx, ny, nz = self.filled.shape
@@ -503,7 +541,10 @@ class _State:
         side; then every brick hanging from a weak brick alone (a leaf),
         then the other weak bricks themselves.
         """
-        sites = [tuple(int(v) for v in s) for s in _seam_cells(self.lab, comp)]
+        live = comp[np.flatnonzero(self.alive[:len(comp)])]
+        # components of different regions never meet side by side: no seam to look for
+        seams = _seam_cells(self.lab, comp) if np.unique(live).size > self.region_count else ()
+        sites = [tuple(int(v) for v in s) for s in seams]
         indptr, indices = graph
         degree = np.diff(indptr)
         weak = np.flatnonzero(art)
@@ -831,7 +872,7 @@ def _hangs_from(r, x0, y0, w, h, k, lab, filled):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _place(todo, filled, base, lab, rec, alive, count, parent,
            pw, ph, pp, bw, bh, bp, weights, noise, variant, box, trials):
     """Merge the uncovered ``todo`` cells in ``box`` into parts, bottom-up.
@@ -987,19 +1028,21 @@ def _put(x0, y0, k, w, h, layers, part, nbr, nd, lab, rec, alive, count, parent)
 
 
 def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATALOG,
-                   seed: int = 0) -> Layout:
+                   seed: int = 0, progress: Progress | None = None) -> Layout:
     """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
 
     The filled cells outside ``cells`` and those inside are laid out on
     their own (:func:`core.layout.lay_out`, same parts and seed), and the two
     brick lists joined (ids renumbered 0..n-1, the outside bricks first).
     So the bricks touching ``cells`` cover exactly the marked filled cells.
+    ``progress`` hears of the outside's layout (the bulk of the work).
     """
     filled = np.asarray(grid.filled, dtype=bool)
     inside = filled & np.asarray(cells, dtype=bool)
     bricks = []
-    for mask in (filled & ~inside, inside):
+    for n, mask in enumerate((filled & ~inside, inside)):
         if mask.any():
-            part = lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed)
+            part = lay_out(dataclasses.replace(grid, filled=mask), parts, seed=seed,
+                           progress=progress if n == 0 else None)
             bricks += part.bricks
     return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])

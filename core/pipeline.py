@@ -23,7 +23,8 @@ from typing import Callable
 import numpy as np
 
 from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
-from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
+from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
+from core import iterate as iterate_stage
 from core import layout as layout_stage, result
 from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
@@ -31,7 +32,7 @@ from core import stability as stability_stage, voxelize
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
-from core.request import Request, request as request_of
+from core.request import UNITS, Request, request as request_of
 
 Progress = Callable[[float, str], None]
 
@@ -68,6 +69,7 @@ class Fabrication:
     forces: forces_stage.Forces | None = None
     reinforced: reinforce_stage.Reinforced | None = None
     warnings: list[str] = field(default_factory=list)
+    hollowing: hollow_stage.Hollowing | None = None
 
     @property
     def seed(self) -> int:
@@ -126,6 +128,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     2. **legofy**: fresh, on a grid centred on the part or shifted so that
        the regions mark the least (:func:`core.grid_fit.fit`); iterating,
        on the previous lattice, diffed with it (:func:`core.iterate.legofy_on`).
+       Fresh, the grid's size is checked before (:func:`core.voxelize.check_size`),
+       and then **hollow** keeps a shell, its pillars and the high-res cells
+       (:func:`core.hollow.decide`, the request's ``hollow``; not when iterating).
     3. **high_res**: the regions mark cells (:meth:`core.high_res.Regions.cells`;
        iterating, the previous run's regions too when ``previous_regions``),
        and unless ``connectors`` is off, anchor tabs are added
@@ -187,8 +192,10 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             before = alignment = None
 
     given = regions
-    fit = diff = None
+    fit = diff = hollowing = None
     if before is None:
+        voxelize.check_size(model.mesh, req.units, Path(req.model).name, unit_mm=UNITS)
+        voxelize.check_volume(model.mesh, model.watertight, req.hollow)
         if req.fit_grid and regions:
             fit = timed("grid_fit", 0.1, grid_fit.fit, model.mesh, regions.boxes, loaded,
                         closed=model.watertight)
@@ -199,26 +206,48 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         if grid.count == 0:
             raise InputError(f"{Path(req.model).name}: the part fills no cell of the "
                              f"{CELL_MM[0]:g} x {CELL_MM[1]:g} x {CELL_MM[2]:g} mm grid")
+        solid = grid
+        hollowing = timed("hollow", 0.25, hollow_stage.decide, grid, req.hollow,
+                          regions.cells(grid) if regions else None)
+        grid = hollowing.grid
+        voxelize.check_cells(grid.count, req.hollow)
     else:
         diff = timed("legofy", 0.2, iterate_stage.legofy_on, before, model)
         grid = diff.grid
         if req.previous_regions:
             regions = iterate_stage.previous_regions(before) + regions
 
-    marked = timed("high_res", 0.3, regions.cells, grid)
-    warnings = _unmarked(given, grid, req, marked.any())
-    cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
+    def fresh_layout(grid_: Grid, name: str, span=(0.4, 0.6)):
+        marked_ = timed("high_res", 0.3, regions.cells, grid_)
+        cells_ = high_res_stage.anchor(grid_, marked_) if req.connectors else marked_
+        lay = layout_stage.lay_out_around if cells_.any() else layout_stage.lay_out
+        extra = (cells_,) if cells_.any() else ()
+        return marked_, cells_, timed(name, span[0], lay, grid_, *extra, chosen, seed=req.seed,
+                                      progress=within(progress, *span))
+
     plan = rings = None
     if before is not None:
+        marked = timed("high_res", 0.3, regions.cells, grid)
+        cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
                                       chosen, req.seed)
-    elif cells.any():
-        layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
     else:
-        layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
+        marked, cells, layout = fresh_layout(grid, "layout")
+        largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
+        sure = hollowing.on and hollowing.setting < 0 and \
+            hollow_stage.judged(hollowing, len(layout.bricks), largest)
+        if sure:
+            hollowing = sure
+        elif hollowing.on and hollowing.setting < 0:
+            solid_marked, solid_cells, solid_layout = fresh_layout(solid, "layout_solid", (0.6, 0.78))
+            hollowing = hollow_stage.compared(hollowing, solid, len(layout.bricks),
+                                              len(solid_layout.bricks))
+            if not hollowing.on:
+                grid, marked, cells, layout = solid, solid_marked, solid_cells, solid_layout
+    warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
     if before is None:
-        reinforced = timed("reinforce", 0.45, reinforce_stage.reinforce, layout, chosen, req.ground,
+        reinforced = timed("reinforce", 0.79, reinforce_stage.reinforce, layout, chosen, req.ground,
                            req.loads, req.clutch_n, cells, req.seed)
         layout = reinforced.layout
 
@@ -261,7 +290,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
-                      forces=force, reinforced=reinforced)
+                      forces=force, reinforced=reinforced, hollowing=hollowing)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -299,6 +328,22 @@ def _unmarked(regions: high_res_stage.Regions, grid: Grid, req: Request, any_mar
         unmarked += [f"high-res region {Path(p).name}" for p in req.high_res_solids]
     return [f"{name} marks no cell of the part (its grid spans {span} mm): nothing is printed "
             f"for it" for name in unmarked]
+
+
+def within(progress: Progress, lo: float, hi: float, step: float = 0.05,
+           every_s: float = 5.0) -> Progress:
+    """``progress`` for a stage that runs from ``lo`` to ``hi`` of the whole run: the
+    stage's fraction mapped into that range, passed on only when it moved by ``step``
+    of the stage or ``every_s`` seconds passed (a stage may report thousands of times)."""
+    last = {"fraction": -1.0, "time": 0.0}
+
+    def report(fraction: float, message: str) -> None:
+        now = time.perf_counter()
+        if fraction - last["fraction"] >= step or now - last["time"] >= every_s:
+            last.update(fraction=fraction, time=now)
+            progress(lo + (hi - lo) * min(max(fraction, 0.0), 1.0), message)
+
+    return report
 
 
 def iterate_moved_out(req: Request, alignment) -> bool:
@@ -558,10 +603,48 @@ def report(fab: Fabrication) -> dict:
                           "full print / (parts print + all assembly)",
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
         "timings_s": dict(fab.timings_s),
+        "hollow": hollow_report(fab),
         "notes": list(fab.notes),
         "warnings": list(fab.warnings),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
     }
+
+
+def hollow_report(fab: Fabrication) -> dict | None:
+    """The ``hollow`` block of the report: what the hollow stage did (:mod:`core.hollow`) and
+    the bricks and assembly time with and without hollowing, None for an iteration.
+
+    A hollowed run gives the solid part's bricks as laid out when the driver
+    compared both (:func:`core.hollow.compared`), else as a lower bound: no
+    catalog part covers more cells than the largest, so the solid part needs
+    at least its cells over the largest part's cells (within a few percent of
+    a real solid layout of a big block, whose interior is mostly the largest
+    brick).  The bench (bench/bench_big.py) lays out both.
+    """
+    h = fab.hollowing
+    if h is None:
+        return None
+    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
+    doc = h.to_json()
+    doc.update(bricks={"built": lego}, assembly_s={"built": round(lego * fab.seconds_per_brick, 1)})
+    if not h.on:
+        return doc
+    largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in fab.parts)
+    if h.bricks_solid is not None:
+        solid, key, words = h.bricks_solid, "solid", "solid it takes"
+    else:
+        solid, key, words = -(-h.solid_cells // largest), "solid_at_least", "solid it would take at least"
+    doc["bricks"][key] = solid
+    doc["assembly_s"][key] = round(solid * fab.seconds_per_brick, 1)
+    doc["compare"] = (f"{lego:,} LEGO bricks, about {_hours(lego * fab.seconds_per_brick)} to build; "
+                      f"{words} {solid:,} bricks and {_hours(solid * fab.seconds_per_brick)}")
+    return doc
+
+
+def _hours(seconds: float) -> str:
+    """``seconds`` as ``3 h 05 min`` or ``12 min``."""
+    m = int(round(seconds / 60.0))
+    return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"
 
 
 def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:

@@ -32,6 +32,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
+from scipy import ndimage
 
 from core.colours import PRINTED_COLOR, rgb as colour_rgb
 from core.colours import brick_colours as decided_colours
@@ -65,6 +66,10 @@ FACE_CORNERS = np.array([
     [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
 ], dtype=float)
 
+#: Studs narrower than this in the picture (pixels) are not drawn (a 2 m part at
+#: 1200 x 900 pixels: half a million studs of 2 pixels).
+MIN_STUD_PX = 2.5
+
 #: Vertices per stud half-outline; every polygon is padded to 2 * this.
 _ARC = 9
 _VERTS = 2 * _ARC
@@ -94,17 +99,29 @@ def brick_colours(layout: Layout, labels: np.ndarray, palette: str = "bom") -> n
     return decided_colours(layout, palette, labels)
 
 
-def _scene(layout: Layout, palette: str = "bom", rgb: np.ndarray | None = None):
+def _outside(empty: np.ndarray) -> np.ndarray:
+    """The cells of the bool grid ``empty`` (padded by one empty cell all round) that
+    are joined to the outside through empty cells (6-connected): an enclosed cavity
+    (a hollowed part's inside) is not, and nothing facing it can be seen."""
+    lab, _ = ndimage.label(empty)
+    return lab == lab[0, 0, 0]
+
+
+def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.ndarray | None = None):
     """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
 
-    kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.
+    kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.  Faces
+    and studs facing an enclosed cavity (:func:`_outside`) are left out, and
+    all studs when ``studs`` is False.
     """
     cell = np.asarray(layout.grid.cell, dtype=float)
     labels = layout.labels()
     padded = np.pad(labels, 1, constant_values=-1)
+    outside = _outside(padded < 0)
     rgb = brick_colours(layout, labels, palette) if rgb is None else np.asarray(rgb, dtype=float)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
-    cells = np.argwhere(labels >= 0)
+    near_outside = outside[:-2, 1:-1, 1:-1] | outside[1:-1, :-2, 1:-1] | outside[1:-1, 1:-1, 2:]
+    cells = np.argwhere((labels >= 0) & near_outside)
     own = labels[tuple(cells.T)]
     at = cells + 1
 
@@ -112,13 +129,17 @@ def _scene(layout: Layout, palette: str = "bom", rgb: np.ndarray | None = None):
         p = at + offset
         return padded[p[..., 0], p[..., 1], p[..., 2]]
 
+    def open_at(offset) -> np.ndarray:
+        p = at + offset
+        return outside[p[..., 0], p[..., 1], p[..., 2]]
+
     def depth(index: np.ndarray) -> np.ndarray:
         return ((index + 0.5) * cell) @ VIEW
 
     edges = _edge_directions()
     polys, keys, sub, kinds, colours = [], [], [], [], []
     for f, normal in enumerate(FACE_NORMALS):
-        exposed = label_at(normal) < 0
+        exposed = open_at(normal)
         c, lab = cells[exposed], own[exposed]
         corners = _project((c[:, None, :] + FACE_CORNERS[f][None]) * cell)
         polys.append(_pad(corners))
@@ -135,7 +156,7 @@ def _scene(layout: Layout, palette: str = "bom", rgb: np.ndarray | None = None):
             kinds.append(np.ones(len(seg), dtype=np.int64))
             colours.append(np.zeros((len(seg), 3)))
 
-    tops = (label_at(FACE_NORMALS[2]) < 0) & is_lego[own]
+    tops = open_at(FACE_NORMALS[2]) & is_lego[own] & studs
     c = cells[tops]
     centre = (c + [0.5, 0.5, 1.0]) * cell
     r = STUD_DIAMETER_MM / 2
@@ -169,7 +190,7 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
 
     Bricks are shaded boxes with black outlines along brick edges and studs
-    on their exposed tops, in the colours :mod:`core.colours` decides for
+    on their exposed tops (unless they would be under :data:`MIN_STUD_PX` wide), in the colours :mod:`core.colours` decides for
     ``palette`` (printed bricks orange), or ``colours`` (RGB per brick, e.g.
     :func:`core.colours.stress_rgb`); ``title`` goes above.
     A layout without bricks gives a picture that says so.  Raises
@@ -204,7 +225,12 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
         fig.savefig(path, format="png", dpi=dpi, facecolor=BACKGROUND_RGB)
         return
 
-    polys, kinds, colours = _scene(layout, palette, colours)
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    extent = _project(corners * np.asarray(layout.grid.shape) * np.asarray(layout.grid.cell))
+    span_mm = np.maximum(extent.max(axis=0) - extent.min(axis=0), 1e-9)
+    stud_px = STUD_DIAMETER_MM * min(0.98 * width / span_mm[0],
+                                     (top_margin - 0.02) * height / span_mm[1])
+    polys, kinds, colours = _scene(layout, palette, studs=stud_px >= MIN_STUD_PX, rgb=colours)
     lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
     span = np.maximum(hi - lo, 1e-9) * 1.04
     box_w, box_h = 0.98 * width, (top_margin - 0.01) * height

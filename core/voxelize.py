@@ -68,6 +68,7 @@ from numba import njit, prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from core.errors import InputError
 from core.model import CELL_MM, Grid
 
 #: A triangle must penetrate a cell's interior by more than this (mm) to fill it.
@@ -115,6 +116,101 @@ def grid_frame(bounds: np.ndarray, cell=CELL_MM) -> tuple[np.ndarray, tuple[int,
     origin = b[0] - (counts * c - extent) / 2.0
     origin[2] = b[0, 2]
     return origin, tuple(int(n) for n in counts)
+
+
+#: Most cells the bounding box of a part may have: legofy holds a few arrays of this
+#: size (some 25 bytes a cell for a closed mesh, 70 for an open one) and the layout
+#: a few more; 64 million cells is a part of about 2.3 m each way.
+MAX_GRID_CELLS = 64_000_000
+#: Most filled cells laid out: the layout's time and memory grow with them (a solid
+#: 1 m cube has 4.9 million, a hollowed 2 m cube 4.2 million).
+MAX_LAYOUT_CELLS = 12_000_000
+
+_UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "m": "metres", "in": "inches"}
+
+
+def check_size(mesh: trimesh.Trimesh, units: str = "mm", name: str = "the model",
+               cell=CELL_MM, unit_mm: dict | None = None) -> tuple[int, int, int]:
+    """The grid shape of ``mesh`` (:func:`grid_frame`), or one-line InputError when its
+    bounding box has more than :data:`MAX_GRID_CELLS` cells: the message names the size
+    in cells and mm and the likely mistake (another unit, a scale, or pieces far apart).
+
+    Computes only bounds (and, for the message, the pieces' bounds): nothing of the
+    grid's size is allocated.  ``unit_mm`` maps unit names to mm (the request's UNITS).
+    """
+    c = _cell_size(cell)
+    bounds = np.asarray(mesh.bounds, dtype=np.float64)
+    _, shape = grid_frame(bounds, c)
+    total = math.prod(shape)
+    if total <= MAX_GRID_CELLS:
+        return shape
+    size = bounds[1] - bounds[0]
+    scale = (MAX_GRID_CELLS / total) ** (1 / 3)
+    side = (MAX_GRID_CELLS * float(np.prod(c))) ** (1 / 3)
+    unit_mm = unit_mm or {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+    hint = _size_hint(mesh, units, float(size.max()), scale, side, c, unit_mm)
+    raise InputError(
+        f"{name} is {' x '.join(f'{n:,}' for n in shape)} cells ({' x '.join(f'{v:,.0f}' for v in size)} mm): "
+        f"more than the {MAX_GRID_CELLS:,} cells this machine can legofy (a cube up to about "
+        f"{side / 1000:.1f} m); {hint}")
+
+
+def _size_hint(mesh, units: str, largest: float, scale: float, side: float, cell,
+               unit_mm: dict) -> str:
+    """The likely mistake behind a part too big to legofy (``scale``: the factor that
+    would make it fit; ``side``: the largest cube that fits, mm), as advice."""
+    here = unit_mm.get(units, 1.0)
+    smaller = sorted((u for u, mm in unit_mm.items()
+                      if mm / here <= scale and largest * mm / here >= cell[0]),
+                     key=lambda u: (u != "mm", -unit_mm[u]))
+    if smaller:
+        u, others = smaller[0], smaller[1:]
+        more = f" (or {', '.join(f'--units {o}' for o in others)})" if others else ""
+        return f"is it in {_UNIT_NAMES.get(u, u)}? try --units {u}{more}"
+    piece = _largest_piece_extent(mesh)
+    if piece is not None and piece <= side:
+        return (f"its pieces lie {largest / 1000:,.1f} m apart, while the largest piece is "
+                f"{piece / 1000:,.2f} m across: remove the stray pieces far from the rest")
+    factor = 10 ** math.ceil(math.log10(1 / scale))
+    return f"is it in tenths of mm or µm? try --scale {1 / factor:g}"
+
+
+def _largest_piece_extent(mesh) -> float | None:
+    """The largest extent (mm) of the pieces (vertex-connected) of ``mesh``, None for one piece."""
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    if len(faces) == 0:
+        return None
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v), len(v)))
+    n, label = connected_components(graph, directed=False)
+    if n < 2:
+        return None
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    used = np.unique(faces)
+    np.minimum.at(lo, label[used], v[used])
+    np.maximum.at(hi, label[used], v[used])
+    ok = np.isfinite(lo[:, 0])
+    return float((hi[ok] - lo[ok]).max())
+
+
+def check_volume(mesh: trimesh.Trimesh, closed: bool, hollow_setting: int, cell=CELL_MM) -> None:
+    """:func:`check_cells` before legofy for a part built solid (``hollow_setting`` 0): a
+    closed part of volume V fills at least V / (cell volume) cells, since its filled
+    cells cover it."""
+    if hollow_setting == 0 and closed:
+        least = int(abs(float(mesh.volume)) / float(np.prod(_cell_size(cell))))
+        check_cells(least, hollow_setting, "at least ")
+
+
+def check_cells(count: int, hollow_setting: int, least: str = "") -> None:
+    """One-line InputError when ``count`` filled cells are more than :data:`MAX_LAYOUT_CELLS`."""
+    if count > MAX_LAYOUT_CELLS:
+        advice = ("build it hollow (leave out --hollow=0) or smaller (--scale)"
+                  if hollow_setting == 0 else "build it smaller (--scale) or with a thinner shell")
+        raise InputError(f"the part fills {least}{count:,} cells: more than the {MAX_LAYOUT_CELLS:,} "
+                         f"this machine lays out in minutes; {advice}")
 
 
 def snap_to_lattice(mesh: trimesh.Trimesh, origin, cell) -> trimesh.Trimesh:

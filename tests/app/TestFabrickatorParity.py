@@ -211,6 +211,7 @@ class TestParity(unittest.TestCase):
         body, _ = pocketed_pad(self.doc)
         f = fab().make_fabrication(body)
         for prop, setting in (("Seed", "seed"), ("Scale", "scale"), ("FitGrid", "fit_grid"),
+                              ("Hollow", "hollow"),
                               ("SecondsPerBrick", "seconds_per_brick"),
                               ("SecondsPerPart", "seconds_per_part"), ("StudFit", "stud_fit"),
                               ("SocketFit", "socket_fit")):

@@ -12,7 +12,7 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: then the exports, then the drivers and tools that use them all.
 ORDER = [
     "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
-    "thickness", "mesh_io", "voxelize", "high_res", "grid_fit", "layout", "align", "diff",
+    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "layout", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "print_time", "export", "render", "picture",
     "ldraw", "bom", "instructions", "changes_page", "picking", "face_region", "lower_bound",
     "iterate", "pipeline", "watch", "calibration", "cli", "__main__", "__init__",
