@@ -19,6 +19,7 @@ parts.
 from __future__ import annotations
 
 
+from core.colours import stress_rgb
 from FabrickatorWorkbench.viewproviders.printed_part import PRINTED_COLOUR
 
 #: The display modes of a Fabrication.
@@ -29,7 +30,6 @@ MODES = [NORMAL, STRESS]
 def colour(utilisation: float) -> tuple[float, float, float]:
     """The stress colour of ``utilisation``: the scale of :func:`core.colours.stress_rgb`
     (dark at 0, red at 1, white above 1 and for inf), the same as ``stress.png``'s."""
-    from core.colours import stress_rgb
     return tuple(float(v) for v in stress_rgb([float(utilisation)])[0])
 
 
