@@ -24,6 +24,7 @@ import numpy as np
 
 from core import build_order, catalog, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, iterate as iterate_stage
+from core import improve as improve_stage
 from core import layout as layout_stage, result
 from core import mesh_io, printed as printed_stage, print_time as print_time_stage
 from core import stability as stability_stage, voxelize
@@ -66,6 +67,7 @@ class Fabrication:
     print_full: print_time_stage.PrintEstimate | None = None
     print_parts: print_time_stage.PrintEstimate | None = None
     plates: list | None = None
+    layout_quality: dict = field(default_factory=dict)
 
     @property
     def seed(self) -> int:
@@ -131,7 +133,10 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     4. **layout**: fresh, marked and other cells laid out apart
        (:func:`core.layout.lay_out_around`); iterating, the previous bricks
        kept where they still fit and the rest laid out anew
-       (:func:`core.iterate.lay_out`).
+       (:func:`core.iterate.lay_out`); then **improve**d window by window
+       as hard as ``effort`` says (:func:`core.improve.improve`; iterating,
+       the kept bricks stay) and measured (:func:`core.improve.layout_quality`,
+       with the exact lower bound on request or when it is cheap).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
        by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
@@ -205,6 +210,12 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         layout = timed("layout", 0.4, layout_stage.lay_out_around, grid, cells, chosen, seed=req.seed)
     else:
         layout = timed("layout", 0.4, layout_stage.lay_out, grid, chosen, seed=req.seed)
+    greedy = layout
+    layout = timed("improve", 0.45, improve_stage.improve, layout, chosen, req.effort, req.seed,
+                   lambda f, text: progress(0.45 + 0.1 * f, text),
+                   frozen=None if plan is None else plan.kept, apart=cells,
+                   next_id=None if plan is None else plan.next_id)
+    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound)
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -239,7 +250,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
-                      fit=fit, iteration=iteration, notes=notes)
+                      fit=fit, iteration=iteration, notes=notes, layout_quality=quality)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -477,6 +488,7 @@ def report(fab: Fabrication) -> dict:
                           "the printed parts); printing: full print / parts print; sequential: "
                           "full print / (parts print + all assembly)",
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
+        "layout_quality": dict(fab.layout_quality),
         "timings_s": dict(fab.timings_s),
         "notes": list(fab.notes),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),

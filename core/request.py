@@ -20,6 +20,9 @@ from core.colours import check_palette
 from core.errors import InputError
 from core.interfaces import Fit
 
+#: How hard the layout is improved after the greedy pass (:mod:`core.improve`), cheapest first.
+EFFORTS = ("fast", "normal", "best")
+
 #: Unit names a model file's coordinates may be in, and their size in mm.
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
@@ -93,6 +96,14 @@ class Request:
                                          "previous frame (else lay it out anew)")
     picture: bool = _setting(True, "render layout.png", "--no-picture",
                              off="do not render layout.png")
+    effort: str = _setting("normal", "how hard the layout is optimised after the greedy pass: fast (the "
+                                     "greedy layout only), normal (a few seconds for 2,000 cells) "
+                                     "or best (up to a minute): fewer separate pieces, weak points "
+                                     "and bricks", "--effort", "LEVEL")
+    lower_bound: bool = _setting(False, "also solve the exact lower bound on the brick count (an "
+                                        "integer program, up to 20 s) for report.json's "
+                                        "layout_quality; without it the bound is only computed "
+                                        "when it costs no more than the layout", "--lower-bound")
     palette: str = _setting("bom", "brick colours of layout.png and the FreeCAD view: bom (the colour "
                                    "the parts list orders) or random (a LEGO colour per brick, to "
                                    "tell bricks apart; parts list, LDraw and instructions keep the "
@@ -116,7 +127,8 @@ class Request:
         Raises :class:`InputError` with one line naming the first setting
         out of range: scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
-        palette :func:`core.colours.check_palette` refuses, a
+        palette :func:`core.colours.check_palette` refuses, an effort not in
+        :data:`EFFORTS`, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
         where the model is loaded, :func:`core.mesh_io.load_model`).
         """
@@ -137,6 +149,8 @@ class Request:
                                  f"number of mm")
         self.fit.check()
         check_palette(self.palette)
+        if self.effort not in EFFORTS:
+            raise InputError(f"--effort {self.effort!r} must be one of {', '.join(EFFORTS)}")
         return dataclasses.replace(
             self, model=os.fspath(self.model), scale=float(self.scale),
             high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),
@@ -165,7 +179,8 @@ def add_options(parser, names, units=()) -> None:
     """Add the command-line options of the settings ``names`` to an argparse ``parser``.
 
     Each option's flag, help and default come from the Request field: a
-    boolean setting whose default is True becomes a ``--no-...`` switch,
+    boolean setting whose default is True becomes a ``--no-...`` switch (one
+    whose default is False a plain switch), ``effort`` a choice of :data:`EFFORTS`,
     a tuple setting a repeatable option; ``units`` are the unit names
     ``--units`` offers.
     """
@@ -174,7 +189,7 @@ def add_options(parser, names, units=()) -> None:
             continue
         flag, default, text = f.metadata["flag"], f.default, f.metadata["help"]
         if isinstance(default, bool):
-            parser.add_argument(flag, dest=f.name, action="store_false",
+            parser.add_argument(flag, dest=f.name, action="store_false" if default else "store_true",
                                 help=f.metadata["off"] or text)
         elif isinstance(default, tuple):
             parser.add_argument(flag, dest=f.name, action="append", default=[],
@@ -182,6 +197,9 @@ def add_options(parser, names, units=()) -> None:
         elif f.name == "units":
             parser.add_argument(flag, dest=f.name, choices=sorted(units), default=default,
                                 help=f"{text} (default {default})")
+        elif f.name == "effort":
+            parser.add_argument(flag, dest=f.name, choices=EFFORTS, default=default,
+                                metavar=f.metadata["metavar"], help=f"{text} (default {default})")
         else:
             kind = {"seed": int}.get(f.name, float if isinstance(default, float) else str)
             shown = f"{default:+g}" if f.name.endswith("_fit") else f"{default:g}" if isinstance(default, float) else default
