@@ -92,7 +92,7 @@ EFFORT_LEVELS = {
 BRICK_COST = 1.0
 LEAF_COST = 3.0
 #: The leaf penalty while compacting (weak points not in the key yet).
-COMPACT_LEAF_COST = 0.3
+COMPACT_LEAF_COST = 1.0
 ISLAND_COST = 6.0
 SEAM_COST = 0.02
 
@@ -119,7 +119,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     new brick straddles the boundary of the ``apart`` cells (a grid-shaped
     bool array, e.g. the cells to print); its :func:`quality` key is never
     worse than ``layout``'s.  Untouched bricks keep their ids; new bricks get
-    ids from ``next_id`` (default: one more than the largest id) on, and
+    ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
     without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
     input, effort and seed give the same layout.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
@@ -482,7 +482,7 @@ class _Search:
     def layout(self, next_id: int | None, renumber: bool) -> Layout:
         """The current bricks as a Layout: kept bricks first (in their order), then new ones."""
         old_ids = [b.id for b in self.source.bricks]
-        start = max(old_ids, default=-1) + 1 if next_id is None else next_id
+        start = max(max(old_ids, default=-1) + 1, next_id or 0)
         bricks = []
         for i, alive in enumerate(self.alive):
             if not alive:

@@ -30,7 +30,7 @@ from FabrickatorWorkbench.objects import high_res_region, tree
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick",
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "Effort", "SecondsPerBrick",
               "SecondsPerPart", "SlicePrintTimes", "FitGrid")
 
 
@@ -172,6 +172,7 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value),
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
+        effort=str(obj.Effort),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
         previous_regions=False, iterate_moved=False).checked()
 
