@@ -61,8 +61,12 @@ class Effort:
 
     ``windows_per_cell``: windows tried per filled cell (bounded by
     ``min_windows`` and ``max_windows``); ``max_window_cells``: the largest
-    number of freed cells in one window; ``shapes``: the window shapes tried
-    at a site, (half width in studs, layers below, layers above the site);
+    number of freed cells in one window; ``shapes``: the window boxes tried
+    at a site, (studs along x, studs along y, plate layers); ``compact_share``:
+    the share of the windows spent compacting (weak points not counted yet);
+    ``max_columns``: the most placements (program columns) in one window;
+    ``mip_columns``: the most placements of a window whose LP relaxation is
+    fractional that still goes to branch and bound (the others are given up);
     ``node_limit``: branch-and-bound nodes per window; ``time_limit_s``: the
     safety limit per window.
     """
@@ -73,17 +77,19 @@ class Effort:
     max_window_cells: int
     shapes: tuple[tuple[int, int, int], ...]
     compact_share: float
+    max_columns: int
+    mip_columns: int
     node_limit: int
     time_limit_s: float
 
 
 #: The effort levels: ``fast`` is the greedy layout only.
 EFFORT_LEVELS = {
-    "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0.0),
-    "normal": Effort(0.05, 40, 1000, 200, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)), 0.4,
-                     200, 2.0),
+    "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0),
+    "normal": Effort(0.08, 120, 1000, 200, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)), 0.4,
+                     1500, 1000, 200, 2.0),
     "best": Effort(0.25, 150, 5000, 300, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4),
-                                         (6, 6, 6)), 0.4, 1000, 5.0),
+                                         (6, 6, 6)), 0.4, 2500, 2500, 1000, 5.0),
 }
 
 #: Objective weights of the window program: per brick, per leaf (a brick
@@ -165,7 +171,7 @@ LOWER_BOUND_S = 20.0
 
 #: Placement variables up to which the lower bound counts as cheap: computed
 #: by default, within the time the layout took.
-CHEAP_VARIABLES = 30_000
+CHEAP_VARIABLES = 10_000
 
 
 def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CATALOG,
@@ -397,9 +403,9 @@ class _Search:
                 continue
             ids.append(i)
             cells += bsx * bsy * bsz
+        ids.sort(key=lambda i: (abs(self.rec[i][0] - x) + abs(self.rec[i][1] - y)
+                                + abs(self.rec[i][2] - z), i))
         if cells > max_cells:
-            ids.sort(key=lambda i: (abs(self.rec[i][0] - x) + abs(self.rec[i][1] - y)
-                                    + abs(self.rec[i][2] - z), i))
             kept, cells = [], 0
             for i in ids:
                 size = self.rec[i][3] * self.rec[i][4] * self.rec[i][5]
@@ -441,14 +447,20 @@ class _Search:
                 return
 
     def solve(self, ids: list[int], level: Effort) -> bool:
-        """Re-cover the cells of bricks ``ids`` optimally; keep it if the key improves."""
-        free = np.zeros(self.grid.shape, dtype=bool)
-        for i in ids:
-            x, y, z, sx, sy, sz = self.rec[i]
-            free[x:x + sx, y:y + sy, z:z + sz] = True
-        lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
-        hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
-        sl = tuple(slice(a, b) for a, b in zip(lo, hi))
+        """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally; keep it
+        if the key improves.  The farthest bricks stay fixed while the window has more than
+        ``level.max_columns`` placements."""
+        while True:
+            free = np.zeros(self.grid.shape, dtype=bool)
+            for i in ids:
+                x, y, z, sx, sy, sz = self.rec[i]
+                free[x:x + sx, y:y + sy, z:z + sz] = True
+            lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
+            hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
+            sl = tuple(slice(a, b) for a, b in zip(lo, hi))
+            if len(ids) <= 2 or len(_placements(free[sl], None, self.shapes)) <= level.max_columns:
+                break
+            ids = ids[:max(2, (len(ids) * 4) // 5)]
         current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
         chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
                                None if self.apart is None else self.apart[sl],
@@ -699,8 +711,6 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     lp.a_matrix_.start_ = a.indptr.astype(np.int32)
     lp.a_matrix_.index_ = a.indices.astype(np.int32)
     lp.a_matrix_.value_ = a.data.astype(np.float64)
-    lp.integrality_ = [highspy.HighsVarType.kInteger] * n + \
-        [highspy.HighsVarType.kContinuous] * (n_leaf + n_fixed)
     h = highspy.Highs()
     h.setOptionValue("output_flag", False)
     h.setOptionValue("threads", 1)
@@ -710,16 +720,25 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     h.setOptionValue("mip_max_nodes", level.node_limit)
     h.setOptionValue("mip_rel_gap", 1e-6)
     h.passModel(lp)
-    start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:])
-    if start is not None:
-        sol = highspy.HighsSolution()
-        sol.col_value = list(start)
-        sol.value_valid = True
-        h.setSolution(sol)
+    # The LP relaxation first: most windows' are integral, and then it is the optimum.
     h.run()
-    info = h.getInfo()
-    if info.primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
+    x = np.asarray(h.getSolution().col_value)[:n]
+    lp_done = (h.getModelStatus() == highspy.HighsModelStatus.kOptimal and len(x) == n
+               and np.abs(x - np.round(x)).max(initial=0.0) < 1e-7)
+    if not lp_done and n > level.mip_columns:
         return None
+    if not lp_done:
+        h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
+                                np.full(n, highspy.HighsVarType.kInteger))
+        start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:])
+        if start is not None:
+            sol = highspy.HighsSolution()
+            sol.col_value = list(start)
+            sol.value_valid = True
+            h.setSolution(sol)
+        h.run()
+        if h.getInfo().primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
+            return None
     x = np.asarray(h.getSolution().col_value)[:n]
     chosen = boxes[x > 0.5]
     if int((chosen[:, 3] * chosen[:, 4] * chosen[:, 5]).sum()) != m:
