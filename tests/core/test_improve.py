@@ -199,3 +199,25 @@ def test_forced_weak_point_on_a_one_cell_spike():
     assert block["weak_points"] == 1 and block["weak_points_forced"] == 1
     assert block["lower_bound"]["bound"] == 3 and block["lower_bound"]["proven"]
     assert block["lower_bound"]["ratio"] == 1.0
+
+
+def test_the_pipeline_improves_and_reports_layout_quality(tmp_path):
+    import trimesh
+
+    from core import pipeline
+
+    path = tmp_path / "block.stl"
+    trimesh.creation.box((40, 24, 19.2)).export(path)
+    fast = pipeline.run(path, effort="fast", slice_parts=False)
+    normal = pipeline.run(path, slice_parts=False)
+    block = pipeline.report(normal)["layout_quality"]
+    assert block["greedy"] == pipeline.report(fast)["layout_quality"]["improved"]
+    assert tuple(block["improved"].values()) <= tuple(block["greedy"].values())
+    assert block["bricks"] == len(normal.layout.bricks) and block["regions"] == 1
+    bound = block["lower_bound"]
+    # 5 x 3 studs, two bricks high: a course of 15 studs needs three parts (no two catalog
+    # footprints that fit make 15, e.g. 2x4 + 1x4 + 1x3 do), so six at least
+    assert normal.grid.shape == (5, 3, 6)
+    assert bound["bound"] == 6 and bound["proven"] and block["bricks"] == 6
+    assert set(block["seconds"]) == {"layout", "improve", "lower_bound"}
+    assert covers_once(normal.layout)
