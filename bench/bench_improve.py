@@ -4,10 +4,11 @@ Per model (the demo and every model in ../shared/models that loads): the
 greedy layout (``--effort fast``) and the improved one (``normal``, and
 ``best`` with ``--best``): bricks, the ratio to the exact-cover lower bound
 (integer program, ``--time-limit`` seconds, "yes" when proven), components
-against regions, weak points (and how many of them the shape forces: a leaf
-brick on a one-cell-thin feature hangs on them), seconds of the layout and
+against regions, weak points (and how many of them hold a leaf brick on a
+one-cell-thin feature), seconds of the layout and
 of the improvement; then whether the issue's targets are met: ratio <= 1.15,
-components = regions, no weak points but forced ones.  Then the timing
+components = regions, no weak points but those holding a leaf brick on a
+one-cell-thin feature (counted apart).  Then the timing
 targets: ``normal`` under 10 s for 2,000 cells and under 60 s for 20,000
 (legofied spheres).  Tables go to stdout and ``bench/out/improve.md``.
 Set FABRICKATOR_MODELS to measure another models folder.
@@ -40,13 +41,13 @@ SECONDS_TARGET = {2_000: 10.0, 20_000: 60.0}
 
 
 def measure(lay, start_s: float, bound) -> dict:
-    """Bricks, ratio, components, weak points (forced ones apart) of one layout."""
+    """Bricks, ratio, components, weak points (thin ones apart) of one layout."""
     st = analyse(lay)
-    forced = len(improve.forced_weak_points(lay))
+    forced = len(improve.thin_weak_points(lay))
     n = len(lay.bricks)
     return {"bricks": n, "ratio": n / bound if bound else None,
             "components": st.components, "regions": st.regions,
-            "weak": len(st.weak_points), "forced": forced, "s": start_s}
+            "weak": len(st.weak_points), "thin": forced, "s": start_s}
 
 
 def bench_model(path: Path, time_limit: float, efforts: list[str]) -> dict:
@@ -79,11 +80,11 @@ def model_rows(rows: list[dict], efforts: list[str]) -> list[dict]:
         for effort in ["fast"] + efforts:
             m = r[effort]
             met = [m["ratio"] is not None and m["ratio"] <= RATIO_TARGET,
-                   m["components"] == m["regions"], m["weak"] == m["forced"]]
+                   m["components"] == m["regions"], m["weak"] == m["thin"]]
             out.append({"model": r["model"], "cells": r["cells"], "effort": effort,
                         "bricks": m["bricks"], "lower bound": r["bound"], "proven": r["proven"],
                         "ratio": m["ratio"], "components/regions": f"{m['components']}/{m['regions']}",
-                        "weak": m["weak"], "weak forced": m["forced"], "seconds": m["s"],
+                        "weak": m["weak"], "weak thin": m["thin"], "seconds": m["s"],
                         "ratio<=1.15": "yes" if met[0] else "NO",
                         "connected": "yes" if met[1] else "NO",
                         "no weak": "yes" if met[2] else "NO"})
@@ -129,7 +130,7 @@ def main() -> int:
         print(f"  measured {path.name}", file=sys.stderr)
     table = model_rows(rows, efforts)
     columns = ["model", "cells", "effort", "bricks", "lower bound", "proven", "ratio",
-               "components/regions", "weak", "weak forced", "seconds", "ratio<=1.15", "connected",
+               "components/regions", "weak", "weak thin", "seconds", "ratio<=1.15", "connected",
                "no weak"]
     scale = scaling(efforts)
     text = ["## Layout quality: greedy (fast) and improved, against the exact lower bound", "",

@@ -5,27 +5,35 @@ layout with its repairs, :mod:`core.layout`) and makes it better window by
 window, after Kollsker & Malaguti's MIP repair of a constructive layout:
 
 1. **Choose a window.**  Sites are bricks, the most promising first: weak
-   bricks (articulation points of the brick graph and the leaves hanging
-   on them), small bricks, bricks whose sides continue the seams of the
-   bricks below or above.  The window is a box around the site a few
-   studs wide and a few plate layers tall; every brick it touches that is
-   not ``frozen`` is freed, so the freed cells are a union of whole bricks.
+   bricks (articulation points of the brick graph and leaves), then small
+   bricks, seeded ties.  The window is a box a few studs wide and a few
+   plate layers tall that starts, ends or is centred at the site; the
+   movable bricks it touches are freed, nearest first, up to a number of
+   cells and of placements, so the freed cells are a union of whole bricks.
 2. **Solve the window exactly** as a small integer program (HiGHS): one
    binary per catalog placement (every orientation of every allowed part
    that lies wholly on freed cells, and never across the boundary of the
    ``apart`` cells); every freed cell covered exactly once.  The objective
    is bricks, plus a penalty for every brick that would hang from a single
    neighbour (a leaf, whose neighbour becomes a weak point) -- also for the
-   fixed bricks around the window -- a penalty for a brick without any
-   brick above or below it (an island), and a small one for every side of
-   a brick that sits on or under a seam of a fixed neighbour (seams over
-   seams).  Connection to the fixed surroundings: a placement with a
-   filled cell above or below always touches a brick there, so it is never
-   loose on its own; that the window's bricks do not form a separate
-   group is checked afterwards on the whole layout.  The current bricks
-   are the solver's starting solution, so it never returns worse.
-3. **Keep it** only when the whole layout improves on the lexicographic key
-   (components, failing joints, weak points, bricks), see :func:`quality`.
+   fixed bricks around the window -- a penalty for a brick with nothing
+   above or below it (an island), and a small one for every side of a
+   brick that continues a seam of a fixed brick below or above it (seams
+   over seams).  Connection to the fixed surroundings: a placement with a
+   filled cell above or below always touches a brick there, so no brick is
+   loose on its own; that the window's bricks do not form a separate group
+   is checked afterwards on the whole layout.  The LP relaxation is solved
+   first; most windows' is integral and so optimal, the others go to
+   branch and bound (up to a size) with the current bricks as the start.
+3. **Keep it** only when the whole layout improves on the key (components,
+   failing joints, weak points, bricks), compared lexicographically
+   (:func:`quality`).
+
+The search runs in two phases: first a compaction whose key leaves weak
+points out (it finds layouts near the fewest bricks), then the full key,
+which removes weak points again, usually at the cost of some bricks.
+Should the result still be worse than the input on the full key, the full
+key is searched from the input instead, so the result is never worse.
 
 The work is counted in windows, not seconds, so the result is the same for
 the same layout, parts, effort and seed (HiGHS runs single-threaded; its
@@ -66,7 +74,7 @@ class Effort:
     the share of the windows spent compacting (weak points not counted yet);
     ``max_columns``: the most placements (program columns) in one window;
     ``mip_columns``: the most placements of a window whose LP relaxation is
-    fractional that still goes to branch and bound (the others are given up);
+    fractional that still goes to branch and bound (larger ones are shrunk);
     ``node_limit``: branch-and-bound nodes per window; ``time_limit_s``: the
     safety limit per window.
     """
@@ -87,9 +95,9 @@ class Effort:
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0),
     "normal": Effort(0.08, 120, 1000, 200, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)), 0.4,
-                     1500, 1000, 200, 2.0),
+                     1500, 700, 200, 10.0),
     "best": Effort(0.25, 150, 5000, 300, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4),
-                                         (6, 6, 6)), 0.4, 2500, 2500, 1000, 5.0),
+                                         (6, 6, 6)), 0.4, 2500, 2500, 1000, 20.0),
 }
 
 #: Objective weights of the window program: per brick, per leaf (a brick
@@ -103,6 +111,10 @@ ISLAND_COST = 6.0
 SEAM_COST = 0.02
 
 Key = tuple[int, int, int, int]
+
+#: What the window program returns when its LP relaxation is fractional and it has more
+#: placements than branch and bound may take: the window is shrunk and tried again.
+TOO_LARGE = "too large"
 FailingJoints = Callable[[Layout], int]
 
 
@@ -180,8 +192,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     """The ``layout_quality`` block of report.json for the greedy and improved layouts.
 
     ``bricks``, ``regions``, ``components``, ``weak_points`` (articulation
-    points), ``weak_points_forced`` (those :func:`forced_weak_points`: a leaf
-    brick on a one-cell-thin feature hangs on them), ``greedy`` and
+    points), ``weak_points_thin`` (those :func:`thin_weak_points`: a leaf
+    brick on a one-cell-thin feature hangs on them, counted apart), ``greedy`` and
     ``improved`` (their :func:`quality` keys by name), ``seconds`` per phase
     (from ``timings``: layout, improve; and the lower bound's) and
     ``lower_bound``: the exact-cover bound (:func:`core.lower_bound.brick_lower_bound`)
@@ -201,7 +213,7 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     block = {
         "bricks": after[3], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
         "components": after[0], "weak_points": after[2],
-        "weak_points_forced": len(forced_weak_points(layout)),
+        "weak_points_thin": len(thin_weak_points(layout)),
         "greedy": dict(zip(names, before)), "improved": dict(zip(names, after)),
         "failing_joints_counted": failing_joints is not None,
     }
@@ -225,10 +237,13 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     return block
 
 
-def forced_weak_points(layout: Layout) -> list[int]:
-    """Ids of the weak points the shape forces: bricks that only a leaf brick
-    touching the rest of the model through one cell hangs on (a one-cell-thin
-    spike, pin or tip); no layout of these cells avoids them."""
+def thin_weak_points(layout: Layout) -> list[int]:
+    """Ids of the weak points that hold a leaf brick on a one-cell-thin feature: a leaf
+    (a brick with a single neighbour) that touches the rest of the model, above and below,
+    through one cell only (a spike, pin or tip) hangs on it.  Such a point is often the
+    shape's doing rather than the layout's, so report.json counts it apart; the search
+    still removes one where covering the feature differently gives its leaf more
+    neighbours."""
     lab = layout.labels()
     filled = np.asarray(layout.grid.filled, bool)
     n = len(layout.bricks)
@@ -449,7 +464,9 @@ class _Search:
     def solve(self, ids: list[int], level: Effort) -> bool:
         """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally; keep it
         if the key improves.  The farthest bricks stay fixed while the window has more than
-        ``level.max_columns`` placements."""
+        ``level.max_columns`` placements, and while its LP relaxation is fractional
+        and it has more than ``level.mip_columns``."""
+        limit = level.max_columns
         while True:
             free = np.zeros(self.grid.shape, dtype=bool)
             for i in ids:
@@ -458,14 +475,20 @@ class _Search:
             lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
             hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
             sl = tuple(slice(a, b) for a, b in zip(lo, hi))
-            if len(ids) <= 2 or len(_placements(free[sl], None, self.shapes)) <= level.max_columns:
+            if len(ids) > 2 and len(_placements(free[sl], None, self.shapes)) > limit:
+                ids = ids[:max(2, (len(ids) * 4) // 5)]
+                continue
+            current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
+            chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+                                   None if self.apart is None else self.apart[sl],
+                                   self.shapes, current, self.rng, level,
+                                   LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
+            if chosen is not TOO_LARGE:
                 break
+            if len(ids) <= 2:
+                return False
+            limit = level.mip_columns
             ids = ids[:max(2, (len(ids) * 4) // 5)]
-        current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
-        chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
-                               None if self.apart is None else self.apart[sl],
-                               self.shapes, current, self.rng, level,
-                               LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
         if chosen is None or sorted(chosen) == sorted(current):
             return False
         lab = self.lab.copy()
@@ -726,7 +749,7 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     lp_done = (h.getModelStatus() == highspy.HighsModelStatus.kOptimal and len(x) == n
                and np.abs(x - np.round(x)).max(initial=0.0) < 1e-7)
     if not lp_done and n > level.mip_columns:
-        return None
+        return TOO_LARGE
     if not lp_done:
         h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
                                 np.full(n, highspy.HighsVarType.kInteger))

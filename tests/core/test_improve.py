@@ -52,7 +52,7 @@ def shapes(draw):
 PART_SETS = [catalog.CATALOG, catalog.select("plates"), catalog.select("3024,3023,3004,3001,3020")]
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(shapes(), st.sampled_from(range(len(PART_SETS))), st.integers(0, 3))
 def test_same_cells_allowed_parts_never_worse(filled, which, seed):
     parts = PART_SETS[which]
@@ -67,7 +67,7 @@ def test_same_cells_allowed_parts_never_worse(filled, which, seed):
     assert [b.id for b in better.bricks] == list(range(len(better.bricks)))
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(shapes(), st.integers(0, 5))
 def test_deterministic_for_a_seed(filled, seed):
     start = unit_plates(grid_of(filled))
@@ -79,9 +79,10 @@ def test_deterministic_for_a_seed(filled, seed):
 def test_block_2x8_two_bricks_high_reaches_two_bricks():
     """A 2 x 8 stud block six plates (two bricks) high: two 2x8 bricks 3007 stacked are the
     fewest parts (96 cells, the largest part holds 48), one piece, no weak point (a graph of
-    two bricks has no articulation point).  From 48 loose 1x1 plates the search gets there."""
+    two bricks has no articulation point).  From 96 loose 1x1 plates the search (best effort:
+    its windows may be large enough to take the whole block) gets there."""
     grid = grid_of(np.ones((2, 8, 6), bool))
-    best = improve.improve(unit_plates(grid), catalog.CATALOG, "normal", 0)
+    best = improve.improve(unit_plates(grid), catalog.CATALOG, "best", 0)
     assert covers_once(best)
     assert improve.quality(best) == (1, 0, 0, 2)
     assert sorted(b.part for b in best.bricks) == ["3007", "3007"]
@@ -184,19 +185,19 @@ def test_failing_joints_counted_before_weak_points():
     assert improve.quality(lay)[1] == 0
 
 
-def test_forced_weak_point_on_a_one_cell_spike():
+def test_thin_weak_point_on_a_one_cell_spike():
     """Two 2x2 bricks stacked with a 1x1 plate on top: the plate touches the model through one
-    cell, so whatever the layout it hangs on one brick, which is a weak point forced by the
-    shape (the upper brick here)."""
+    cell, so whatever the layout it hangs on one brick, a weak point of a one-cell-thin
+    feature (the upper brick here)."""
     filled = np.zeros((2, 2, 7), bool)
     filled[:, :, :6] = True
     filled[0, 0, 6] = True
     lay = Layout(grid_of(filled), [Brick(0, "3003", (2, 2, 3), (0, 0, 0)),
                                    Brick(1, "3003", (2, 2, 3), (0, 0, 3)),
                                    Brick(2, "3024", (1, 1, 1), (0, 0, 6))])
-    assert improve.forced_weak_points(lay) == [1]
+    assert improve.thin_weak_points(lay) == [1]
     block = improve.layout_quality(lay, lay, catalog.CATALOG, {"layout": 0.1, "improve": 0.0})
-    assert block["weak_points"] == 1 and block["weak_points_forced"] == 1
+    assert block["weak_points"] == 1 and block["weak_points_thin"] == 1
     assert block["lower_bound"]["bound"] == 3 and block["lower_bound"]["proven"]
     assert block["lower_bound"]["ratio"] == 1.0
 
