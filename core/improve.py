@@ -43,7 +43,6 @@ time limit is only a safety net that ordinary windows never reach).
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 from typing import Callable, Iterable
 
@@ -329,6 +328,8 @@ class _Search:
         self.fixed: list[bool] = []
         self.alive: list[bool] = []
         self.lab = np.full(self.grid.shape, -1, dtype=np.int64)
+        self._pending: dict[int, tuple] = {}
+        self._pending_part: dict[int, str] = {}
         for b in layout.bricks:
             self._add(tuple(b.cell) + tuple(b.size), b.part, b, b.id in frozen or b.kind != "lego")
         self.dead = 0
@@ -362,7 +363,8 @@ class _Search:
         return (comps, failing, weak, n - dead), deg, art
 
     def _layout_of(self, lab) -> Layout:
-        """The layout of a label grid (for a force model): bricks in index order."""
+        """The layout of a label grid (for a force model): bricks in index order; indices
+        past the records are the candidate bricks of the window being tried (``_pending``)."""
         used = np.unique(lab[lab >= 0])
         bricks = []
         for i in used:

@@ -183,6 +183,17 @@ def test_failing_joints_counted_before_weak_points():
     lay = unit_plates(grid)
     assert improve.quality(lay, lambda l: 7)[1] == 7
     assert improve.quality(lay)[1] == 0
+    seen = []
+
+    def one_by_ones(candidate):
+        """A stand-in force model: every 1x1 part is a failing joint."""
+        seen.append(covers_once(candidate))
+        return sum(1 for b in candidate.bricks if b.size[:2] == (1, 1))
+
+    start = layout_stage.lay_out(grid_of(np.ones((3, 5, 6), bool)), catalog.CATALOG, seed=0)
+    better = improve.improve(start, catalog.CATALOG, "normal", 0, failing_joints=one_by_ones)
+    assert seen and all(seen)
+    assert improve.quality(better, one_by_ones) <= improve.quality(start, one_by_ones)
 
 
 def test_thin_weak_point_on_a_one_cell_spike():
