@@ -90,12 +90,13 @@ class Effort:
     time_limit_s: float
 
 
-#: The effort levels: ``fast`` is the greedy layout only.
+#: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
+#: ``normal``'s result with larger windows (so it is never worse on the key).
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0),
     "normal": Effort(0.08, 120, 1000, 200, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)), 0.4,
                      1500, 700, 200, 10.0),
-    "best": Effort(0.25, 150, 5000, 300, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4),
+    "best": Effort(0.15, 150, 800, 300, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4),
                                          (6, 6, 6)), 0.4, 2500, 2500, 1000, 20.0),
 }
 
@@ -138,7 +139,8 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     worse than ``layout``'s.  Untouched bricks keep their ids; new bricks get
     ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
     without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
-    input, effort and seed give the same layout.  ``failing_joints(layout)``
+    input, effort and seed give the same layout; ``best`` starts from what
+    ``normal`` gives, so it is never worse on the key.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
     ``progress(fraction, message)`` is called after every window; an
     exception it raises (a cancel) propagates.  ``layout`` is not changed.
@@ -149,19 +151,33 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     frozen_ids = set(frozen or ())
     if level.max_windows == 0 or not layout.bricks:
         return _copy(layout, renumber=False)
+    chain = [EFFORT_LEVELS[name] for name in EFFORTS[1:EFFORTS.index(effort) + 1]]
+    current = layout
+    for n, stage in enumerate(chain):
+        def share(fraction, message, n=n):
+            report((n + fraction) / len(chain), message)
+        current = _stage(current, parts, stage, seed, share, frozen_ids, apart, failing_joints,
+                         next_id)
+    report(1.0, "improve: done")
+    return _copy(current, renumber=not frozen_ids)
+
+
+def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
+           apart, failing_joints, next_id) -> Layout:
+    """One effort level's search from ``layout``: compaction, then the full key; from
+    ``layout`` again on the full key should that end worse than ``layout``."""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
-    search = _Search(layout, parts, seed, frozen_ids, apart, failing_joints)
+    search = _Search(layout, parts, seed, frozen, apart, failing_joints)
     start = search.key
     search.count_weak(False)
     search.run(level, int(budget * level.compact_share), report)
     search.count_weak(True)
     search.run(level, budget, report)
     if search.key > start:
-        search = _Search(layout, parts, seed, frozen_ids, apart, failing_joints)
+        search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report)
-    report(1.0, "improve: done")
-    return search.layout(next_id, renumber=not frozen_ids)
+    return search.layout(next_id, renumber=False)
 
 
 def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
