@@ -68,13 +68,17 @@ def bench_model(path: Path, ground: str) -> dict:
 
 
 def bench_scaling() -> list[dict]:
-    """The force check of a ~3,000-brick layout (a hollow box), the build prefixes of a
-    ~500-brick one, both on a table."""
+    """The force check of a ~3,000-brick layout (a hollow box under a slab that overhangs
+    it all round, so that the clutch is needed), the build prefixes of a ~500-brick one,
+    both on a table."""
     rows = []
-    for name, outer, wall in (("hollow box 64x64x90 cells, wall 3", (64, 64, 90), 3),
-                              ("hollow box 30x30x45 cells, wall 2", (30, 30, 45), 2)):
-        filled = np.ones(outer, dtype=bool)
-        filled[wall:-wall, wall:-wall, wall:] = False
+    for name, outer, wall, rim in (("hollow box 48x48x60 cells under a 64x64 slab", (64, 64, 66), 3, 8),
+                                   ("hollow box 24x24x30 cells under a 34x34 slab", (34, 34, 36), 2, 5)):
+        # walls standing on the table, a slab of six plate layers on top reaching out all round
+        filled = np.zeros(outer, dtype=bool)
+        filled[rim:-rim, rim:-rim, :-6] = True
+        filled[rim + wall:-rim - wall, rim + wall:-rim - wall, :-6] = False
+        filled[:, :, -6:] = True
         grid = Grid(np.zeros(3), np.array(CELL_MM), filled)
         lay = layout.lay_out(grid, catalog.CATALOG, seed=0)
         start = time.perf_counter()

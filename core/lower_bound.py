@@ -254,6 +254,11 @@ def _solve_region(indptr, rows, n_rows: int, deadline: float):
     return bound, incumbent, False
 
 
+def placement_count(grid: Grid, parts: tuple[Part, ...] = CATALOG) -> int:
+    """The number of variables of the lower bound's program (placements that fit)."""
+    return _placements(np.asarray(grid.filled, dtype=bool), part_shapes(parts))[1]
+
+
 def brick_lower_bound(grid: Grid, parts: tuple[Part, ...] = CATALOG,
                       time_limit_s: float = 20.0) -> dict:
     """The fewest ``parts`` that cover exactly the filled cells of ``grid``.

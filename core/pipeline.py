@@ -25,6 +25,7 @@ import numpy as np
 from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
 from core import iterate as iterate_stage
+from core import improve as improve_stage
 from core import layout as layout_stage, result
 from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
@@ -70,6 +71,7 @@ class Fabrication:
     reinforced: reinforce_stage.Reinforced | None = None
     warnings: list[str] = field(default_factory=list)
     hollowing: hollow_stage.Hollowing | None = None
+    layout_quality: dict = field(default_factory=dict)
 
     @property
     def seed(self) -> int:
@@ -138,8 +140,12 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     4. **layout**: fresh, marked and other cells laid out apart
        (:func:`core.layout.lay_out_around`); iterating, the previous bricks
        kept where they still fit and the rest laid out anew
-       (:func:`core.iterate.lay_out`).  A fresh layout is then re-merged around the
-       joints the forces find failing or loaded (:func:`core.reinforce.reinforce`).
+       (:func:`core.iterate.lay_out`); then **improve**d window by window
+       as hard as ``effort`` says (:func:`core.improve.improve`; iterating,
+       the kept bricks stay) and measured (:func:`core.improve.layout_quality`,
+       with the exact lower bound on request or when it is cheap).  A fresh
+       layout is then re-merged around the joints the forces find failing or
+       loaded (:func:`core.reinforce.reinforce`).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
        by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
@@ -244,10 +250,16 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                                               len(solid_layout.bricks))
             if not hollowing.on:
                 grid, marked, cells, layout = solid, solid_marked, solid_cells, solid_layout
+    greedy = layout
+    layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
+                   within(progress, 0.78, 0.8),
+                   frozen=None if plan is None else plan.kept, apart=cells,
+                   next_id=None if plan is None else plan.next_id)
+    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
     if before is None:
-        reinforced = timed("reinforce", 0.79, reinforce_stage.reinforce, layout, chosen, req.ground,
+        reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, chosen, req.ground,
                            req.loads, req.clutch_n, cells, req.seed)
         layout = reinforced.layout
 
@@ -290,7 +302,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
-                      forces=force, reinforced=reinforced, hollowing=hollowing)
+                      forces=force, reinforced=reinforced, hollowing=hollowing,
+                      layout_quality=quality)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab)
         fab.timings_s.update(timings)
@@ -602,6 +615,7 @@ def report(fab: Fabrication) -> dict:
                           "the printed parts); printing: full print / parts print; sequential: "
                           "full print / (parts print + all assembly)",
             **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
+        "layout_quality": dict(fab.layout_quality),
         "timings_s": dict(fab.timings_s),
         "hollow": hollow_report(fab),
         "notes": list(fab.notes),

@@ -22,6 +22,9 @@ from core.errors import InputError
 from core.interfaces import Fit
 from core.model import Load
 
+#: How hard the layout is improved after the greedy pass (:mod:`core.improve`), cheapest first.
+EFFORTS = ("fast", "normal", "best")
+
 #: Unit names a model file's coordinates may be in, and their size in mm.
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
@@ -99,6 +102,14 @@ class Request:
                                "hold its roof; 0 builds solid; default: hollow parts of 50,000 "
                                "cells or more when that saves more than a third of the bricks",
                            "--hollow", "STUDS")
+    effort: str = _setting("normal", "how hard the layout is optimised after the greedy pass: fast (the "
+                                     "greedy layout only), normal (a few seconds for 2,000 cells) "
+                                     "or best (up to a minute): fewer separate pieces, weak points "
+                                     "and bricks", "--effort", "LEVEL")
+    lower_bound: bool = _setting(False, "also solve the exact lower bound on the brick count (an "
+                                        "integer program, up to 20 s) for report.json's "
+                                        "layout_quality; without it the bound is only computed "
+                                        "when it costs no more than the layout", "--lower-bound")
     palette: str = _setting("bom", "brick colours of layout.png and the FreeCAD view: bom (the colour "
                                    "the parts list orders) or random (a LEGO colour per brick, to "
                                    "tell bricks apart; parts list, LDraw and instructions keep the "
@@ -131,8 +142,10 @@ class Request:
         Raises :class:`InputError` with one line naming the first setting
         out of range: units not in :data:`UNITS`, a hollow setting not in -1..64, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
-        palette :func:`core.colours.check_palette` refuses, a
-        stud or socket fit :meth:`Fit.check` refuses.
+        palette :func:`core.colours.check_palette` refuses, an effort not in
+        :data:`EFFORTS`, a
+        stud or socket fit :meth:`Fit.check` refuses (the units are checked
+        where the model is loaded, :func:`core.mesh_io.load_model`).
         """
         if not self.model:
             raise InputError("no model file given")
@@ -162,6 +175,8 @@ class Request:
         if isinstance(self.hollow, bool) or not isinstance(self.hollow, int) or not -1 <= self.hollow <= 64:
             raise InputError(f"--hollow {self.hollow!r} must be a whole number of studs from 0 "
                              "(solid) to 64, or -1 (automatic)")
+        if self.effort not in EFFORTS:
+            raise InputError(f"--effort {self.effort!r} must be one of {', '.join(EFFORTS)}")
         return dataclasses.replace(
             self, model=os.fspath(self.model), scale=float(self.scale),
             high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),
@@ -230,7 +245,8 @@ def add_options(parser, names, units=()) -> None:
     """Add the command-line options of the settings ``names`` to an argparse ``parser``.
 
     Each option's flag, help and default come from the Request field: a
-    boolean setting whose default is True becomes a ``--no-...`` switch,
+    boolean setting whose default is True becomes a ``--no-...`` switch (one
+    whose default is False a plain switch), ``effort`` a choice of :data:`EFFORTS`,
     a tuple setting a repeatable option; ``units`` are the unit names
     ``--units`` offers.
     """
@@ -239,7 +255,7 @@ def add_options(parser, names, units=()) -> None:
             continue
         flag, default, text = f.metadata["flag"], f.default, f.metadata["help"]
         if isinstance(default, bool):
-            parser.add_argument(flag, dest=f.name, action="store_false",
+            parser.add_argument(flag, dest=f.name, action="store_false" if default else "store_true",
                                 help=f.metadata["off"] or text)
         elif isinstance(default, tuple):
             parser.add_argument(flag, dest=f.name, action="append", default=[],
@@ -250,6 +266,9 @@ def add_options(parser, names, units=()) -> None:
         elif f.name == "units":
             parser.add_argument(flag, dest=f.name, choices=sorted(units), default=default,
                                 help=f"{text} (default {default})")
+        elif f.name == "effort":
+            parser.add_argument(flag, dest=f.name, choices=EFFORTS, default=default,
+                                metavar=f.metadata["metavar"], help=f"{text} (default {default})")
         else:
             kind = {"seed": int}.get(f.name, float if isinstance(default, float) else str)
             shown = f"{default:+g}" if f.name.endswith("_fit") else f"{default:g}" if isinstance(default, float) else default

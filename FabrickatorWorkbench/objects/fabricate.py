@@ -30,7 +30,7 @@ from FabrickatorWorkbench.objects import high_res_region, load, tree
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "SecondsPerBrick",
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "Effort", "SecondsPerBrick",
               "SecondsPerPart", "SlicePrintTimes", "FitGrid", "Ground", "Clutch", "Hollow")
 
 
@@ -174,6 +174,7 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
         hollow=int(obj.Hollow),
+        effort=str(obj.Effort),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
         clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale)).checked()

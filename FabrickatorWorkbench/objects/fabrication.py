@@ -26,8 +26,16 @@ from FabrickatorWorkbench.objects import fabricate, prototype, tree
 from FabrickatorWorkbench.objects.properties import HIDDEN, READ_ONLY, Prop, FeatureProxy
 from FabrickatorWorkbench.preferences import setting_default
 from FabrickatorWorkbench.viewproviders.brick import apply_ghost_look
+from core.request import EFFORTS
 
 QT = App.Qt.QT_TRANSLATE_NOOP
+
+def effort_choices() -> list[str]:
+    """The efforts of the core (:data:`core.request.EFFORTS`), its default first (an
+    enumeration property takes its first choice as its value)."""
+    default = setting_default("effort")
+    return [default] + [e for e in EFFORTS if e != default]
+
 
 #: Value of the hidden ``FabrickatorRole`` property that marks a Fabrication.
 ROLE = "Fabrication"
@@ -71,6 +79,11 @@ PROPERTIES = (
     Prop("App::PropertyVector", "CellSize", "Fabrication",
          QT("App::Property", "Size of one 1x1 plate cell (stud pitch, pitch, plate height), mm"),
          None, READ_ONLY),
+    Prop("App::PropertyEnumeration", "Effort", "Fabrication",
+         QT("App::Property", "How hard the layout is optimised after the greedy pass: fast (the "
+                             "greedy layout only), normal (a few seconds for 2,000 cells) or best "
+                             "(up to a minute): fewer separate pieces, weak points and bricks"),
+         effort_choices),
     Prop("App::PropertyFloat", "SecondsPerBrick", "Fabrication",
          QT("App::Property", "Assembly estimate: seconds to place one LEGO brick"),
          partial(setting_default, "seconds_per_brick")),

@@ -227,6 +227,17 @@ class TestPackage(unittest.TestCase):
 class TestFabrication(FabrickatorTestCase):
     """Objects, recompute and parametric changes."""
 
+    def test_effort_property_follows_the_core_table(self):
+        from core.request import DEFAULTS, EFFORTS
+        from FabrickatorWorkbench.objects import fabricate
+
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.assertEqual(f.Effort, DEFAULTS["effort"])
+        self.assertEqual(sorted(f.getEnumerationsOfProperty("Effort")), sorted(EFFORTS))
+        f.Effort = "fast"
+        self.assertEqual(fabricate.request(f, "part.stl", (), ()).effort, "fast")
+
     def test_body_becomes_bricks_that_cover_every_cell_once(self):
         body, _, _ = padded_body(self.doc)
         f = fab().make_fabrication(body)

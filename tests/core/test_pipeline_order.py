@@ -12,9 +12,9 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: then the exports, then the drivers and tools that use them all.
 ORDER = [
     "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
-    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "layout", "align", "diff",
+    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "layout", "lower_bound", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "print_time", "export", "render", "picture",
-    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region", "lower_bound",
+    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
     "iterate", "pipeline", "watch", "calibration", "cli", "__main__", "__init__",
 ]
 

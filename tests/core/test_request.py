@@ -18,6 +18,16 @@ def test_the_command_line_defaults_are_the_table():
             assert getattr(built, name) == (tuple(value) if isinstance(value, tuple) else value), name
 
 
+def test_effort_and_lower_bound_options():
+    args = cli._parser().parse_args(["fabricate", "part.stl", "--out", "out", "--effort", "best",
+                                     "--lower-bound"])
+    built = request.from_options(args, "part.stl")
+    assert built.effort == "best" and built.lower_bound is True
+    assert request.DEFAULTS["effort"] == "normal" and request.DEFAULTS["lower_bound"] is False
+    with pytest.raises(SystemExit):
+        cli._parser().parse_args(["fabricate", "part.stl", "--out", "out", "--effort", "fastest"])
+
+
 def test_the_other_defaults_read_the_table():
     assert build_order.SECONDS_PER_BRICK == request.DEFAULTS["seconds_per_brick"] == 10.0
     assert build_order.SECONDS_PER_PART == request.DEFAULTS["seconds_per_part"] == 30.0
@@ -28,7 +38,7 @@ def test_the_other_defaults_read_the_table():
     ({"seed": -1}, "--seed"), ({"seed": 1.5}, "--seed"), ({"scale": 0.0}, "--scale"),
     ({"scale": float("nan")}, "--scale"), ({"seconds_per_brick": -3}, "--seconds-per-brick"),
     ({"seconds_per_part": True}, "--seconds-per-part"), ({"stud_fit": 5.0}, "stud"),
-    ({"colour": "red"}, "unknown setting"),
+    ({"colour": "red"}, "unknown setting"), ({"effort": "fastest"}, "--effort"),
 ])
 def test_bad_settings_are_one_line_input_errors(settings, words):
     with pytest.raises(InputError) as err:

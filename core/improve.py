@@ -1,0 +1,809 @@
+"""Improvement stage: a large neighbourhood search over the greedy layout.
+
+:func:`improve` takes a finished :class:`~core.model.Layout` (the greedy
+layout with its repairs, :mod:`core.layout`) and makes it better window by
+window, after Kollsker & Malaguti's MIP repair of a constructive layout:
+
+1. **Choose a window.**  Sites are bricks, the most promising first: weak
+   bricks (articulation points of the brick graph and leaves), then small
+   bricks, seeded ties.  The window is a box a few studs wide and a few
+   plate layers tall that starts, ends or is centred at the site; the
+   movable bricks it touches are freed, nearest first, up to a number of
+   cells and of placements, so the freed cells are a union of whole bricks.
+2. **Solve the window exactly** as a small integer program (HiGHS): one
+   binary per catalog placement (every orientation of every allowed part
+   that lies wholly on freed cells, and never across the boundary of the
+   ``apart`` cells); every freed cell covered exactly once.  The objective
+   is bricks, plus a penalty for every brick that would hang from a single
+   neighbour (a leaf, whose neighbour becomes a weak point) -- also for the
+   fixed bricks around the window -- a penalty for a brick with nothing
+   above or below it (an island), and a small one for every side of a
+   brick that continues a seam of a fixed brick below or above it (seams
+   over seams).  Connection to the fixed surroundings: a placement with a
+   filled cell above or below always touches a brick there, so no brick is
+   loose on its own; that the window's bricks do not form a separate group
+   is checked afterwards on the whole layout.  The LP relaxation is solved
+   first; most windows' is integral and so optimal, the others go to
+   branch and bound (up to a size) with the current bricks as the start.
+3. **Keep it** only when the whole layout improves on the key (components,
+   failing joints, weak points, bricks), compared lexicographically
+   (:func:`quality`).
+
+The search runs in two phases: first a compaction whose key leaves weak
+points out (it finds layouts near the fewest bricks), then the full key,
+which removes weak points again, usually at the cost of some bricks.
+Should the result still be worse than the input on the full key, the full
+key is searched from the input instead, so the result is never worse.
+
+The work is counted in windows, not seconds, so the result is the same for
+the same layout, parts, effort and seed (HiGHS runs single-threaded; its
+time limit is only a safety net that ordinary windows never reach).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Callable, Iterable
+
+import highspy
+import numpy as np
+from numba import njit
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+
+from core.catalog import CATALOG, Part
+from core.connectivity import articulation_points, regions
+from core.errors import InputError
+from core.lower_bound import _summed_volume, fitting_positions
+from core.model import Brick, Layout
+from core.request import EFFORTS
+
+Progress = Callable[[float, str], None]
+
+
+@dataclass(frozen=True)
+class Effort:
+    """How hard :func:`improve` works.
+
+    ``windows_per_cell``: windows tried per filled cell (bounded by
+    ``min_windows`` and ``max_windows``); ``max_window_cells``: the largest
+    number of freed cells in one window; ``shapes``: the window boxes tried
+    at a site, (studs along x, studs along y, plate layers); ``compact_share``:
+    the share of the windows spent compacting (weak points not counted yet);
+    ``max_columns``: the most placements (program columns) in one window;
+    ``mip_columns``: the most placements of a window whose LP relaxation is
+    fractional that still goes to branch and bound (larger ones are shrunk);
+    ``node_limit``: branch-and-bound nodes per window; ``time_limit_s``: the
+    safety limit per window.
+    """
+
+    windows_per_cell: float
+    min_windows: int
+    max_windows: int
+    max_window_cells: int
+    shapes: tuple[tuple[int, int, int], ...]
+    compact_share: float
+    max_columns: int
+    mip_columns: int
+    node_limit: int
+    time_limit_s: float
+
+
+#: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
+#: ``normal``'s result with larger windows (so it is never worse on the key).
+EFFORT_LEVELS = {
+    "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0),
+    "normal": Effort(0.08, 120, 1000, 200, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)), 0.4,
+                     1500, 700, 200, 10.0),
+    "best": Effort(0.15, 150, 800, 300, ((6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4),
+                                         (6, 6, 6)), 0.4, 2500, 2500, 1000, 20.0),
+}
+
+#: Objective weights of the window program: per brick, per leaf (a brick
+#: hanging from one neighbour), per island (a brick touching nothing above
+#: or below), per brick side cell on a seam of a fixed brick below or above.
+BRICK_COST = 1.0
+LEAF_COST = 3.0
+#: The leaf penalty while compacting (weak points not in the key yet).
+COMPACT_LEAF_COST = 1.0
+ISLAND_COST = 6.0
+SEAM_COST = 0.02
+
+Key = tuple[int, int, int, int]
+
+#: What the window program returns when its LP relaxation is fractional and it has more
+#: placements than branch and bound may take: the window is shrunk and tried again.
+TOO_LARGE = "too large"
+FailingJoints = Callable[[Layout], int]
+
+
+def check_effort(effort: str) -> str:
+    """``effort`` if it is one of :data:`EFFORTS`; InputError naming it otherwise."""
+    if effort not in EFFORT_LEVELS:
+        raise InputError(f"--effort {effort!r} must be one of {', '.join(EFFORTS)}")
+    return effort
+
+
+def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "normal",
+            seed: int = 0, progress: Progress | None = None, frozen: Iterable[int] | None = None,
+            apart: np.ndarray | None = None, failing_joints: FailingJoints | None = None,
+            next_id: int | None = None) -> Layout:
+    """A layout of the same cells that is at least as good as ``layout`` on :func:`quality`.
+
+    Promises: the result covers exactly the filled cells of ``layout.grid``
+    once; every brick is ``layout``'s own or a part of ``parts`` in one of
+    its orientations; bricks whose id is in ``frozen`` stay as they are; no
+    new brick straddles the boundary of the ``apart`` cells (a grid-shaped
+    bool array, e.g. the cells to print); its :func:`quality` key is never
+    worse than ``layout``'s.  Untouched bricks keep their ids; new bricks get
+    ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
+    without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
+    input, effort and seed give the same layout; ``best`` starts from what
+    ``normal`` gives, so it is never worse on the key.  ``failing_joints(layout)``
+    counts the joints a force model finds failing (None: not counted).
+    ``progress(fraction, message)`` is called after every window; an
+    exception it raises (a cancel) propagates.  ``layout`` is not changed.
+    Raises InputError for an unknown ``effort``.
+    """
+    level = EFFORT_LEVELS[check_effort(effort)]
+    report = progress or _silent
+    frozen_ids = set(frozen or ())
+    if level.max_windows == 0 or not layout.bricks:
+        return _copy(layout, renumber=False)
+    chain = [EFFORT_LEVELS[name] for name in EFFORTS[1:EFFORTS.index(effort) + 1]]
+    current = layout
+    for n, stage in enumerate(chain):
+        def share(fraction, message, n=n):
+            report((n + fraction) / len(chain), message)
+        current = _stage(current, parts, stage, seed, share, frozen_ids, apart, failing_joints,
+                         next_id)
+    report(1.0, "improve: done")
+    return _copy(current, renumber=not frozen_ids)
+
+
+def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
+           apart, failing_joints, next_id) -> Layout:
+    """One effort level's search from ``layout``: compaction, then the full key; from
+    ``layout`` again on the full key should that end worse than ``layout``."""
+    budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
+                         level.min_windows, level.max_windows))
+    search = _Search(layout, parts, seed, frozen, apart, failing_joints)
+    start = search.key
+    search.count_weak(False)
+    search.run(level, int(budget * level.compact_share), report)
+    search.count_weak(True)
+    search.run(level, budget, report)
+    if search.key > start:
+        search = _Search(layout, parts, seed, frozen, apart, failing_joints)
+        search.run(level, budget - int(budget * level.compact_share), report)
+    return search.layout(next_id, renumber=False)
+
+
+def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
+    """The lexicographic key the improvement lowers: (components of the brick graph,
+    failing joints, weak points (articulation points), bricks).
+
+    Bricks are joined where one sits on another with overlapping footprints
+    (:func:`core.stability.brick_graph`).  ``failing_joints`` counts the
+    joints a force model finds failing; None counts 0.
+    """
+    n = len(layout.bricks)
+    comps, weak, _, _ = _graph_key(layout.labels(), n, 0)
+    return comps, int(failing_joints(layout)) if failing_joints else 0, weak, n
+
+
+#: Time limit of the lower bound when it is asked for (``--lower-bound``).
+LOWER_BOUND_S = 20.0
+
+#: Placement variables up to which the lower bound counts as cheap: computed
+#: by default, within the time the layout took.
+CHEAP_VARIABLES = 10_000
+
+
+def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CATALOG,
+                   timings: dict | None = None, lower_bound: bool = False,
+                   failing_joints: FailingJoints | None = None) -> dict:
+    """The ``layout_quality`` block of report.json for the greedy and improved layouts.
+
+    ``bricks``, ``regions``, ``components``, ``weak_points`` (articulation
+    points), ``weak_points_thin`` (those :func:`thin_weak_points`: a leaf
+    brick on a one-cell-thin feature hangs on them, counted apart), ``greedy`` and
+    ``improved`` (their :func:`quality` keys by name), ``seconds`` per phase
+    (from ``timings``: layout, improve; and the lower bound's) and
+    ``lower_bound``: the exact-cover bound (:func:`core.lower_bound.brick_lower_bound`)
+    with its ``time_limit_s``, whether it is ``proven`` optimal and the
+    ``ratio`` bricks / bound.  The bound is computed when ``lower_bound`` is
+    asked for (:data:`LOWER_BOUND_S`), else only when the program is small
+    (:data:`CHEAP_VARIABLES`) and then within the seconds the layout took;
+    otherwise it is None with the reason.
+    """
+    from core import lower_bound as lb_stage
+
+    timings = timings or {}
+    before, after = quality(greedy, failing_joints), quality(layout, failing_joints)
+    names = ("components", "failing_joints", "weak_points", "bricks")
+    spent = float(timings.get("layout", 0.0)) + float(timings.get("improve", 0.0))
+    seconds = {"layout": timings.get("layout"), "improve": timings.get("improve")}
+    block = {
+        "bricks": after[3], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
+        "components": after[0], "weak_points": after[2],
+        "weak_points_thin": len(thin_weak_points(layout)),
+        "greedy": dict(zip(names, before)), "improved": dict(zip(names, after)),
+        "failing_joints_counted": failing_joints is not None,
+    }
+    variables = lb_stage.placement_count(layout.grid, parts)
+    if lower_bound or variables <= CHEAP_VARIABLES:
+        limit = LOWER_BOUND_S if lower_bound else max(round(spent, 3), 0.05)
+        found = lb_stage.brick_lower_bound(layout.grid, parts, time_limit_s=limit)
+        bound = found["bound"]
+        block["lower_bound"] = {
+            "bound": bound, "time_limit_s": limit, "proven": bool(found["optimal"]),
+            "status": found["status"], "variables": found["variables"],
+            "ratio": round(after[3] / bound, 4) if bound else None,
+            "greedy_ratio": round(before[3] / bound, 4) if bound else None}
+        seconds["lower_bound"] = found["seconds"]
+    else:
+        block["lower_bound"] = {
+            "bound": None, "variables": variables,
+            "why": f"not computed: {variables} placements would cost more than the layout; "
+                   "ask for it with --lower-bound"}
+    block["seconds"] = seconds
+    return block
+
+
+def thin_weak_points(layout: Layout) -> list[int]:
+    """Ids of the weak points that hold a leaf brick on a one-cell-thin feature: a leaf
+    (a brick with a single neighbour) that touches the rest of the model, above and below,
+    through one cell only (a spike, pin or tip) hangs on it.  Such a point is often the
+    shape's doing rather than the layout's, so report.json counts it apart; the search
+    still removes one where covering the feature differently gives its leaf more
+    neighbours."""
+    lab = layout.labels()
+    filled = np.asarray(layout.grid.filled, bool)
+    n = len(layout.bricks)
+    indptr, indices = _csr(lab, n)
+    art = articulation_points(indptr, indices, n)
+    deg = np.diff(indptr)
+    forced = set()
+    for b, brick in enumerate(layout.bricks):
+        if deg[b] != 1:
+            continue
+        support = int(indices[indptr[b]])
+        if art[support] and _contact_cells(filled, brick) <= 1:
+            forced.add(layout.bricks[support].id)
+    return sorted(forced)
+
+
+def _contact_cells(filled: np.ndarray, brick: Brick) -> int:
+    """Filled cells directly below and above the brick's footprint."""
+    (x0, y0, z0), (sx, sy, sz) = brick.cell, brick.size
+    total = 0
+    for z in (z0 - 1, z0 + sz):
+        if 0 <= z < filled.shape[2]:
+            total += int(np.count_nonzero(filled[x0:x0 + sx, y0:y0 + sy, z]))
+    return total
+
+
+def _silent(fraction: float, message: str) -> None:
+    """Progress sink that ignores everything."""
+
+
+def _copy(layout: Layout, renumber: bool) -> Layout:
+    """A new Layout with copies of the bricks."""
+    bricks = [dataclasses.replace(b) for b in layout.bricks]
+    if renumber:
+        bricks = [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)]
+    return Layout(layout.grid, bricks)
+
+
+def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty)."""
+    lower = lab[:, :, :-1]
+    upper = lab[:, :, 1:]
+    touch = (lower >= 0) & (upper >= 0) & (lower != upper)
+    a, b = lower[touch], upper[touch]
+    key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
+    a, b = key // n, key % n
+    graph = sparse.csr_matrix((np.ones(2 * a.size, dtype=np.int8),
+                               (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
+    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64)
+
+
+def _graph_key(lab: np.ndarray, n: int, dead: int):
+    """(components, weak points, degree per vertex, articulation mask) of the brick graph of
+    ``lab`` with ``n`` vertices of which ``dead`` are unused (isolated, not counted)."""
+    indptr, indices = _csr(lab, n)
+    graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
+    comps = connected_components(graph, directed=False)[0] - dead
+    art = articulation_points(indptr, indices, n)
+    return int(comps), int(np.count_nonzero(art)), np.diff(indptr), art
+
+
+class _Search:
+    """The state of one improvement: the cells' brick labels and the brick records.
+
+    Brick records are rows ``(x, y, z, sx, sy, sz)`` with their part number,
+    original id (None for new bricks) and whether they are frozen; removed
+    bricks stay as dead rows, so indices never move.
+    """
+
+    def __init__(self, layout: Layout, parts, seed: int, frozen: set[int], apart,
+                 failing: FailingJoints | None):
+        self.grid = layout.grid
+        self.filled = np.ascontiguousarray(np.asarray(layout.grid.filled, dtype=bool))
+        self.apart = None if apart is None else np.asarray(apart, dtype=bool) & self.filled
+        self.shapes = sorted({(sx, sy, p.layers): p.number for p in parts
+                              for sx, sy in p.orientations()}.items())
+        self.rng = np.random.default_rng(seed)
+        self.failing = failing
+        self.source = layout
+        self.rec: list[tuple[int, int, int, int, int, int]] = []
+        self.part: list[str] = []
+        self.orig: list[Brick | None] = []
+        self.fixed: list[bool] = []
+        self.alive: list[bool] = []
+        self.lab = np.full(self.grid.shape, -1, dtype=np.int64)
+        self._pending: dict[int, tuple] = {}
+        self._pending_part: dict[int, str] = {}
+        for b in layout.bricks:
+            self._add(tuple(b.cell) + tuple(b.size), b.part, b, b.id in frozen or b.kind != "lego")
+        self.dead = 0
+        self.weak_on = True
+        self.key, self.deg, self.art = self._evaluate(self.lab, len(self.rec), 0)
+        self.windows = 0
+        self.accepted = 0
+
+    def _add(self, box, part, orig, fixed) -> int:
+        i = len(self.rec)
+        self.rec.append(tuple(int(v) for v in box))
+        self.part.append(part)
+        self.orig.append(orig)
+        self.fixed.append(fixed)
+        self.alive.append(True)
+        x, y, z, sx, sy, sz = box
+        self.lab[x:x + sx, y:y + sy, z:z + sz] = i
+        return i
+
+    def count_weak(self, on: bool) -> None:
+        """Count weak points in the key (the lexicographic search) or not (compaction)."""
+        self.weak_on = on
+        self.key, self.deg, self.art = self._evaluate(self.lab, len(self.rec), self.dead)
+
+    def _evaluate(self, lab, n, dead):
+        comps, weak, deg, art = _graph_key(lab, n, dead)
+        weak = weak if self.weak_on else 0
+        failing = 0
+        if self.failing is not None:
+            failing = int(self.failing(self._layout_of(lab)))
+        return (comps, failing, weak, n - dead), deg, art
+
+    def _layout_of(self, lab) -> Layout:
+        """The layout of a label grid (for a force model): bricks in index order; indices
+        past the records are the candidate bricks of the window being tried (``_pending``)."""
+        used = np.unique(lab[lab >= 0])
+        bricks = []
+        for i in used:
+            x, y, z, sx, sy, sz = self.rec[i] if i < len(self.rec) else self._pending[i]
+            bricks.append(Brick(len(bricks), self._part_of(i), (sx, sy, sz), (x, y, z)))
+        return Layout(self.grid, bricks)
+
+    def _part_of(self, i):
+        return self.part[i] if i < len(self.part) else self._pending_part[i]
+
+    # -- sites and windows ---------------------------------------------------
+
+    def sites(self) -> list[int]:
+        """Live, movable bricks ordered by promise: weak, then small, seeded ties."""
+        idx = np.array([i for i, a in enumerate(self.alive) if a and not self.fixed[i]], dtype=np.int64)
+        if idx.size == 0:
+            return []
+        rec = np.array([self.rec[i] for i in idx], dtype=np.int64)
+        area = rec[:, 3] * rec[:, 4]
+        deg = self.deg[idx]
+        weak = self.art[idx] | (deg <= 1)
+        score = 4.0 * weak + 2.0 * (1.0 - np.minimum(area, 16) / 16.0) + 0.5 * (deg == 2)
+        score += 0.3 * self.rng.random(idx.size)
+        return [int(i) for i in idx[np.argsort(-score, kind="stable")]]
+
+    def window(self, site: int, shape: tuple[int, int, int], anchor: int, max_cells: int):
+        """The bricks to free for the window of ``shape`` (studs x, studs y, layers) at brick
+        ``site``, or None when fewer than two.
+
+        The box is centred on the site, shifted by up to one stud and one layer
+        (seeded; ``anchor`` 0), or starts (1) or ends (2) where the site does,
+        moved inside the grid; the freed bricks are the movable ones it touches, the
+        nearest to the site first up to ``max_cells`` freed cells.
+        """
+        x, y, z, sx, sy, sz = self.rec[site]
+        wx, wy, layers = shape
+        if anchor == 0:
+            lo = np.array([x + sx // 2 - wx // 2, y + sy // 2 - wy // 2, z + sz // 2 - layers // 2])
+            lo += self.rng.integers(-1, 2, size=3)
+        elif anchor == 1:
+            lo = np.array([x, y, z])
+        else:
+            lo = np.array([x + sx - wx, y + sy - wy, z + sz - layers])
+        lo = np.clip(lo, 0, np.maximum(np.array(self.grid.shape) - (wx, wy, layers), 0))
+        hi = lo + (wx, wy, layers)
+        box = self.lab[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
+        ids = []
+        cells = 0
+        for i in np.unique(box[box >= 0]):
+            i = int(i)
+            bx, by, bz, bsx, bsy, bsz = self.rec[i]
+            if self.fixed[i]:
+                continue
+            ids.append(i)
+            cells += bsx * bsy * bsz
+        ids.sort(key=lambda i: (abs(self.rec[i][0] - x) + abs(self.rec[i][1] - y)
+                                + abs(self.rec[i][2] - z), i))
+        if cells > max_cells:
+            kept, cells = [], 0
+            for i in ids:
+                size = self.rec[i][3] * self.rec[i][4] * self.rec[i][5]
+                if cells + size <= max_cells:
+                    kept.append(i)
+                    cells += size
+            ids = kept
+        return ids if len(ids) >= 2 else None
+
+    # -- the search ----------------------------------------------------------
+
+    def run(self, level: Effort, budget: int, report: Progress) -> None:
+        """Try up to ``budget`` windows, shape by shape, sites in order of promise."""
+        tried: set[tuple] = set()
+        report(0.0, "improve: windows")
+        while self.windows < budget:
+            progressed = False
+            for shape, anchor in ((s, a) for s in level.shapes for a in (1, 2, 0)):
+                for site in self.sites():
+                    if self.windows >= budget:
+                        return
+                    if not self.alive[site]:
+                        continue
+                    ids = self.window(site, shape, anchor, level.max_window_cells)
+                    if ids is None:
+                        continue
+                    sig = tuple(sorted(self.rec[i] for i in ids))
+                    if sig in tried:
+                        continue
+                    tried.add(sig)
+                    progressed = True
+                    self.windows += 1
+                    if self.solve(ids, level):
+                        self.accepted += 1
+                    report(self.windows / budget,
+                           f"improve: window {self.windows}/{budget}, {self.key[3]} bricks, "
+                           f"{self.key[2]} weak points")
+            if not progressed:
+                return
+
+    def solve(self, ids: list[int], level: Effort) -> bool:
+        """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally; keep it
+        if the key improves.  The farthest bricks stay fixed while the window has more than
+        ``level.max_columns`` placements, and while its LP relaxation is fractional
+        and it has more than ``level.mip_columns``."""
+        limit = level.max_columns
+        while True:
+            free = np.zeros(self.grid.shape, dtype=bool)
+            for i in ids:
+                x, y, z, sx, sy, sz = self.rec[i]
+                free[x:x + sx, y:y + sy, z:z + sz] = True
+            lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
+            hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
+            sl = tuple(slice(a, b) for a, b in zip(lo, hi))
+            if len(ids) > 2 and len(_placements(free[sl], None, self.shapes)) > limit:
+                ids = ids[:max(2, (len(ids) * 4) // 5)]
+                continue
+            current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
+            chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+                                   None if self.apart is None else self.apart[sl],
+                                   self.shapes, current, self.rng, level,
+                                   LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
+            if chosen is not TOO_LARGE:
+                break
+            if len(ids) <= 2:
+                return False
+            limit = level.mip_columns
+            ids = ids[:max(2, (len(ids) * 4) // 5)]
+        if chosen is None or sorted(chosen) == sorted(current):
+            return False
+        lab = self.lab.copy()
+        n = len(self.rec)
+        self._pending = {}
+        self._pending_part = {}
+        part_of = dict((s, p) for s, p in self.shapes)
+        for j, (x, y, z, sx, sy, sz) in enumerate(chosen):
+            i = n + j
+            gx, gy, gz = x + lo[0], y + lo[1], z + lo[2]
+            lab[gx:gx + sx, gy:gy + sy, gz:gz + sz] = i
+            self._pending[i] = (int(gx), int(gy), int(gz), sx, sy, sz)
+            self._pending_part[i] = part_of[(sx, sy, sz)]
+        dead = self.dead + len(ids)
+        key, deg, art = self._evaluate(lab, n + len(chosen), dead)
+        if key >= self.key:
+            return False
+        for i in ids:
+            self.alive[i] = False
+        for i in sorted(self._pending):
+            self._add(self._pending[i], self._pending_part[i], None, False)
+        assert np.array_equal(self.lab, lab)
+        self.dead, self.key, self.deg, self.art = dead, key, deg, art
+        return True
+
+    def layout(self, next_id: int | None, renumber: bool) -> Layout:
+        """The current bricks as a Layout: kept bricks first (in their order), then new ones."""
+        old_ids = [b.id for b in self.source.bricks]
+        start = max(max(old_ids, default=-1) + 1, next_id or 0)
+        bricks = []
+        for i, alive in enumerate(self.alive):
+            if not alive:
+                continue
+            if self.orig[i] is not None:
+                bricks.append(dataclasses.replace(self.orig[i]))
+            else:
+                x, y, z, sx, sy, sz = self.rec[i]
+                bricks.append(Brick(start, self.part[i], (sx, sy, sz), (x, y, z)))
+                start += 1
+        if renumber:
+            bricks = [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)]
+        return Layout(self.grid, bricks)
+
+
+# -- the window program ------------------------------------------------------
+
+def _placements(free, apart, shapes):
+    """Every placement on the freed cells: (n, 6) boxes (x, y, z, sx, sy, sz).
+
+    With ``apart`` cells a placement lies wholly inside or wholly outside them.
+    """
+    masks = [free] if apart is None else [free & apart, free & ~apart]
+    out = []
+    for mask in masks:
+        if not mask.any():
+            continue
+        table = _summed_volume(mask)
+        for (sx, sy, sz), _ in shapes:
+            pos = fitting_positions(table, (sx, sy, sz))
+            if len(pos):
+                out.append(np.column_stack([pos, np.tile([sx, sy, sz], (len(pos), 1))]))
+    return np.concatenate(out).astype(np.int64) if out else np.empty((0, 6), dtype=np.int64)
+
+
+@njit(cache=True)
+def _contacts(boxes, free, filled, lab):
+    """Per placement: distinct fixed bricks touching it above or below (capped at 2), freed
+    cells it touches below and above, whether its freed contacts lie on one side only and
+    their bounding box (x0, y0, x1, y1, layer), and its side cells on seams of fixed bricks
+    directly below or above."""
+    n = boxes.shape[0]
+    nx, ny, nz = free.shape
+    fixed = np.zeros(n, dtype=np.int64)
+    wb = np.zeros(n, dtype=np.int64)
+    wa = np.zeros(n, dtype=np.int64)
+    bbox = np.zeros((n, 5), dtype=np.int64)
+    seams = np.zeros(n, dtype=np.int64)
+    for p in range(n):
+        x0, y0, z0, sx, sy, sz = boxes[p]
+        first = -1
+        second = -1
+        bx0, by0, bx1, by1, layer = nx, ny, -1, -1, -1
+        for side in range(2):
+            z = z0 - 1 if side == 0 else z0 + sz
+            if z < 0 or z >= nz:
+                continue
+            for x in range(x0, x0 + sx):
+                for y in range(y0, y0 + sy):
+                    if not filled[x, y, z]:
+                        continue
+                    if free[x, y, z]:
+                        if side == 0:
+                            wb[p] += 1
+                        else:
+                            wa[p] += 1
+                        bx0 = min(bx0, x)
+                        by0 = min(by0, y)
+                        bx1 = max(bx1, x)
+                        by1 = max(by1, y)
+                        layer = z
+                    else:
+                        b = lab[x, y, z]
+                        if first < 0:
+                            first = b
+                        elif b != first and second < 0:
+                            second = b
+            # side cells of the placement whose fixed neighbour cells in layer z split there too
+            for y in range(y0, y0 + sy):
+                for xi, xo in ((x0, x0 - 1), (x0 + sx - 1, x0 + sx)):
+                    if 0 <= xo < nx and not free[xi, y, z] and not free[xo, y, z]:
+                        a = lab[xi, y, z]
+                        c = lab[xo, y, z]
+                        if a >= 0 and c >= 0 and a != c:
+                            seams[p] += 1
+            for x in range(x0, x0 + sx):
+                for yi, yo in ((y0, y0 - 1), (y0 + sy - 1, y0 + sy)):
+                    if 0 <= yo < ny and not free[x, yi, z] and not free[x, yo, z]:
+                        a = lab[x, yi, z]
+                        c = lab[x, yo, z]
+                        if a >= 0 and c >= 0 and a != c:
+                            seams[p] += 1
+        fixed[p] = 0 if first < 0 else (1 if second < 0 else 2)
+        bbox[p, 0] = bx0
+        bbox[p, 1] = by0
+        bbox[p, 2] = bx1
+        bbox[p, 3] = by1
+        bbox[p, 4] = layer if (wb[p] == 0) != (wa[p] == 0) else -1
+    return fixed, wb, wa, bbox, seams
+
+
+@njit(cache=True)
+def _covering(boxes, targets, cell_ptr, cell_cols, cell_index):
+    """Pairs (t, q): placement q covers the whole box ``targets[t]`` (x0, y0, x1, y1, layer)."""
+    out_t = []
+    out_q = []
+    for t in range(targets.shape[0]):
+        x0, y0, x1, y1, z = targets[t]
+        c = cell_index[x0, y0, z]
+        for e in range(cell_ptr[c], cell_ptr[c + 1]):
+            q = cell_cols[e]
+            qx, qy, qz, sx, sy, sz = boxes[q]
+            if qx <= x0 and qy <= y0 and x1 < qx + sx and y1 < qy + sy and qz <= z < qz + sz:
+                out_t.append(t)
+                out_q.append(q)
+    return np.array(out_t, dtype=np.int64), np.array(out_q, dtype=np.int64)
+
+
+def _fixed_leaf_targets(free, filled, lab):
+    """Boxes (x0, y0, x1, y1, layer) of the freed cells that a fixed brick touches, for the
+    fixed bricks beside the window that touch no other fixed brick and touch freed cells
+    on one side only: such a brick becomes a leaf if one placement covers that box."""
+    nz = free.shape[2]
+    targets = []
+    for b in np.unique(lab[lab >= 0]):
+        cells = np.argwhere(lab == b)
+        (x0, y0, z0), (x1, y1, z1) = cells.min(axis=0), cells.max(axis=0)
+        touch_fixed = set()
+        boxes = []
+        for z in (z0 - 1, z1 + 1):
+            if z < 0 or z >= nz:
+                continue
+            foot_f = filled[x0:x1 + 1, y0:y1 + 1, z]
+            foot_w = free[x0:x1 + 1, y0:y1 + 1, z]
+            other = lab[x0:x1 + 1, y0:y1 + 1, z][foot_f & ~foot_w]
+            touch_fixed.update(int(v) for v in other if v >= 0 and v != b)
+            if foot_w.any():
+                w = np.argwhere(foot_w)
+                boxes.append((x0 + w[:, 0].min(), y0 + w[:, 1].min(),
+                              x0 + w[:, 0].max(), y0 + w[:, 1].max(), z))
+        if not touch_fixed and len(boxes) == 1:
+            targets.append(boxes[0])
+    return np.array(targets, dtype=np.int64).reshape(-1, 5)
+
+
+def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort, leaf_cost: float):
+    """The best re-cover of the ``free`` cells of a local box, as a list of boxes, or None.
+
+    ``lab`` holds the fixed bricks' indices (-1 on freed and empty cells);
+    the box has a margin of one cell around the freed cells where the grid
+    allows.  ``current`` (the freed bricks' boxes) is the starting solution.
+    """
+    boxes = _placements(free, apart, shapes)
+    n = len(boxes)
+    if n == 0:
+        return None
+    cell_index = np.full(free.shape, -1, dtype=np.int64)
+    cell_index[free] = np.arange(int(free.sum()))
+    m = int(free.sum())
+    # constraint columns: the cells of each placement
+    cols, rows = [], []
+    for (sx, sy, sz) in {tuple(b) for b in boxes[:, 3:]}:
+        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
+        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
+        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
+                           boxes[sel, 2, None] + dk.ravel()]
+        cols.append(np.repeat(sel, cells.shape[1]))
+        rows.append(cells.ravel())
+    cols = np.concatenate(cols)
+    rows = np.concatenate(rows)
+    cover = sparse.csr_matrix((np.ones(cols.size), (rows, cols)), shape=(m, n))
+    by_cell = cover.tocsr()
+    fixed, wb, wa, bbox, seams = _contacts(boxes, free, filled, lab)
+    cost = BRICK_COST + SEAM_COST * seams + 1e-4 * rng.random(n)
+    cost += ISLAND_COST * ((fixed == 0) & (wb == 0) & (wa == 0))
+    cost += leaf_cost * ((fixed == 1) & (wb == 0) & (wa == 0))
+    # A placement p with no fixed neighbour that touches freed cells on one side only is
+    # a leaf when one placement q covers all of those cells.  All such q cover the same
+    # cell, so at most one is chosen: y_p >= x_p + sum_q x_q - 1 is exact (one row per p).
+    # A fixed brick beside the window with no other fixed neighbour: y_F >= sum_q x_q.
+    ptr, idx = by_cell.indptr.astype(np.int64), by_cell.indices.astype(np.int64)
+    cand = np.flatnonzero((fixed == 0) & (bbox[:, 4] >= 0))
+    t, q = _covering(boxes, bbox[cand], ptr, idx, cell_index)
+    keep = cand[t] != q
+    t, q = t[keep], q[keep]
+    leaves, t = np.unique(t, return_inverse=True)
+    targets = _fixed_leaf_targets(free, filled, lab)
+    ft, fq = (_covering(boxes, targets, ptr, idx, cell_index) if len(targets)
+              else (np.empty(0, np.int64), np.empty(0, np.int64)))
+    n_leaf, n_fixed = leaves.size, len(targets)
+    n_cols = n + n_leaf + n_fixed
+    n_rows = m + n_leaf + n_fixed
+    leaf_rows = m + np.arange(n_leaf)
+    fixed_rows = m + n_leaf + np.arange(n_fixed)
+    r_rows = [rows, leaf_rows, m + t, leaf_rows, fixed_rows[ft], fixed_rows]
+    r_cols = [cols, cand[leaves], q, n + np.arange(n_leaf), fq, n + n_leaf + np.arange(n_fixed)]
+    r_vals = [np.ones(rows.size), np.ones(n_leaf), np.ones(q.size), -np.ones(n_leaf),
+              np.ones(fq.size), -np.ones(n_fixed)]
+    a = sparse.csc_matrix((np.concatenate(r_vals), (np.concatenate(r_rows).astype(np.int64),
+                                                   np.concatenate(r_cols).astype(np.int64))),
+                          shape=(n_rows, n_cols))
+    a.sum_duplicates()
+    lp = highspy.HighsLp()
+    lp.num_col_ = n_cols
+    lp.num_row_ = n_rows
+    lp.col_cost_ = np.concatenate([cost, np.full(n_leaf + n_fixed, leaf_cost)])
+    lp.col_lower_ = np.zeros(n_cols)
+    lp.col_upper_ = np.ones(n_cols)
+    lp.row_lower_ = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed, -highspy.kHighsInf)])
+    lp.row_upper_ = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed)])
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_ = n_cols
+    lp.a_matrix_.num_row_ = n_rows
+    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = a.indices.astype(np.int32)
+    lp.a_matrix_.value_ = a.data.astype(np.float64)
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("threads", 1)
+    h.setOptionValue("random_seed", 0)
+    h.setOptionValue("presolve", "off")
+    h.setOptionValue("time_limit", level.time_limit_s)
+    h.setOptionValue("mip_max_nodes", level.node_limit)
+    h.setOptionValue("mip_rel_gap", 1e-6)
+    h.passModel(lp)
+    # The LP relaxation first: most windows' are integral, and then it is the optimum.
+    h.run()
+    x = np.asarray(h.getSolution().col_value)[:n]
+    lp_done = (h.getModelStatus() == highspy.HighsModelStatus.kOptimal and len(x) == n
+               and np.abs(x - np.round(x)).max(initial=0.0) < 1e-7)
+    if not lp_done and n > level.mip_columns:
+        return TOO_LARGE
+    if not lp_done:
+        h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
+                                np.full(n, highspy.HighsVarType.kInteger))
+        start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:])
+        if start is not None:
+            sol = highspy.HighsSolution()
+            sol.col_value = list(start)
+            sol.value_valid = True
+            h.setSolution(sol)
+        h.run()
+        if h.getInfo().primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
+            return None
+    x = np.asarray(h.getSolution().col_value)[:n]
+    chosen = boxes[x > 0.5]
+    if int((chosen[:, 3] * chosen[:, 4] * chosen[:, 5]).sum()) != m:
+        return None
+    return [tuple(int(v) for v in b) for b in chosen]
+
+
+def _start_solution(boxes, current, a, n, n_cols, m, upper):
+    """The column values of the current bricks (leaf variables at their least), or None.
+
+    ``upper`` are the right-hand sides of the leaf rows ``sum x - y <= upper``.
+    """
+    index = {tuple(int(v) for v in b): i for i, b in enumerate(boxes)}
+    x = np.zeros(n_cols)
+    for box in current:
+        i = index.get(tuple(int(v) for v in box))
+        if i is None:
+            return None
+        x[i] = 1.0
+    if n_cols > n:
+        rows = a[m:].tocsr()
+        need = rows[:, :n] @ x[:n] - upper
+        aux = rows[:, n:].tocoo()
+        y = np.zeros(n_cols - n)
+        np.maximum.at(y, aux.col, need[aux.row])
+        x[n:] = np.clip(y, 0.0, 1.0)
+    return x
