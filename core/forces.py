@@ -77,8 +77,9 @@ CLUTCH_N = 0.98
 CONTACT_RADIUS = 0.2
 #: Friction coefficient of ABS on a table top.
 TABLE_FRICTION = 0.4
-#: A build that settles on a table leaning more than this (degrees) has fallen over.
-MAX_TILT_DEG = 20.0
+#: A build stands on a table only in the pose it was built in: one that would settle
+#: leaning onto lower points (more than this, degrees: rounding) tips over.
+MAX_TILT_DEG = 0.5
 #: ABS tensile strength used for a part's bending strength, N/mm^2 (MPa).
 ABS_STRENGTH_MPA = 40.0
 #: LEGO wall and top thickness, mm (DESIGN.md dimensions: walls 1.2-1.5, top 1.0).
@@ -845,9 +846,10 @@ class _Model:
 
         A rigid build put on a table settles on the face of its lower convex hull under its
         centre of mass (each connected structure on its own): on its bottom layer when that
-        is flat under it, else tilted onto lower points elsewhere.  A structure whose centre
-        of mass lies outside the hull of all its points, or that would lean more than
-        :data:`MAX_TILT_DEG`, has fallen over: none of its points carry."""
+        is flat under it, else tilted onto lower points elsewhere.  Only the first stands as
+        built: a structure that would lean (more than :data:`MAX_TILT_DEG`) or whose centre
+        of mass lies outside the hull of all its points tips over (:meth:`_topple` says how
+        far it would lean), and none of its points carry."""
         from scipy.spatial import ConvexHull, QhullError
         pts, body = self._table_points()
         active = np.zeros(len(pts), dtype=bool)
@@ -895,7 +897,7 @@ class _Model:
         except (QhullError, ValueError):
             pass
         bricks = int(np.isin(self.body_of, np.flatnonzero(members)).sum())
-        fall = "falls over" if lean is None else f"would lie {lean:.0f}° over"
+        fall = "falls over" if lean is None else f"tips over until it rests leaning {lean:.0f}°"
         return {"bricks": bricks, "centre_of_mass_mm": [round(float(v), 1) for v in com_mm],
                 "beyond_bottom_mm": round(beyond * self.unit, 1),
                 "would_lean_deg": None if lean is None else round(lean, 1),

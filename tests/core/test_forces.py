@@ -301,18 +301,20 @@ def test_instructions_warn_at_the_step_that_does_not_stand():
     assert "Does not stand on its own" in text
 
 
-def test_a_build_too_heavy_on_one_side_rests_leaning_on_its_lower_points():
+def test_a_build_too_heavy_on_one_side_tips_until_it_rests_on_its_lower_points():
     """A 1x8 brick over a 1x2 brick by one end: the centre of mass (x = (0.81 * 1 + 3.03 * 4)
-    / 3.84 = 3.4 studs) is past the 1x2 brick (x 0..2), so the build settles on the far end
-    of the 1x8 brick's underside (9.6 mm up, 48 mm further along): it rests leaning by
-    atan(9.6 / 48) = 11.3 degrees, and stands."""
+    / 3.84 = 3.4 studs) is past the 1x2 brick (x 0..2), so the build tips over until the far
+    end of the 1x8 brick's underside (9.6 mm up, 48 mm further along) touches the table: it
+    does not stand as built, and would rest leaning atan(9.6 / 48) = 11.3 degrees."""
     layout = layout_of([Brick(1, "3004", (2, 1, 3), (0, 0, 0)), Brick(2, "3008", (8, 1, 3), (0, 0, 3))])
     result = forces.analyse(layout, ground="table")
-    assert result.stable
-    assert result.tilt_deg == pytest.approx(math.degrees(math.atan(9.6 / 48.0)), abs=0.01)
+    assert not result.stable and result.unsupported == [1, 2]
+    (topple,) = result.topples
+    assert topple["would_lean_deg"] == pytest.approx(math.degrees(math.atan(9.6 / 48.0)), abs=0.01)
+    assert "resting leaning" not in topple["why"] and "tips over" in topple["why"]
 
 
-def test_a_build_that_would_lean_past_20_degrees_has_fallen_over():
+def test_a_build_that_would_lean_further_tips_too():
     """A 1x4 brick over a 1x1 brick by one end would lean atan(9.6 / 24) = 21.8 degrees."""
     layout = layout_of([Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3))])
     result = forces.analyse(layout, ground="table")
