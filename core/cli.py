@@ -328,7 +328,9 @@ def _summary(doc: dict, out) -> None:
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
     force = st.get("force")
-    if force:
+    if force and not force.get("checked", True):
+        print(f"force check skipped: {force['unchecked_why']}")
+    elif force:
         worst = ("infinite: something floats or tips" if force["max_utilisation"] is None
                  else f"{force['max_utilisation']:.2f}")
         print(f"{'stands' if force['stable'] else 'does NOT stand'} on a {force['ground']} with "

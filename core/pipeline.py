@@ -288,8 +288,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made, clamp,
                   req.clutch_n, settings)
     order = timed("build_order", 0.82, build_order.plan, layout)
-    checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
-    order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
+    if force.unchecked is None:
+        checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
+        order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
     layout = build_order.numbered(layout, order)
     iteration = None
     if before is not None:

@@ -53,7 +53,8 @@ class Reinforced:
 
 def _summary(f: forces_stage.Forces, st: stability_stage.Stability, bricks: int) -> dict:
     worst = f.max_utilisation
-    return {"stable": f.stable, "max_utilisation": None if not math.isfinite(worst) else round(worst, 4),
+    return {"stable": None if f.unchecked else f.stable,
+            "max_utilisation": None if not math.isfinite(worst) else round(worst, 4),
             "components": st.components, "weak_points": len(st.weak_points), "bricks": bricks}
 
 
@@ -77,6 +78,8 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
 
     key, f, st = judge(layout)
     before = _summary(f, st, len(layout.bricks))
+    if f.unchecked:
+        return Reinforced(layout, before, before, 0, 0)
     best = layout
     attempts = kept = 0
     frozen = np.zeros(layout.grid.shape, bool) if frozen is None else np.asarray(frozen, bool)

@@ -419,6 +419,8 @@ def force_words(force: dict | None) -> str:
     """The force check of report.json (``stability.force``) in one line."""
     if not force:
         return "not checked"
+    if not force.get("checked", True):
+        return f"not checked: {force['unchecked_why']}"
     worst = ("infinite (something floats or tips)" if force["max_utilisation"] is None
              else f"{force['max_utilisation']:.2f}")
     failing = len(force["failing_bricks"])
@@ -433,7 +435,7 @@ def _store_forces(obj, force: dict | None) -> None:
     obj.Stands = bool(force and force["stable"])
     obj.FailingBricks = len(force["failing_bricks"]) if force else 0
     obj.Forces = force_words(force)
-    if force and not force["stable"]:
+    if force and force.get("checked", True) and not force["stable"]:
         log.warning(f"{obj.Label}: {obj.Forces} (the Report lists them; the Stress display "
                     f"mode shows them white)")
 

@@ -365,3 +365,13 @@ def test_reinforce_leaves_a_standing_layout_alone():
     layout = arm_of_plates()
     result = reinforce.reinforce(layout, ground="baseplate")
     assert result.layout is layout and result.attempts == 0
+
+
+def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monkeypatch):
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    result = forces.analyse(staircase(12), ground="baseplate")
+    doc = result.to_json()
+    assert doc["checked"] is False and doc["stable"] is None and "12 bricks" in doc["unchecked_why"]
+    # a build all in compression needs no program, whatever its size
+    tower = layout_of([Brick(n + 1, "3005", (1, 1, 3), (0, 0, 3 * n)) for n in range(12)])
+    assert forces.analyse(tower).to_json()["checked"] is True
