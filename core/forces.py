@@ -852,6 +852,7 @@ class _Model:
             z = np.broadcast_to((self.origin[2] + k * self.cell[2])[:, None, None], (len(i), 4, 1))
             self._points = (np.concatenate([xy, z], axis=2).reshape(-1, 3),
                             np.repeat(self.blab[i, j, k], 4))
+            self._point_brick = np.repeat(self.lab[i, j, k], 4)
         return self._points
 
     def resting(self, present: np.ndarray) -> tuple[np.ndarray, float]:
@@ -955,7 +956,7 @@ class _Model:
         (phase 2) across every section between a LEGO brick's studs.
 
         The moment about a section is that of the vertical forces on one side
-        of it: the studs' net forces there, and the brick's own weight shared
+        of it: the studs' net forces there (and the table's press under it), and the brick's own weight shared
         by its cells and the masses resting on those cells (times the load
         factor).  Shear in the joint planes is left out.  Returns the sections
         as (brick index, net columns, coefficients, weight moment, utilisation
@@ -975,6 +976,14 @@ class _Model:
             signs.append(np.ones(len(gi)))
             owner.append(self.lab[gi, gj, 0])
             xy.append(self.origin[:2] + (np.stack([gi, gj], 1) + 0.5) * self.cell[:2])
+        table = parts.get("table")
+        if table is not None and len(table["cols"]):
+            # the table presses up on the bottom of the bricks it carries
+            pts, _ = self._table_points()
+            cols.append(table["cols"])
+            signs.append(np.ones(len(table["cols"])))
+            owner.append(self._point_brick[table["index"]])
+            xy.append(pts[table["index"], :2])
         cols, signs, owner, xy = (np.concatenate(v) for v in (cols, signs, owner, xy))
         order = np.argsort(owner, kind="stable")
         cols, signs, owner, xy = cols[order], signs[order], owner[order], xy[order]

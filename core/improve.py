@@ -100,6 +100,9 @@ EFFORT_LEVELS = {
                                          (6, 6, 6)), 0.4, 2500, 2500, 1000, 20.0),
 }
 
+#: Windows times bricks one improvement may spend (each window judges the whole layout).
+MAX_WORK = 2_500_000
+
 #: Objective weights of the window program: per brick, per leaf (a brick
 #: hanging from one neighbour), per island (a brick touching nothing above
 #: or below), per brick side cell on a seam of a fixed brick below or above.
@@ -168,6 +171,9 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     ``layout`` again on the full key should that end worse than ``layout``."""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
+    # every window re-judges the whole layout's graph: on big builds fewer windows, so that
+    # the effort stays seconds (the 1 m cube's 22,652 bricks: 1,000 windows took 121 s)
+    budget = min(budget, max(1, int(MAX_WORK / max(len(layout.bricks), 1))))
     search = _Search(layout, parts, seed, frozen, apart, failing_joints)
     start = search.key
     search.count_weak(False)
