@@ -241,6 +241,20 @@ def _first(key0, key1, ids, a, b):
     return key0[a] < key0[b] or (key0[a] == key0[b] and key1[a] < key1[b])
 
 
+@njit(cache=True, inline="always")
+def _push(key0, key1, ids, size, layer, rank, unit):
+    """Put ``unit`` with key (``layer``, ``rank``) on the heap of ``size`` slots; the new size."""
+    key0[size], key1[size], ids[size] = layer, rank, unit
+    c = size
+    while c > 0 and _first(key0, key1, ids, c, (c - 1) // 2):
+        p = (c - 1) // 2
+        key0[c], key0[p] = key0[p], key0[c]
+        key1[c], key1[p] = key1[p], key1[c]
+        ids[c], ids[p] = ids[p], ids[c]
+        c = p
+    return size + 1
+
+
 @njit(cache=True)
 def _order_units(k0, rank, is_part, need_below, up_ptr, up_idx, down_ptr, down_idx,
                  out, flags):
@@ -260,15 +274,7 @@ def _order_units(k0, rank, is_part, need_below, up_ptr, up_idx, down_ptr, down_i
     for v in range(count):
         if k0[v] == 0 and not queued[v] and (not is_part[v] or below_done[v] == need_below[v]):
             queued[v] = True
-            key0[size], key1[size], ids[size] = k0[v], rank[v], v
-            c = size
-            size += 1
-            while c > 0 and _first(key0, key1, ids, c, (c - 1) // 2):
-                p = (c - 1) // 2
-                key0[c], key0[p] = key0[p], key0[c]
-                key1[c], key1[p] = key1[p], key1[c]
-                ids[c], ids[p] = ids[p], ids[c]
-                c = p
+            size = _push(key0, key1, ids, size, k0[v], rank[v], v)
     n = 0
     while n < count:
         if size > 0:
@@ -318,15 +324,7 @@ def _order_units(k0, rank, is_part, need_below, up_ptr, up_idx, down_ptr, down_i
                 if not queued[w] and not placed[w] and attaches \
                         and (not is_part[w] or below_done[w] == need_below[w]):
                     queued[w] = True
-                    key0[size], key1[size], ids[size] = k0[w], rank[w], w
-                    c = size
-                    size += 1
-                    while c > 0 and _first(key0, key1, ids, c, (c - 1) // 2):
-                        p = (c - 1) // 2
-                        key0[c], key0[p] = key0[p], key0[c]
-                        key1[c], key1[p] = key1[p], key1[c]
-                        ids[c], ids[p] = ids[p], ids[c]
-                        c = p
+                    size = _push(key0, key1, ids, size, k0[w], rank[w], w)
     return n
 
 

@@ -55,7 +55,6 @@ the known answers.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
