@@ -367,10 +367,11 @@ def test_stale_scratch_folders_of_dead_runs_are_removed(tmp_path):
 def test_a_second_run_into_the_same_output_is_refused_and_the_first_stays_whole(box_stl, tmp_path,
                                                                                 capsys):
     big = tmp_path / "big.stl"
-    trimesh.creation.box((400, 400, 200)).export(big)
+    trimesh.creation.box((200, 200, 100)).export(big)
     out = tmp_path / "out"
     first = subprocess.Popen([sys.executable, "-m", "core", "fabricate", str(big), "--out",
-                              str(out), "--no-picture"], cwd=ROOT, stdout=subprocess.PIPE,
+                              str(out), "--no-picture", "--effort", "fast"], cwd=ROOT,
+                             stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     try:
         line = first.stderr.readline()          # the first progress line: the lock is held
@@ -382,7 +383,7 @@ def test_a_second_run_into_the_same_output_is_refused_and_the_first_stays_whole(
     assert first.returncode == 0, stderr
     doc = json.loads((out / "report.json").read_text())
     assert sorted(p.name for p in out.iterdir()) == sorted(doc["outputs"])
-    assert doc["plates"] == 50 * 50 * 63          # 400 / 8 and 200 / 3.2 rounded up
+    assert doc["plates"] == 25 * 25 * 32          # 200 / 8 and 100 / 3.2 rounded up
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.stl", "box.stl", "out"]
 
 
