@@ -54,7 +54,7 @@ test: $(VENV)/.installed
 	$(MAKE) --no-print-directory test-freecad1
 
 test-core: $(VENV)/.installed
-	$(PY) -m pytest tests/core -q
+	$(PY) -m pytest tests/core -q --durations=15
 
 # --- FreeCAD 1.x: a Debian 13 (trixie) root made with debootstrap, beside the host's apt
 # sources (which stay Debian 12); built once into FREECAD1_ROOT, the suites run on a copy
