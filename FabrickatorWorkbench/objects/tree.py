@@ -471,6 +471,11 @@ def _sync_layers(fab, by_layer: dict, made: list, grid: Grid) -> list:
     """One group per occupied layer holding its bricks (labelled with the layer's
     bottom z in ``grid``); empty layer groups removed."""
     groups = {g.Layer: g for g in layer_groups(fab)}
+    # a brick that moves to another layer must leave its old group before it joins the new
+    # one (FreeCAD: "Object can only be in a single Group"), so changed groups empty first
+    for k, group in groups.items():
+        if list(group.Group) != by_layer.get(k, []):
+            group.Group = []
     out = []
     for k in sorted(by_layer):
         group = groups.pop(k, None)

@@ -526,6 +526,10 @@ def test_every_shared_model_is_covered():
     assert present == set(LOADABLE)
 
 
+#: The shared models CATALOG.md lists as open surfaces whose holes the repair cannot fill.
+OPEN_MODELS = {"relativty_eyes_panel_open.stl", "stanford_bunny_open.obj", "utah_teapot_open.stl"}
+
+
 @pytest.mark.parametrize("name", LOADABLE)
 def test_shared_model_loads(name):
     path = models_or_skip() / name
@@ -535,7 +539,9 @@ def test_shared_model_loads(name):
     assert model.mesh.volume > 0
     assert (model.brep is not None) == (model.format in ("step", "fcstd"))
     if name != "broken_shared_edge_cubes.stl":
-        assert model.warnings == []
+        # the open scans (CATALOG.md: NOT watertight) say so in one warning, the others none
+        open_scan = [w for w in model.warnings if w.startswith("the surface is not closed")]
+        assert len(open_scan) == (name in OPEN_MODELS) and model.warnings == open_scan
 
 
 def test_triangle_soup_is_refused():
