@@ -169,8 +169,15 @@ class TestStressReopens(GuiTestCase):
 
         from FabrickatorWorkbench.viewproviders import stress
 
+        from FabrickatorWorkbench.commands.load import load_target
+
         f = fab().make_fabrication(l_shape(self.doc), slice_print_times=False)
         f.Ground = "baseplate"
+        self.doc.recompute()
+        # where Add load puts a load: the selected bricks, else the top layer
+        plate = [b for b in fab().bricks(f) if b.Cell[2] == 3]
+        self.assertEqual(load_target(f, plate), plate)
+        self.assertEqual(load_target(f, [f]), plate)
         fab().make_load(self.doc, f, TIP, 1000)
         self.doc.recompute()
         self.assertFalse(f.Stands, f.Forces)
