@@ -156,9 +156,9 @@ def mark_high_res(fab, box=None, boxes=(), solid=None, faces=None, bricks=(), la
 def make_load(doc, fab, where, grams: float, label: str | None = None):
     """A new Load of ``fab`` in ``doc``: ``grams`` resting on the bricks ``where`` touches.
 
-    ``where`` is a box (X0, Y0, Z0, X1, Y1, Z1) in the Source's mm, a
+    ``where`` is a box, a tuple (X0, Y0, Z0, X1, Y1, Z1) in the Source's mm; a
     ``Part.Shape`` or an object with one (its bounding box: a phone modelled
-    in the document), or a list of brick objects or brick ids of the current
+    in the document); or a list of brick objects or brick ids of the current
     layout (the box around them).  The Load is listed in the Fabrication's
     ``Loads`` and touches it; recompute to check the forces with it.  Raises
     ValueError for a mass not above 0 g or an empty box.
@@ -192,12 +192,17 @@ def _load_box(fab, where) -> tuple[tuple, tuple]:
             raise ValueError("the load's shape is empty")
         b = shape.BoundBox
         return (b.XMin, b.YMin, b.ZMin), (b.XMax, b.YMax, b.ZMax)
-    values = list(where)
-    if len(values) == 6 and all(isinstance(v, (int, float)) for v in values):
-        values = [float(v) for v in values]
+    if isinstance(where, tuple):
+        if len(where) != 6:
+            raise ValueError(f"a load's box is six numbers X0,Y0,Z0,X1,Y1,Z1, not {where!r}")
+        values = [float(v) for v in where]
         return (tuple(min(values[n], values[n + 3]) for n in range(3)),
                 tuple(max(values[n], values[n + 3]) for n in range(3)))
-    boxes = brick_boxes(fab, values)
+    try:
+        boxes = brick_boxes(fab, list(where))
+    except (AttributeError, KeyError, TypeError, ValueError):
+        raise ValueError(f"make_load: {where!r} are not bricks of {fab.Label}'s layout (a box "
+                         f"is a tuple X0,Y0,Z0,X1,Y1,Z1)") from None
     if not boxes:
         raise ValueError("make_load needs a box, a shape or bricks")
     return (tuple(min(b[n] for b in boxes) for n in range(3)),

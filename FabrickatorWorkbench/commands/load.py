@@ -34,24 +34,25 @@ class AddLoad(Command):
             add_load(fab, where, grams)
 
 
-def load_target(fab, selection) -> list | object:
+def load_target(fab, selection):
     """Where a new load of ``fab`` goes (``where`` of :func:`make.make_load`): the selected
     bricks of ``fab`` and the bricks of its selected printed parts, else a selected solid
     that is not Fabrickator's (its bounding box), else the bricks of the top layer."""
-    ids = []
+    bricks = make.bricks(fab)
+    by_id = {int(b.BrickId): b for b in bricks}
+    chosen = []
     for obj in selection:
         if role(obj) == BRICK_ROLE and make.fabrication_of(obj) == fab:
-            ids.append(int(obj.BrickId))
+            chosen.append(obj)
         elif role(obj) == "PrintedPart" and make.fabrication_of(obj) == fab:
-            ids += [int(i) for i in obj.BrickIds]
-    if ids:
-        return ids
+            chosen += [by_id[int(i)] for i in obj.BrickIds if int(i) in by_id]
+    if chosen:
+        return chosen
     for obj in selection:
         if role(obj) is None and bridge.source_kind(obj) == "shape":
             return obj
-    bricks = make.bricks(fab)
     top = max(b.Cell[2] + b.Size[2] for b in bricks)
-    return [int(b.BrickId) for b in bricks if b.Cell[2] + b.Size[2] == top]
+    return [b for b in bricks if b.Cell[2] + b.Size[2] == top]
 
 
 def add_load(fab, where, grams: float):

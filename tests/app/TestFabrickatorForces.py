@@ -1,7 +1,9 @@
 """App tests (freecadcmd) of the force check in the workbench (issue 14): Load objects, the
 Fabrication's Ground and Clutch, and the same verdict as the command line.
 
-    freecadcmd -u TMPDIR/user.cfg -t TestFabrickatorForces --module-path=REPO
+    freecadcmd -u TMPDIR/user.cfg -t TestFabrickatorApp.TestLoads --module-path=REPO
+
+(``make test-app`` runs them: TestFabrickatorApp imports this module.)
 
 The part is an L: a 16 x 16 x 9.6 mm block (a 2x2 brick) with a 48 x 16 x 3.2 mm
 arm on top (a 2x6 plate reaching 32 mm past the block), on a baseplate.  A
@@ -138,12 +140,19 @@ class TestLoads(FabrickatorTestCase):
         load = fab.make_load(self.doc, f, phone, 170)
         self.assertAlmostEqual(load.Shape.BoundBox.XMin, 5.0, delta=1e-9)
         self.assertAlmostEqual(load.Shape.Volume, 1500.0, delta=1e-6)
+        # six brick ids are bricks, not a box
+        every = fab.make_load(self.doc, f, [b.BrickId for b in fab.bricks(f)], 10)
+        self.assertEqual(len(fab.bricks(f)), 6)
+        self.assertAlmostEqual(every.Shape.BoundBox.ZMax, 19.2, delta=0.01)
+        self.assertAlmostEqual(every.Shape.BoundBox.XMax - every.Shape.BoundBox.XMin, 40.0, delta=0.01)
+        with self.assertRaises(ValueError):
+            fab.make_load(self.doc, f, [0.0, 0.0, 0.0, 8.0, 8.0, 8.0], 10)
         for grams in (0, -5, float("nan")):
             with self.assertRaises(ValueError):
                 fab.make_load(self.doc, f, phone, grams)
         self.doc.recompute()
         self.assertTrue(f.Status.startswith("ok"), f.Status)
-        self.assertAlmostEqual(sum(x["grams"] for x in force(f)["loads"]), 190.0)
+        self.assertAlmostEqual(sum(x["grams"] for x in force(f)["loads"]), 200.0)
 
     def test_adding_a_load_is_one_undo_step(self):
         f = self.computed()

@@ -713,4 +713,4 @@ from TestFabrickatorLook import TestLook  # noqa: E402,F401
 from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
 from TestFabrickatorInstallGui import TestInstallInTheGui  # noqa: E402,F401
-from TestFabrickatorStress import TestStress  # noqa: E402,F401
+from TestFabrickatorStress import TestStress, TestStressReopens  # noqa: E402,F401

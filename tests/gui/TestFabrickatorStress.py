@@ -158,3 +158,46 @@ class TestStress(GuiTestCase):
         self.assertEqual(sorted(o.Name for o in self.doc.Objects), names)
         self.assertEqual(f.ReportJson, report_json)
         self.assertEqual(fab().loads(f), loads)
+
+
+class TestStressReopens(GuiTestCase):
+    def test_a_document_saved_in_the_stress_mode_reopens_in_it(self):
+        import sys
+
+        sys.path.insert(0, str(ROOT / "tests" / "app"))
+        from TestFabrickatorForces import TIP, l_shape
+
+        from FabrickatorWorkbench.viewproviders import stress
+
+        from FabrickatorWorkbench.commands.load import load_target
+
+        f = fab().make_fabrication(l_shape(self.doc), slice_print_times=False)
+        f.Ground = "baseplate"
+        self.doc.recompute()
+        # where Add load puts a load: the selected bricks, else the top layer
+        plate = [b for b in fab().bricks(f) if b.Cell[2] == 3]
+        self.assertEqual(load_target(f, plate), plate)
+        self.assertEqual(load_target(f, [f]), plate)
+        fab().make_load(self.doc, f, TIP, 1000)
+        self.doc.recompute()
+        self.assertFalse(f.Stands, f.Forces)
+        f.ViewObject.DisplayMode = "Stress"
+        settle()
+        path = str(self.tmp / "stress.FCStd")
+        self.doc.saveAs(path)
+        App.closeDocument(self.doc.Name)
+        self.doc = App.openDocument(path)
+        settle()
+        f = fab().fabrications(self.doc)[0]
+        self.assertEqual(f.ViewObject.DisplayMode, "Stress")
+        self.assertEqual([type(x.ViewObject.Proxy).__name__ for x in fab().loads(f)],
+                         ["ViewProviderLoad"])
+        util = {int(k): (float("inf") if v is None else v)
+                for k, v in fab().report(f)["stability"]["force"]["utilisation"].items()}
+        for b in fab().bricks(f):
+            self.assertTrue(b.ViewObject.OverrideMaterial, b.Label)
+            shown = tuple(round(c, 3) for c in b.ViewObject.ShapeMaterial.DiffuseColor[:3])
+            self.assertEqual(shown, tuple(round(c, 3) for c in stress.colour(util[b.BrickId])))
+        f.ViewObject.DisplayMode = "Normal"
+        settle()
+        self.assertFalse(any(b.ViewObject.OverrideMaterial for b in fab().bricks(f)))
