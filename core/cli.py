@@ -175,7 +175,9 @@ def main(argv: list[str] | None = None) -> int:
                "stability": _stability}.get(args.command, _fabricate)
     try:
         with _stop_signals():
-            return command(args)
+            status = command(args)
+        sys.stdout.flush()                          # a closed pipe shows here, not at exit
+        return status
     except BrokenPipeError:                         # stdout piped into a reader that quit
         with contextlib.suppress(OSError, ValueError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -4,13 +4,15 @@
 # The host's CA certificates and pip configuration are copied in, so pip inside the
 # root reaches the same package registries as the host.
 #   usage: tools/freecad1/root.sh ROOT
-# Idempotent: a finished root has ROOT/.fabrickator-root and is left as it is.
+# Idempotent: a finished root has ROOT/.fabrickator-root (holding its package list) and is
+# left as it is while that list is unchanged; a new package is installed into it.
 set -eu
 ROOT=${1:?usage: root.sh ROOT}
 MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
-PKGS="freecad python3-venv python3-pip xvfb xauth ca-certificates prusa-slicer make git"
+# e2fsprogs: chattr, for the hostile tests of files that cannot be deleted
+PKGS="freecad python3-venv python3-pip xvfb xauth ca-certificates prusa-slicer make git e2fsprogs"
 STAMP="$ROOT/.fabrickator-root"
-[ -e "$STAMP" ] && exit 0
+[ -e "$STAMP" ] && [ "$(cat "$STAMP")" = "$PKGS" ] && exit 0
 [ "$(id -u)" = 0 ] || { echo "root.sh: making a root filesystem needs root (run as root or with sudo)"; exit 2; }
 command -v debootstrap >/dev/null || {
   echo "== installing debootstrap (a bookworm package)"
@@ -38,4 +40,4 @@ if [ -e "$HOME/.config/pip/pip.conf" ]; then
   mkdir -p "$ROOT/root/.config/pip" && cp "$HOME/.config/pip/pip.conf" "$ROOT/root/.config/pip/pip.conf"
 fi
 chroot "$ROOT" freecadcmd --version 2>/dev/null | head -1 || true
-touch "$STAMP"
+echo "$PKGS" >"$STAMP"

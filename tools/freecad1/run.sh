@@ -30,6 +30,8 @@ bind /dev "$ROOT/dev"
 mountpoint -q "$ROOT/dev/shm" || { mount -t tmpfs shm "$ROOT/dev/shm"; mounts="$ROOT/dev/shm $mounts"; }
 [ -d /opt ] && bind /opt "$ROOT/opt" ro
 if [ -d "$SHARED" ]; then bind "$SHARED" "$ROOT/root/shared" ro; fi
+# the hostile tests run the CLI as user nobody from the copy: /root is 700 in a fresh root
+chmod 755 "$ROOT/root"
 rm -rf "$ROOT/root/$COPY"
 mkdir -p "$ROOT/root/$COPY"
 tar -C "$REPO" --exclude=./.venv --exclude=./demo-out --exclude=./bench/out --exclude=./.apt.stamp \
