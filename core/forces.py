@@ -290,6 +290,9 @@ class _Program:
         h.setOptionValue("output_flag", False)
         h.setOptionValue("threads", 1)
         h.setOptionValue("solver", "simplex" if simplex else "ipm")
+        # the interior point's own answer is enough (a vertex is not needed): crossover to
+        # one took 40 % of the time on a 1,474-brick layout
+        h.setOptionValue("run_crossover", "choose")
         if simplex:
             h.setOptionValue("simplex_strategy", 4)         # primal: warm starts after bound changes
         lp = highspy.HighsLp()
@@ -772,17 +775,18 @@ class _Model:
 
     def _vertical(self, prog, eq, pts, valid, upper_b, lower_b, pull_ok, detail, zcap):
         """Vertical forces at the contact points ``pts`` of each stud, on the upper body (the
-        lower one, None for the baseplate, takes the opposite): a column at every point,
-        pressing above 0, which may pull (go below 0) where the stud clamps: down to minus the clutch
-        (phase 1), or to minus the clutch times its joint's utilisation z (phase 2: one z per
-        pair of bodies).
+        lower one, None for the baseplate, takes the opposite), pressing above 0; where the
+        stud clamps a point may pull (go below 0): down to minus the clutch (phase 1), or to
+        minus the clutch times its joint's utilisation z (phase 2: one z per pair of bodies).
+        In phase 2 a point's force is ``w - clutch * z`` with ``w >= 0``, so that the bound
+        needs no row of its own.
         Each stud's net force is a column of its own (the bending rows use it)."""
         m = len(upper_b)
         cp = np.flatnonzero(valid.ravel())
         stud = cp // 4
         p = pts.reshape(-1, 3)[cp]
         pulls = pull_ok[stud]
-        lower = np.where(pulls, -np.inf if detail else -self.clutch, 0.0)
+        lower = 0.0 if detail else np.where(pulls, -self.clutch, 0.0)
         v = prog.columns(len(cp), lower, np.inf)               # up on the upper body: press > 0
         up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (len(cp), 3))
         ones = np.ones(len(cp))
@@ -800,9 +804,12 @@ class _Model:
             keys, joint = np.unique(pair, return_inverse=True)
             z = prog.columns(len(keys), 0.0, zcap, 1.0)
             at = np.flatnonzero(pulls)
-            rows = prog.new_rows(len(at), 0.0, np.inf)         # v + clutch z >= 0
-            prog.put(rows, v[at], 1.0)
-            prog.put(rows, z[joint[stud[at]]], self.clutch)
+            zcol = z[joint[stud[at]]]
+            pull = -self.clutch * np.ones(len(at))
+            self._moment_rows(prog, eq, upper_b[stud[at]], p[at], up[at], zcol, pull)
+            if lower_b is not None:
+                self._moment_rows(prog, eq, lower_b[stud[at]], p[at], up[at], zcol, -pull)
+            prog.put(rows[stud[at]], zcol, self.clutch)
             out.update(z=z, joint=joint)
         return out
 
@@ -990,6 +997,7 @@ class _Model:
         starts = np.searchsorted(owner, np.arange(len(bricks) + 1))
         sections = []
         scale = 1000.0 / G / self.unit                      # N mm -> grams-force studs
+        bound = zcap if detail else 1.0
         for idx, b in enumerate(bricks):
             if b.part not in MASS_G or not self.held[self.body_of[idx]] or max(b.size[:2]) < 2:
                 continue
@@ -1009,14 +1017,19 @@ class _Model:
                     share = (length - cut) / length
                     weight = MASS_G[b.part] * share * (length - cut) * self.cell[axis] / 2
                     weight += sum(g * (xyz[axis] - at) for xyz, g in extra if xyz[axis] > at)
-                    coef = sg[far] * (p[far, axis] - at) / strength
-                    rows = prog.new_rows(2, -np.inf, 0.0 if detail else 1.0)
-                    for r, s in zip(rows, (1.0, -1.0)):
-                        prog.put(np.full(len(coef), r), c[far], s * coef)
-                        prog.put(r, factor, -s * weight / strength)
-                        if detail:
-                            prog.put(r, util, -1.0)
-                    sections.append((idx, c[far], coef, weight / strength, util, rows))
+                    arm = sg[far] * (p[far, axis] - at)
+                    # the section's moment: a column within the strength (phase 1) or within
+                    # the strength times the brick's utilisation column (phase 2), one row
+                    moment = prog.columns(1, -bound * strength, bound * strength)[0]
+                    rows = prog.new_rows(1, 0.0, 0.0)
+                    prog.put(np.full(len(arm), rows[0]), c[far], arm)
+                    prog.put(rows[0], factor, -weight)
+                    prog.put(rows[0], moment, -1.0)
+                    if detail:
+                        limits = prog.new_rows(2, -np.inf, 0.0)      # +-moment - util <= 0
+                        prog.put(limits, moment, [1.0, -1.0])
+                        prog.put(limits, util, -strength)
+                    sections.append((idx, c[far], arm / strength, weight / strength, util, rows))
         return sections
 
     # -- verdict -------------------------------------------------------------------------------
