@@ -129,21 +129,22 @@ def interior(filled: np.ndarray, studs: int, layers: int) -> np.ndarray:
                                   cval=0).view(bool) & filled
 
 
-def pillar_columns(shape) -> np.ndarray:
-    """(nx, ny) bool: the columns of the pillar lattice."""
-    i = np.arange(shape[0]) % PILLAR_PITCH < PILLAR_STUDS
-    j = np.arange(shape[1]) % PILLAR_PITCH < PILLAR_STUDS
+def pillar_columns(shape, phase=(0, 0)) -> np.ndarray:
+    """(nx, ny) bool: the columns of the pillar lattice, whose first column is at index
+    ``-phase`` (a grid cropped from a bigger one by ``phase`` cells keeps its pillars)."""
+    i = (np.arange(shape[0]) + int(phase[0])) % PILLAR_PITCH < PILLAR_STUDS
+    j = (np.arange(shape[1]) + int(phase[1])) % PILLAR_PITCH < PILLAR_STUDS
     return i[:, None] & j[None, :]
 
 
-def hollow(grid: Grid, studs: int = SHELL_STUDS, keep: np.ndarray | None = None
-           ) -> tuple[Grid, int, int]:
+def hollow(grid: Grid, studs: int = SHELL_STUDS, keep: np.ndarray | None = None,
+           phase=(0, 0)) -> tuple[Grid, int, int]:
     """The grid of the cells to keep with a ``studs``-thick shell (see the module
     docstring), with the number of pillar cells and of ``keep`` cells kept that
-    would otherwise go.  ``grid`` is not changed."""
+    would otherwise go; ``phase`` as :func:`pillar_columns`.  ``grid`` is not changed."""
     filled = np.asarray(grid.filled, dtype=bool)
     inner = interior(filled, studs, layers_for(studs, grid.cell))
-    pillars = inner & pillar_columns(filled.shape)[:, :, None]
+    pillars = inner & pillar_columns(filled.shape, phase)[:, :, None]
     gone = inner & ~pillars
     kept_solid = 0
     if keep is not None:
@@ -155,8 +156,10 @@ def hollow(grid: Grid, studs: int = SHELL_STUDS, keep: np.ndarray | None = None
     return out, int(np.count_nonzero(pillars)), kept_solid
 
 
-def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None) -> Hollowing:
-    """Apply the hollow ``setting`` to ``grid`` (``keep``: cells that stay solid).
+def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None,
+           phase=(0, 0)) -> Hollowing:
+    """Apply the hollow ``setting`` to ``grid`` (``keep``: cells that stay solid; ``phase``
+    of the pillars as :func:`pillar_columns`).
 
     -1: hollow with a :data:`SHELL_STUDS` shell when the part has at least
     :data:`AUTO_MIN_CELLS` cells and that keeps at most :data:`AUTO_KEEP_SHARE`
@@ -172,7 +175,7 @@ def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None) -> Hol
         return Hollowing(grid, setting, 0, 0, solid, solid, 0, 0,
                          f"kept solid: {solid:,} cells, automatic hollowing starts at "
                          f"{AUTO_MIN_CELLS:,}")
-    out, pillars, kept_solid = hollow(grid, studs, keep)
+    out, pillars, kept_solid = hollow(grid, studs, keep, phase)
     kept = out.count
     layers = layers_for(studs, grid.cell)
     share = kept / max(solid, 1)
@@ -217,3 +220,22 @@ def compared(h: Hollowing, solid: Grid, bricks_hollow: int, bricks_solid: int) -
                      f"{bricks_solid:,} (automatic hollowing needs it to save more than a third; "
                      f"a shell of an uneven part is all small bricks); --hollow builds it hollow",
                      bricks_hollow, bricks_solid)
+
+
+def as_before(grid: Grid, studs: int, setting: int, keep: np.ndarray | None,
+              phase) -> Hollowing:
+    """A new version of a part hollowed as its previous version was: its ``studs``-thick
+    shell (0: solid), unless the request's ``setting`` asks otherwise (0 solid, n studs;
+    -1 keeps the previous thickness).  The pillars keep the previous lattice (``phase``:
+    previous index = index + phase), so that unchanged cells stay unchanged."""
+    setting = check_setting(setting)
+    use = studs if setting < 0 else setting
+    if use == 0:
+        return Hollowing(grid, 0, 0, 0, grid.count, grid.count, 0, 0,
+                         "kept solid, as the previous version" if setting < 0 else
+                         "kept solid (--hollow=0)")
+    out = decide(grid, use, keep, phase)
+    if setting < 0:
+        out = dataclasses.replace(out, setting=-1, why=out.why.replace(
+            "hollowed as asked", "hollowed as the previous version"))
+    return out

@@ -65,7 +65,8 @@ from scipy import ndimage
 from core import align as align_stage
 from core import connectors as connectors_stage
 from core import diff as diff_stage
-from core import high_res, layout as layout_stage, mesh_io, printed as printed_stage
+from core import high_res, hollow as hollow_stage, layout as layout_stage, mesh_io
+from core import printed as printed_stage
 from core import stability as stability_stage
 from core.interfaces import Fit
 from core.catalog import BY_NUMBER, Part
@@ -144,10 +145,17 @@ def moved(alignment: align_stage.Alignment) -> bool:
     return not np.allclose(alignment.transform, np.eye(4), atol=1e-6)
 
 
-def legofy_on(previous: Previous, model: mesh_io.LoadedModel) -> diff_stage.CellDiff:
-    """Step 2: the aligned ``model`` legofied on the previous lattice, diffed on the cells."""
+def legofy_on(previous: Previous, model: mesh_io.LoadedModel, hollow_setting: int = -1,
+              regions: high_res.Regions | None = None
+              ) -> tuple[diff_stage.CellDiff, hollow_stage.Hollowing]:
+    """Step 2: the aligned ``model`` legofied on the previous lattice, hollowed as the
+    previous version was (:func:`core.hollow.as_before`: ``hollow_setting`` is the
+    request's, the cells of ``regions`` stay solid), diffed on the cells."""
     grid, offset = diff_stage.legofy_on(previous.grid, model.mesh, model.watertight)
-    return diff_stage.cell_diff(previous.grid, grid, offset)
+    keep = regions.cells(grid) if regions else None
+    hollowing = hollow_stage.as_before(grid, previous.shell_studs, hollow_setting, keep,
+                                       offset[:2])
+    return diff_stage.cell_diff(previous.grid, hollowing.grid, offset), hollowing
 
 
 def previous_regions(previous: Previous) -> high_res.Regions:

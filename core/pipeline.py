@@ -132,7 +132,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        on the previous lattice, diffed with it (:func:`core.iterate.legofy_on`).
        Fresh, the grid's size is checked before (:func:`core.voxelize.check_size`),
        and then **hollow** keeps a shell, its pillars and the high-res cells
-       (:func:`core.hollow.decide`, the request's ``hollow``; not when iterating).
+       (:func:`core.hollow.decide`, the request's ``hollow``; when iterating, as the
+       previous version was, :func:`core.hollow.as_before`).
     3. **high_res**: the regions mark cells (:meth:`core.high_res.Regions.cells`;
        iterating, the previous run's regions too when ``previous_regions``),
        and unless ``connectors`` is off, anchor tabs are added
@@ -218,10 +219,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         grid = hollowing.grid
         voxelize.check_cells(grid.count, req.hollow)
     else:
-        diff = timed("legofy", 0.2, iterate_stage.legofy_on, before, model)
-        grid = diff.grid
         if req.previous_regions:
             regions = iterate_stage.previous_regions(before) + regions
+        diff, hollowing = timed("legofy", 0.2, iterate_stage.legofy_on, before, model, req.hollow,
+                                regions)
+        grid = diff.grid
 
     def fresh_layout(grid_: Grid, name: str, span=(0.4, 0.6)):
         marked_ = timed("high_res", 0.3, regions.cells, grid_)
@@ -627,7 +629,8 @@ def report(fab: Fabrication) -> dict:
 
 def hollow_report(fab: Fabrication) -> dict | None:
     """The ``hollow`` block of the report: what the hollow stage did (:mod:`core.hollow`) and
-    the bricks and assembly time with and without hollowing, None for an iteration.
+    the bricks and assembly time with and without hollowing (an iteration hollows as its
+    previous version: :func:`core.hollow.as_before`).
 
     A hollowed run gives the solid part's bricks as laid out when the driver
     compared both (:func:`core.hollow.compared`), else as a lower bound: no

@@ -75,6 +75,7 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
         "regions": {"boxes": [np.asarray(b, dtype=float).tolist() for b in fab.regions.boxes],
                     "solids_closed": [bool(c) for _, c in fab.regions.solids]},
         "printed": records,
+        "hollow_studs": fab.hollowing.studs if fab.hollowing is not None else 0,
     }
     (out / "state.json").write_text(json.dumps(state))
     return out
@@ -134,6 +135,12 @@ class Previous:
     @property
     def weak_points(self) -> set[int]:
         return set(self.state["stability"]["weak_points"])
+
+    @property
+    def shell_studs(self) -> int:
+        """The shell thickness (studs) the previous layout's cells were hollowed with, 0
+        for solid (and for snapshots written before hollowing was recorded)."""
+        return int(self.state.get("hollow_studs", 0))
 
     @property
     def extra_components(self) -> int:

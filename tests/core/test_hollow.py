@@ -196,3 +196,29 @@ def test_the_layout_stage_reports_progress_through_the_pipeline(box_stl):
     assert inside and all(0.4 <= f <= 0.6 for f, _ in inside)
     assert any("merging plates" in m for _, m in inside)
     assert names.index("layout") < names.index(inside[0][1]) < names.index("stability")
+
+
+def test_a_new_version_of_a_hollowed_part_is_hollowed_as_before(box_stl, tmp_path):
+    """Iterating on a hollowed output hollows the new version with the same shell and the
+    same pillar lattice, so only the cells near the edit change.  By hand: a notch of
+    2 x 2 cells x 5 layers cut from a top corner of the 20 x 20 x 20-cell box takes 20
+    cells, and the 20 interior cells within 2 studs and 5 layers of it (i, j 16..17,
+    k 10..14; no pillar there) join the shell: 5,480 cells kept, as before the edit."""
+    from core import result
+    fab = pipeline.run(box_stl, slice_parts=False, hollow=2)
+    result.snapshot(fab, tmp_path / "previous")
+    notch = trimesh.creation.box((16.0, 16.0, 16.0))
+    notch.apply_translation((72.0, 72.0, 24.0))
+    notched = trimesh.boolean.difference([trimesh.creation.box((160.0, 160.0, 64.0)), notch],
+                                         engine="manifold")
+    path = tmp_path / "notched.stl"
+    notched.export(path)
+    again = pipeline.run(path, previous=tmp_path / "previous", slice_parts=False)
+    assert again.iteration is not None
+    assert again.hollowing.on and again.hollowing.studs == 2
+    assert "as the previous version" in again.hollowing.why
+    assert again.grid.count == 5480
+    diff = again.iteration.diff
+    assert int(np.count_nonzero(diff.added)) == 20 and len(diff.removed) == 20
+    solid = pipeline.run(path, previous=tmp_path / "previous", slice_parts=False, hollow=0)
+    assert solid.grid.count == 8000 - 20 and not solid.hollowing.on
