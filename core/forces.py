@@ -390,6 +390,17 @@ class BuildChecker:
         self._hangs[np.unique(upper[(lower < 0) & (upper >= 0)])] = True
         self._grounded = np.zeros(len(layout.bricks), dtype=bool)
         self._grounded[np.unique(lab[:, :, 0][lab[:, :, 0] >= 0])] = True
+        n = len(layout.bricks)
+        by_upper = sparse.csr_matrix((np.ones(len(self._pairs)), (self._pairs[:, 1], self._pairs[:, 0])),
+                                     shape=(n, n))
+        by_lower = by_upper.T.tocsr()
+        self._lowers = np.split(by_upper.indices, by_upper.indptr[1:-1])
+        self._uppers = np.split(by_lower.indices, by_lower.indptr[1:-1])
+        # the bricks of the last set asked about, and in it: pairs whose upper brick is in
+        # and lower one out, and bricks with a cell above nothing (kept step by step)
+        self._last = np.zeros(n, dtype=bool)
+        self._missing = 0
+        self._hanging = 0
         self.solves = 0
         self.fresh = 0
         self._highs = None
@@ -419,13 +430,12 @@ class BuildChecker:
         layout, in its order): inf when some present brick is joined to nothing on the ground."""
         m = self.model
         present = np.asarray(present, dtype=bool)
+        if self._supported(present):
+            return True, 0.0                     # every present cell rests on a present cell
         body_present = np.zeros(m.nbody, dtype=bool)
         body_present[m.body_of[present]] = True
         if not self._held(present):
             return False, math.inf
-        on = present[self._pairs[:, 1]]
-        if not (present & self._hangs).any() and present[self._pairs[on, 0]].all():
-            return True, 0.0                     # every present cell rests on a present cell
         if self._highs is None:
             self._setup()
         self._apply(body_present)
@@ -454,6 +464,24 @@ class BuildChecker:
         self._basis = h.getBasis()
         worst = _worst(float(h.getSolution().col_value[self.factor]))
         return bool(worst <= FAIL_ABOVE), worst
+
+    def _supported(self, present: np.ndarray) -> bool:
+        """Every brick of ``present`` rests on the ground or on bricks of ``present`` under
+        every cell of it (it then stands in pure compression).  Kept up to date brick by
+        brick from the last set asked about: consecutive build prefixes differ by a step,
+        so a 104,488-brick build's 17,643 prefixes cost no more than its bricks."""
+        last = self._last
+        for b in np.flatnonzero(present != last).tolist():
+            lowers, uppers = self._lowers[b], self._uppers[b]
+            if present[b]:
+                self._missing += int(np.count_nonzero(~last[lowers])) - int(np.count_nonzero(last[uppers]))
+                last[b] = True
+                self._hanging += int(self._hangs[b])
+            else:
+                last[b] = False
+                self._missing += int(np.count_nonzero(last[uppers])) - int(np.count_nonzero(~last[lowers]))
+                self._hanging -= int(self._hangs[b])
+        return self._missing == 0 and self._hanging == 0
 
     def _held(self, present: np.ndarray) -> bool:
         """Every present brick joined to the ground through present bricks (printed parts

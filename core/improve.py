@@ -238,7 +238,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
         "greedy": dict(zip(names, before)), "improved": dict(zip(names, after)),
         "failing_joints_counted": failing_joints is not None,
     }
-    variables = lb_stage.placement_count(layout.grid, parts)
+    variables = lb_stage.placement_count(layout.grid, parts,
+                                         stop_above=None if lower_bound else CHEAP_VARIABLES)
     if lower_bound or variables <= CHEAP_VARIABLES:
         limit = LOWER_BOUND_S if lower_bound else max(round(spent, 3), 0.05)
         found = lb_stage.brick_lower_bound(layout.grid, parts, time_limit_s=limit)
@@ -252,8 +253,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     else:
         block["lower_bound"] = {
             "bound": None, "variables": variables,
-            "why": f"not computed: {variables} placements would cost more than the layout; "
-                   "ask for it with --lower-bound"}
+            "why": f"not computed: more than {CHEAP_VARIABLES:,} placements would cost more "
+                   "than the layout; ask for it with --lower-bound"}
     block["seconds"] = seconds
     return block
 

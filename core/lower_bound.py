@@ -70,10 +70,23 @@ def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndar
 
     ``table`` is the summed-volume table of the grid (:func:`_summed_volume`).
     """
+    fits = _fits(table, shape)
+    return np.empty((0, 3), dtype=np.int64) if fits is None else np.argwhere(fits)
+
+
+def fitting_count(table: np.ndarray, shape: tuple[int, int, int]) -> int:
+    """How many boxes of size ``shape`` are made only of filled cells (as
+    :func:`fitting_positions`, without listing them)."""
+    fits = _fits(table, shape)
+    return 0 if fits is None else int(np.count_nonzero(fits))
+
+
+def _fits(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray | None:
+    """Per min corner: the box of size ``shape`` there is all filled (None: it fits nowhere)."""
     nx, ny, nz = (n - 1 for n in table.shape)
     sx, sy, sz = shape
     if sx > nx or sy > ny or sz > nz:
-        return np.empty((0, 3), dtype=np.int64)
+        return None
     mx, my, mz = nx - sx + 1, ny - sy + 1, nz - sz + 1
 
     def corner(a: int, b: int, c: int) -> np.ndarray:
@@ -81,7 +94,7 @@ def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndar
 
     window = (corner(sx, sy, sz) - corner(0, sy, sz) - corner(sx, 0, sz) - corner(sx, sy, 0)
               + corner(0, 0, sz) + corner(0, sy, 0) + corner(sx, 0, 0) - corner(0, 0, 0))
-    return np.argwhere(window == sx * sy * sz)
+    return window == sx * sy * sz
 
 
 def _placements(filled: np.ndarray, shapes: list[tuple[int, int, int]]):
@@ -254,9 +267,17 @@ def _solve_region(indptr, rows, n_rows: int, deadline: float):
     return bound, incumbent, False
 
 
-def placement_count(grid: Grid, parts: tuple[Part, ...] = CATALOG) -> int:
-    """The number of variables of the lower bound's program (placements that fit)."""
-    return _placements(np.asarray(grid.filled, dtype=bool), part_shapes(parts))[1]
+def placement_count(grid: Grid, parts: tuple[Part, ...] = CATALOG, stop_above: int | None = None) -> int:
+    """The number of variables of the lower bound's program (placements that fit); once
+    the count passes ``stop_above`` it stops and returns what it has counted so far (more
+    than ``stop_above``): a 1 m cube's 5 million cells fit millions of placements a shape."""
+    table = _summed_volume(np.asarray(grid.filled, dtype=bool))
+    count = 0
+    for shape in part_shapes(parts):
+        count += fitting_count(table, shape)
+        if stop_above is not None and count > stop_above:
+            break
+    return count
 
 
 def brick_lower_bound(grid: Grid, parts: tuple[Part, ...] = CATALOG,

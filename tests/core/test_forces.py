@@ -375,3 +375,30 @@ def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monk
     # a build all in compression needs no program, whatever its size
     tower = layout_of([Brick(n + 1, "3005", (1, 1, 3), (0, 0, 3 * n)) for n in range(12)])
     assert forces.analyse(tower).to_json()["checked"] is True
+
+
+def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
+    """The checker keeps 'every present cell rests on a present cell' up to date brick by
+    brick; asked in any order (prefixes, trials taken back, random sets), its answer is the
+    direct count over all brick pairs."""
+    from core import catalog, layout as layout_stage
+    rng = np.random.default_rng(3)
+    # columns of random heights: every cell rests on a cell, so built bottom up every
+    # prefix is supported
+    filled = np.arange(9)[None, None, :] < rng.integers(1, 10, (6, 5))[:, :, None]
+    lay = layout_stage.lay_out(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled),
+                               catalog.CATALOG, seed=0)
+    checker = forces.BuildChecker(lay)
+    lab = lay.labels()
+    below, above = lab[:, :, :-1].ravel(), lab[:, :, 1:].ravel()
+    n = len(lay.bricks)
+    upward = np.argsort([b.cell[2] for b in lay.bricks], kind="stable")
+    sets = [np.isin(np.arange(n), upward[:m]) for m in range(n + 1)]       # built bottom up
+    sets += [rng.random(n) < rng.random() for _ in range(200)]
+    answers = []
+    for present in sets:
+        on = (above >= 0) & present[np.maximum(above, 0)]
+        direct = not np.any(on & ((below < 0) | ~present[np.maximum(below, 0)]))
+        assert checker._supported(present) == direct
+        answers.append(direct)
+    assert all(answers[:n + 1]) and not all(answers)
