@@ -157,9 +157,10 @@ def hollow(grid: Grid, studs: int = SHELL_STUDS, keep: np.ndarray | None = None,
 
 
 def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None,
-           phase=(0, 0)) -> Hollowing:
+           phase=(0, 0), how: str | None = None) -> Hollowing:
     """Apply the hollow ``setting`` to ``grid`` (``keep``: cells that stay solid; ``phase``
-    of the pillars as :func:`pillar_columns`).
+    of the pillars as :func:`pillar_columns`; ``how`` it was asked for, in the report's
+    sentence: by default "automatically" or "as asked").
 
     -1: hollow with a :data:`SHELL_STUDS` shell when the part has at least
     :data:`AUTO_MIN_CELLS` cells and that keeps at most :data:`AUTO_KEEP_SHARE`
@@ -183,7 +184,7 @@ def decide(grid: Grid, setting: int = -1, keep: np.ndarray | None = None,
         return Hollowing(grid, setting, 0, 0, solid, solid, 0, 0,
                          f"kept solid: a {studs}-stud shell would keep {share:.0%} of the "
                          f"{solid:,} cells (automatic hollowing needs it to save more than a third)")
-    how = "automatically" if setting < 0 else "as asked"
+    how = how or ("automatically" if setting < 0 else "as asked")
     why = (f"hollowed {how}: a {studs}-stud shell ({layers} layers top and bottom) with "
            f"{PILLAR_STUDS}x{PILLAR_STUDS}-stud pillars every {PILLAR_PITCH} studs keeps "
            f"{kept:,} of {solid:,} cells ({share:.0%}); --hollow=0 builds it solid")
@@ -228,14 +229,10 @@ def as_before(grid: Grid, studs: int, setting: int, keep: np.ndarray | None,
     shell (0: solid), unless the request's ``setting`` asks otherwise (0 solid, n studs;
     -1 keeps the previous thickness).  The pillars keep the previous lattice (``phase``:
     previous index = index + phase), so that unchanged cells stay unchanged."""
-    setting = check_setting(setting)
-    use = studs if setting < 0 else setting
-    if use == 0:
-        return Hollowing(grid, 0, 0, 0, grid.count, grid.count, 0, 0,
-                         "kept solid, as the previous version" if setting < 0 else
-                         "kept solid (--hollow=0)")
-    out = decide(grid, use, keep, phase)
-    if setting < 0:
-        out = dataclasses.replace(out, setting=-1, why=out.why.replace(
-            "hollowed as asked", "hollowed as the previous version"))
-    return out
+    if check_setting(setting) >= 0:
+        return decide(grid, setting, keep, phase)
+    if studs == 0:
+        return Hollowing(grid, -1, 0, 0, grid.count, grid.count, 0, 0,
+                         "kept solid, as the previous version")
+    return dataclasses.replace(decide(grid, studs, keep, phase, "as the previous version"),
+                               setting=-1)
