@@ -344,6 +344,8 @@ def _summary(doc: dict, out) -> None:
         for topple in force.get("topples", ()):
             sys.stderr.write(f"warning: {topple['why']}\n")
         build = st.get("build") or {}
+        if build.get("checked") is False:
+            print(f"build steps not force-checked: {build['why']}")
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
     hollow = doc.get("hollow")

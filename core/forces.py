@@ -55,6 +55,7 @@ the known answers.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -65,7 +66,7 @@ from scipy.sparse.csgraph import connected_components
 
 from core.catalog import BY_NUMBER, MASS_G
 from core.errors import InputError
-from core.model import Layout, Load
+from core.model import Grid, Layout, Load
 from core.request import parse_load
 
 #: Acceleration of gravity, m/s^2.
@@ -122,6 +123,8 @@ class Forces:
     tilt_deg: float = 0.0
     topples: list[dict] = field(default_factory=list)
     unchecked: str | None = None
+    sub_structures: int = 0
+    bodies: int = 0
 
     def to_json(self) -> dict:
         """The ``stability.force`` block of report.json (inf written as null)."""
@@ -138,6 +141,8 @@ class Forces:
                 "loads": list(self.loads), "seconds": round(self.seconds, 3),
                 "rests_tilted_deg": round(self.tilt_deg, 2),
                 "topples": list(self.topples),
+                "sub_structures": self.sub_structures,
+                "method": SUB_MEANS if self.sub_structures else WHOLE_MEANS,
                 "explain": FORCE_MEANS}
 
 
@@ -146,6 +151,10 @@ FORCE_MEANS = ("Utilisation is how hard the hardest-working joint holding a bric
                "its studs against the clutch they hold (about 100 g per contact point), or the bending "
                "of the brick against what it takes. Up to 1 the brick holds; above 1 it comes off or "
                "breaks. 'Unsupported' bricks float or tip over whatever their studs do.")
+
+
+#: How the verdict was found: one program of the whole build (or :data:`SUB_MEANS`).
+WHOLE_MEANS = "one program of the whole build: the worst utilisation is the least any forces reach"
 
 
 def contact_directions(size_x: np.ndarray, size_y: np.ndarray, a: np.ndarray, b: np.ndarray,
@@ -361,6 +370,19 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     return forces
 
 
+def build_unchecked(verdict: Forces) -> str | None:
+    """Why the partial builds of a layout whose verdict is ``verdict`` are not force-checked
+    step by step (:class:`BuildChecker` would solve the whole build's program at steps
+    that hang), or None when they are."""
+    if verdict.unchecked:
+        return "the force check of the whole build was skipped, so was each step's"
+    if verdict.bodies > MAX_BODIES:
+        return (f"{verdict.bodies} bricks and printed parts: a step that hangs would need a program "
+                f"of the partial build, and more than {MAX_BODIES} take minutes each; the steps "
+                "were checked by the brick graph only")
+    return None
+
+
 class BuildChecker:
     """Whether partial builds of one layout stand: every prefix of a build order.
 
@@ -569,6 +591,17 @@ def _facet_under(points: np.ndarray, xy: np.ndarray, hull_of, hull_error):
     return None
 
 
+def _reach(graph: sparse.csr_matrix, start: np.ndarray) -> np.ndarray:
+    """The nodes ``start`` (bool) and every node reached from them along ``graph``'s edges."""
+    seen = np.asarray(start, dtype=bool).copy()
+    frontier = np.flatnonzero(seen)
+    while len(frontier):
+        nxt = np.unique(graph[frontier].indices)
+        frontier = nxt[~seen[nxt]]
+        seen[frontier] = True
+    return seen
+
+
 def _supported_below(lab: np.ndarray) -> bool:
     """Every filled cell of ``lab`` (bool grid) is in the bottom layer or on a filled cell."""
     return not np.any(lab[:, :, 1:] & ~lab[:, :, :-1])
@@ -578,6 +611,29 @@ def _supported_below(lab: np.ndarray) -> bool:
 #: reported unchecked): one program of ~270 bricks under an overhanging slab took 3 s
 #: (14 s with every joint's utilisation) on this 2-core machine under load.
 MAX_BODIES = 2500
+
+
+#: A build of more bodies than this, some of them hanging, is checked by its hanging parts
+#: (:meth:`_Model._by_parts`) before the whole program is solved.
+EXACT_BODIES = 500
+#: Levels of bricks under a hanging part that its program takes in (they may pull).
+MARGIN_LEVELS = 2
+#: Most bodies in one program of a hanging part (bigger ones are cut in plan)...
+WINDOW_BODIES = 350
+#: ...and of a group solved again with its neighbours when it does not stand alone.
+MERGED_BODIES = 2500
+#: Below this worst utilisation a hanging part's bricks are each given its worst (an upper
+#: bound; their own utilisations would cost a second program and stay in the dark range).
+DETAIL_ABOVE = 0.25
+
+#: How the verdict of a big build with hanging parts was found (:meth:`_Model._by_parts`).
+SUB_MEANS = ("the parts that hang (bricks with a cell over air, what rests on them and the "
+             f"{MARGIN_LEVELS} levels of bricks under them) in programs of about {WINDOW_BODIES} "
+             "bricks each, standing on the bricks under them, which only press, with no pull "
+             "between two such parts; the rest of the build stands in pure compression. Those "
+             "forces balance the whole build, so it stands; the worst utilisation is what they "
+             "reach, at least the least possible. In a part whose worst is below "
+             f"{DETAIL_ABOVE}, every brick is given that worst")
 
 
 #: Phase 2 bounds every joint's utilisation by phase 1's worst times 1 + this: held exactly
@@ -597,7 +653,7 @@ class _Model:
     so that the coefficients stay near 1."""
 
     def __init__(self, layout: Layout, ground: str, loads: list[Load], printed, clamp,
-                 clutch_n: float, profile):
+                 clutch_n: float, profile, support: np.ndarray | None = None, masses=None):
         self.layout, self.ground, self.loads = layout, ground, loads
         self.clutch_n = clutch_n
         self.clutch = clutch_n / (G / 1000.0)                 # grams-force
@@ -627,7 +683,16 @@ class _Model:
         self.printed_brick = np.array([b.kind == "printed" for b in bricks], dtype=bool)
         self.studs_ok, self.bottom_ok = (None, None) if clamp is None else (
             np.asarray(clamp[0], bool), np.asarray(clamp[1], bool))
-        self._masses(printed, profile)
+        # a sub-structure (:meth:`_by_parts`) stands on bodies taken as rigid, which only
+        # push up: no ground, and what they weigh and what rests on them is not asked
+        self.on_supports = support is not None
+        self.support = np.zeros(count, dtype=bool)
+        if support is not None:
+            self.support[body_of[np.asarray(support, dtype=bool)]] = True
+        if masses is None:
+            self._masses(printed, profile)
+        else:
+            self.mass_g, self.com, self.point_masses = masses
         self.held = self._held()
         self.topples: list[dict] = []
 
@@ -688,7 +753,8 @@ class _Model:
         """Per body: joined to the ground through joints (the others float)."""
         i, j, k = self._stud_joints()
         n = self.nbody
-        ground = np.unique(self.blab[:, :, 0][self.blab[:, :, 0] >= 0])
+        ground = (np.flatnonzero(self.support) if self.on_supports
+                  else np.unique(self.blab[:, :, 0][self.blab[:, :, 0] >= 0]))
         rows = np.concatenate([self.blab[i, j, k], ground])
         cols = np.concatenate([self.blab[i, j, k + 1], np.full(len(ground), n)])
         graph = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
@@ -713,15 +779,21 @@ class _Model:
         (no program).  Otherwise phase 1: the largest load factor (gravity and loads times
         it) the joints carry with their clutch; the worst utilisation is its inverse.  Phase 2 (``detail``): at the real
         loads, each joint's utilisation, the sum of them least, none above phase 1's worst."""
-        if _supported_below(self.blab >= 0):
+        if not self.on_supports and _supported_below(self.blab >= 0):
             # every cell rests on a cell (or the ground): it all stands in pure compression
             util = {b.id: 0.0 for b in self.layout.bricks} if detail else {}
             return self._forces(True, 0.0, util, [], [], [])
-        if self.nbody > MAX_BODIES:
+        where = ""
+        if self.nbody > EXACT_BODIES and not self.on_supports:
+            parted, where = self._by_parts(detail)
+            if parted is not None:
+                return parted
+        if self.nbody > MAX_BODIES and not self.on_supports:
             out = self._forces(False, math.nan, {}, [], [], [])
             out.unchecked = (f"{self.nbody} bricks and printed parts, some of them overhanging: more "
-                             f"than the {MAX_BODIES} the force check solves (it would take minutes); "
-                             "the brick graph's verdict stands alone")
+                             f"than the {MAX_BODIES} the force check solves in one program (it would "
+                             "take minutes)" + (f", and {where}" if where else "")
+                             + "; the brick graph's verdict stands alone")
             return out
         prog, parts = self._program(detail=False)
         status, x = prog.solve()
@@ -744,6 +816,158 @@ class _Model:
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
         return self._detail(x, parts, stable, worst, self._tipping(residual > 1e-6))
 
+    def _hanging_part(self) -> tuple[np.ndarray, np.ndarray, sparse.csr_matrix]:
+        """(hanging, support, under) of the bodies: *hanging* are those with a cell over air
+        (not on the ground), every body resting on one of them (over and over), and
+        :data:`MARGIN_LEVELS` levels of bodies under them off the ground with what rests on
+        those; *support* the other bodies right under a hanging one; ``under[b]`` lists the
+        bodies ``b`` rests on.  The bodies that are not hanging have every cell on a cell or
+        on the ground, and nothing hanging rests on them but on a support."""
+        lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
+        n = self.nbody
+        seeds = np.zeros(n, dtype=bool)
+        seeds[np.unique(upper[(lower < 0) & (upper >= 0)])] = True
+        pairs = np.stack([lower.ravel(), upper.ravel()], 1)
+        pairs = np.unique(pairs[(pairs[:, 0] >= 0) & (pairs[:, 1] >= 0) & (pairs[:, 0] != pairs[:, 1])],
+                          axis=0)
+        over = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        under = over.T.tocsr()
+        low = np.full(n, np.iinfo(np.int64).max)
+        np.minimum.at(low, self.body_of, self.corners[:, 2])
+        hanging = _reach(over, seeds)
+        for _ in range(MARGIN_LEVELS):
+            more = np.unique(under[np.flatnonzero(hanging)].indices)
+            more = more[~hanging[more] & (low[more] >= 1)]
+            if not len(more):
+                break
+            hanging[more] = True
+            hanging = _reach(over, hanging)
+        support = np.zeros(n, dtype=bool)
+        support[under[np.flatnonzero(hanging)].indices] = True
+        return hanging, support & ~hanging, under
+
+    def _windows(self, hanging: np.ndarray, support: np.ndarray,
+                 under: sparse.csr_matrix) -> list[np.ndarray]:
+        """The hanging bodies in groups of at most :data:`WINDOW_BODIES`: each connected
+        piece, cut in two across its longer side in plan until small enough.  A cut goes
+        through the middle 40 % where most of the piece rests on supports (a cut through a
+        span would leave both halves hanging in the air)."""
+        idx = np.flatnonzero(hanging)
+        _, comp = connected_components(under[idx][:, idx], directed=False)
+        lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
+        si, sj, sk = np.nonzero((upper >= 0) & (lower >= 0))
+        on = hanging[upper[si, sj, sk]] & support[lower[si, sj, sk]]
+        rest_body, rest_ij = upper[si[on], sj[on], sk[on]], np.stack([si[on], sj[on]], 1)
+        centre = (self.com[:, :2] - self.origin[:2]) / self.cell[:2]       # in cells
+        out = []
+        todo = [idx[comp == c] for c in np.unique(comp)]
+        while todo:
+            group = todo.pop()
+            if len(group) <= WINDOW_BODIES:
+                out.append(group)
+                continue
+            xy = centre[group]
+            axis = int(np.argmax(np.ptp(xy, axis=0)))
+            lo, mid, hi = np.quantile(xy[:, axis], [0.3, 0.5, 0.7])
+            cuts = np.arange(math.ceil(lo), math.floor(hi) + 1)
+            rests = rest_ij[np.isin(rest_body, group), axis]
+            score = np.array([np.count_nonzero(rests == c) for c in cuts]) if len(cuts) else []
+            cut = (cuts[np.lexsort((np.abs(cuts + 0.5 - mid), -np.asarray(score)))[0]] + 0.5
+                   if len(cuts) else mid)
+            left = xy[:, axis] < cut
+            if left.all() or not left.any():
+                left = xy[:, axis] < mid
+            todo += [group[left], group[~left]]
+        return sorted(out, key=lambda g: int(g[0]))
+
+    def _by_parts(self, detail: bool) -> tuple[Forces | None, str]:
+        """The verdict from the hanging parts alone (:meth:`_hanging_part`), each group of
+        :meth:`_windows` one program standing on its supports, which only press: their own
+        cells rest on cells down to the ground, so what presses on them goes straight down.
+        Forces between two groups are held at zero; a group that does not stand so is
+        solved again with the groups it touches, up to :data:`MERGED_BODIES`.  Put together,
+        the groups' forces and pure compression elsewhere balance every body, so a build
+        whose every group stands stands, with at most the groups' worst utilisation (the
+        whole program's may be lower).  With ``detail``, a group whose worst is below
+        :data:`DETAIL_ABOVE` gives each of its bricks that worst.  Returns (the verdict, "")
+        then, else (None, where a group does not stand)."""
+        hanging, support, under = self._hanging_part()
+        groups = dict(enumerate(self._windows(hanging, support, under)))
+        window = np.full(self.nbody, -1)
+        for w, g in groups.items():
+            window[g] = w
+        pairs = sparse.triu(under + under.T).tocoo()
+        solved: dict[int, Forces] = {}
+        todo = sorted(groups)
+        while todo:
+            w = todo.pop(0)
+            f = self._window(groups[w], support, under, False)
+            if f.stable:
+                solved[w] = f
+                continue
+            a, b = window[pairs.row], window[pairs.col]
+            touch = set(b[(a == w) & (b >= 0)].tolist()) | set(a[(b == w) & (a >= 0)].tolist())
+            touch.discard(w)
+            merged = np.concatenate([groups[v] for v in sorted(touch | {w})])
+            if not touch or len(merged) > MERGED_BODIES:
+                lay = self.layout.bricks[int(np.flatnonzero(np.isin(self.body_of, groups[w]))[0])]
+                worst = "infinite" if not math.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
+                count = f"{len(groups[w])} brick{'s' if len(groups[w]) != 1 else ''}"
+                return None, (f"the hanging part of {count} from layer {lay.cell[2] + 1} "
+                              f"(cell {lay.cell[0]}, {lay.cell[1]}) does not stand on what is under "
+                              f"it alone (utilisation {worst})")
+            for v in touch | {w}:
+                groups.pop(v)
+                solved.pop(v, None)
+                if v in todo:
+                    todo.remove(v)
+            new = max(window) + 1
+            window[merged] = new
+            groups[new] = np.sort(merged)
+            todo.insert(0, new)
+        util = {b.id: 0.0 for b in self.layout.bricks} if detail else {}
+        for w, f in solved.items():
+            if not detail:
+                continue
+            if f.max_utilisation >= DETAIL_ABOVE:
+                f = self._window(groups[w], support, under, True)
+            mine = [self.layout.bricks[i].id for i in np.flatnonzero(np.isin(self.body_of, groups[w]))]
+            util.update((b, f.utilisation.get(b, f.max_utilisation)) for b in mine)
+        out = self._forces(True, max(f.max_utilisation for f in solved.values()), util, [], [], [])
+        out.sub_structures = len(solved)
+        return out, ""
+
+    def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
+                detail: bool) -> Forces:
+        """The verdict of the bodies ``group`` on the supports right under them, as a model
+        of their own in the box of their bricks (masses and loads as in this model)."""
+        below = np.zeros(self.nbody, dtype=bool)
+        below[under[group].indices] = True
+        below &= support
+        inside = np.zeros(self.nbody, dtype=bool)
+        inside[group] = True
+        members = np.flatnonzero((inside | below)[self.body_of])
+        lo = self.corners[members].min(axis=0)
+        hi = (self.corners[members] + self.sizes[members]).max(axis=0)
+        bricks = [dataclasses.replace(self.layout.bricks[i],
+                                      cell=tuple(int(c - o) for c, o in zip(self.layout.bricks[i].cell, lo)))
+                  for i in members]
+        filled = np.zeros(tuple(int(v) for v in hi - lo), dtype=bool)
+        for b in bricks:
+            filled[b.slices()] = True
+        grid = self.layout.grid
+        cell = np.asarray(grid.cell, dtype=float)
+        sub = Layout(Grid(np.asarray(grid.origin, dtype=float) + lo * cell, cell, filled), bricks)
+        box = tuple(slice(a, b) for a, b in zip(lo, hi))
+        clamp = None if self.studs_ok is None else (self.studs_ok[box], self.bottom_ok[box])
+        bodies = self.body_of[members]
+        first = np.unique(bodies, return_index=True)[1]
+        full = bodies[np.sort(first)]                      # the sub-model's bodies, in its order
+        points = {n: self.point_masses[i] for n, i in enumerate(members.tolist()) if i in self.point_masses}
+        model = _Model(sub, self.ground, [], (), clamp, self.clutch_n, None,
+                       support=below[bodies], masses=(self.mass_g[full], self.com[full], points))
+        return model.verdict(detail)
+
     def _tipping(self, pushed: np.ndarray) -> np.ndarray:
         """Per body: in a structure that tips as a whole.  Phase 2 lets every joint pull as
         hard as it must, so what still cannot balance (``pushed``: the bodies the slack had to
@@ -765,27 +989,31 @@ class _Model:
         else:
             factor = prog.columns(1, 0.0, LOAD_FACTOR_CAP, -1.0)[0]
         parts["factor"] = factor
-        eq = prog.new_rows(6 * self.nbody, 0.0, 0.0)
+        free = np.repeat(self.support, 6)                   # a support's balance is not asked
+        eq = prog.new_rows(6 * self.nbody, np.where(free, -np.inf, 0.0), np.where(free, np.inf, 0.0))
         parts["eq"] = eq
         held = self.held
         prog.put(eq[6 * np.flatnonzero(held) + 2], factor, -self.mass_g[held])
         zcap = np.inf if not math.isfinite(cap) else max(cap, 1.0 / LOAD_FACTOR_CAP) * (1 + CAP_SLACK)
         i, j, k = self._stud_joints()
         lower_b, upper_b = self.blab[i, j, k], self.blab[i, j, k + 1]
-        keep = held[lower_b] & held[upper_b]
+        keep = held[lower_b] & held[upper_b] & ~(self.support[lower_b] & self.support[upper_b])
         i, j, k, lower_b, upper_b = i[keep], j[keep], k[keep], lower_b[keep], upper_b[keep]
-        pull_ok = np.ones(len(i), bool)
+        pull_ok = ~(self.support[lower_b] | self.support[upper_b])    # supports only press
         if self.studs_ok is not None:
-            pull_ok = self.studs_ok[i, j, k] & self.bottom_ok[i, j, k + 1]
+            pull_ok &= self.studs_ok[i, j, k] & self.bottom_ok[i, j, k + 1]
         parts["joints"] = (i, j, k)
         pts, valid = self._contact_points(i, j, k + 1)
         parts["studs"] = self._vertical(prog, eq, pts, valid, upper_b, lower_b, pull_ok,
                                         detail, zcap)
         self._shear(prog, eq, np.stack([i, j], 1), k + 1, upper_b, lower_b)
-        gi, gj = np.nonzero(self.blab[:, :, 0] >= 0)
+        gi, gj = np.nonzero(self.blab[:, :, 0] >= 0) if not self.on_supports else (
+            np.zeros(0, np.int64), np.zeros(0, np.int64))
         parts["ground_cells"] = (gi, gj)
         gb = self.blab[gi, gj, 0]
-        if self.ground == "baseplate":
+        if self.on_supports:
+            parts["base"] = parts["table"] = None
+        elif self.ground == "baseplate":
             gpts, gvalid = self._contact_points(gi, gj, np.zeros(len(gi), dtype=np.int64))
             parts["base"] = self._vertical(prog, eq, gpts, gvalid, gb, None,
                                            np.ones(len(gi), bool), detail, zcap)
@@ -1032,7 +1260,8 @@ class _Model:
         scale = 1000.0 / G / self.unit                      # N mm -> grams-force studs
         bound = zcap if detail else 1.0
         for idx, b in enumerate(bricks):
-            if b.part not in MASS_G or not self.held[self.body_of[idx]] or max(b.size[:2]) < 2:
+            if (b.part not in MASS_G or not self.held[self.body_of[idx]] or max(b.size[:2]) < 2
+                    or self.support[self.body_of[idx]]):
                 continue
             c, sg, p = (v[starts[idx]:starts[idx + 1]] for v in (cols, signs, xy))
             lo = self.origin + np.asarray(b.cell) * self.cell
@@ -1071,7 +1300,7 @@ class _Model:
                       failing_bricks=failing, unsupported=unsupported, failures=failures,
                       mass_g=float(self.mass_g.sum()), clutch_n=self.clutch_n,
                       loads=[x.to_json() for x in self.loads], tilt_deg=getattr(self, "tilt", 0.0),
-                      topples=list(self.topples))
+                      topples=list(self.topples), bodies=self.nbody)
 
     def _detail(self, x, parts, stable, worst, tips) -> Forces:
         """Utilisation per brick from phase 2's solution ``x``; failing and unsupported bricks."""

@@ -290,7 +290,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made, clamp,
                   req.clutch_n, settings)
     order = timed("build_order", 0.82, build_order.plan, layout)
-    if force.unchecked is None:
+    if forces_stage.build_unchecked(force) is None:
         checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
         order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
     layout = build_order.numbered(layout, order)
@@ -537,6 +537,15 @@ def build_stability(order: build_order.BuildOrder) -> dict:
                        f"{build_order.FRAGILE:g} of its clutch."}
 
 
+def _build_block(fab: Fabrication) -> dict:
+    """``{"build": ...}`` for the report's stability: the step-by-step check, or why there
+    is none; empty when the forces were not asked for."""
+    if fab.order.utilisation:
+        return {"build": build_stability(fab.order)}
+    why = None if fab.forces is None else forces_stage.build_unchecked(fab.forces)
+    return {} if why is None else {"build": {"checked": False, "why": why}}
+
+
 def report(fab: Fabrication) -> dict:
     """The ``report.json`` document for a fabrication (DESIGN.md contract)."""
     by_part: dict[str, int] = {}
@@ -594,7 +603,7 @@ def report(fab: Fabrication) -> dict:
             "explain": {"weak_point": stability_stage.WEAK_POINT_MEANS,
                         "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
             **({} if fab.forces is None else {"force": fab.forces.to_json()}),
-            **({} if not fab.order.utilisation else {"build": build_stability(fab.order)}),
+            **_build_block(fab),
             **({} if fab.reinforced is None else {"reinforce": fab.reinforced.to_json()}),
         },
         "high_res": dict(fab.marks),

@@ -402,3 +402,75 @@ def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
         assert checker._supported(present) == direct
         answers.append(direct)
     assert all(answers[:n + 1]) and not all(answers)
+
+
+def slab_over_box(outer=(22, 22, 24), wall=2, rim=4) -> Layout:
+    """A hollow box standing on the table under a slab of six plate layers reaching
+    ``rim`` studs out all round: the slab hangs, the walls stand in pure compression."""
+    from core import catalog, layout as layout_stage
+    filled = np.zeros(outer, dtype=bool)
+    filled[rim:-rim, rim:-rim, :-6] = True
+    filled[rim + wall:-rim - wall, rim + wall:-rim - wall, :-6] = False
+    filled[:, :, -6:] = True
+    return layout_stage.lay_out(Grid(np.zeros(3), CELL.copy(), filled), catalog.CATALOG, seed=0)
+
+
+def test_a_big_build_is_checked_by_its_hanging_parts_as_the_whole_program_says(monkeypatch):
+    """Past EXACT_BODIES the verdict comes from the hanging parts on supports that only
+    press: it must agree with the whole program, and its worst utilisation is an upper
+    bound of the whole program's (here the slab's own bending decides both)."""
+    lay = slab_over_box()
+    whole = forces.analyse(lay)
+    assert whole.sub_structures == 0 and whole.stable and 0.01 < whole.max_utilisation < 1
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    parted = forces.analyse(lay)
+    assert parted.sub_structures == 1
+    assert parted.stable == whole.stable
+    assert whole.max_utilisation - 1e-6 <= parted.max_utilisation <= whole.max_utilisation * 1.01
+    doc = parted.to_json()
+    assert doc["method"] == forces.SUB_MEANS and doc["checked"] is True
+    # the walls under the slab stand in pure compression: nothing pulls on them
+    slab_from = lay.grid.shape[2] - 6
+    walls = [b.id for b in lay.bricks if b.cell[2] + b.size[2] <= slab_from - 3 * forces.MARGIN_LEVELS]
+    assert walls and all(parted.utilisation[b] == 0.0 for b in walls)
+    assert set(parted.utilisation) == {b.id for b in lay.bricks}
+    # cut in plan, the slab's halves would each tip off the walls: solved as one again
+    monkeypatch.setattr(forces, "WINDOW_BODIES", 25)
+    assert forces.analyse(lay, detail=False).sub_structures == 1
+
+
+def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
+    """A 21 cm hollow cube's roof (on its walls and the hollow stage's pillars) cut in plan
+    into groups: each stands on what is under it, so the cube stands, with a worst
+    utilisation at least the whole program's."""
+    from core import catalog, hollow, layout as layout_stage
+    solid = Grid(np.zeros(3), CELL.copy(), np.ones((26, 26, 40), dtype=bool))
+    lay = layout_stage.lay_out(hollow.hollow(solid, 2)[0], catalog.CATALOG, seed=0)
+    whole = forces.analyse(lay, detail=False)
+    assert whole.stable and whole.sub_structures == 0
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "WINDOW_BODIES", 30)
+    cut = forces.analyse(lay)
+    assert cut.stable and cut.sub_structures > 1
+    assert whole.max_utilisation - 1e-6 <= cut.max_utilisation < 1
+    assert max(cut.utilisation.values()) == pytest.approx(cut.max_utilisation)
+
+
+def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_program(monkeypatch):
+    """A plate hanging by one stud off a 1x1 brick needs that stud's pull: on a support that
+    only presses it cannot stand, so the verdict is the whole program's (the hand figure
+    of the cantilever test); past MAX_BODIES it is reported unchecked, saying where."""
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    tip = "40,0,12.8,48,8,16:20"
+    result = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
+    assert result.sub_structures == 0 and not result.stable and 2 in result.failing_bricks
+    monkeypatch.setattr(forces, "EXACT_BODIES", 500)
+    exact = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
+    assert result.utilisation == exact.utilisation
+    assert result.failing_bricks == exact.failing_bricks
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    assert forces.build_unchecked(result) is None
+    monkeypatch.setattr(forces, "MAX_BODIES", 1)
+    unchecked = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
+    assert unchecked.unchecked and "hanging part of 1 brick from layer 4 (cell 0, 0)" in unchecked.unchecked
+    assert forces.build_unchecked(unchecked) and forces.build_unchecked(result)
