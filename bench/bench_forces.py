@@ -5,8 +5,9 @@ force verdict and worst utilisation of the laid-out object before and after
 the layout uses the forces (:mod:`core.reinforce`), failing and unsupported
 bricks, whether every build step stands (unstable and moved steps), seconds
 of the force stage and of the build-order check, on a table and on a baseplate.  Then the synthetic rows:
-the force check of a ~3,000-brick layout and all build prefixes of a
-~500-brick build.  Prints markdown tables and writes them to ``bench/out/``.
+the force check of a ~3,000-brick layout (and of bigger ones, by their
+hanging parts, beside the whole program where it can be solved) and all build
+prefixes of a ~500-brick build.  Prints markdown tables and writes them to ``bench/out/``.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench import MODELS, UNITS, model_paths, table  # noqa: E402  (bench/bench.py)
-from core import build_order, catalog, forces, layout, pipeline, voxelize  # noqa: E402
+from core import build_order, catalog, forces, hollow, layout, pipeline, voxelize  # noqa: E402
 from core.errors import InputError  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
 
@@ -74,19 +75,37 @@ def bench_model(path: Path, ground: str) -> dict:
 SCALING_CASES = (("hollow box 48x48x60 cells under a 64x64 slab", (64, 64, 66), 3, 8, False),
                  ("hollow box 30x30x40 cells under a 42x42 slab", (42, 42, 46), 2, 6, True),
                  ("hollow box 24x24x30 cells under a 34x34 slab", (34, 34, 36), 2, 5, True))
+#: Hollowed cubes (the hollow stage's 2-stud shell and pillars; the roof hangs between
+#: them): (name, side in studs).  The 45 cm one is the ~3,000-brick case.
+HOLLOW_CUBES = (("hollow cube 45 cm (56x56x140 cells)", 56),
+                ("hollow cube 1 m (125x125x312 cells)", 125))
 
 
-def bench_scaling() -> list[dict]:
-    """The force check of the :data:`SCALING_CASES` (1,474, 454 and 269 bricks) and, where
-    asked, every build prefix, on a table."""
-    rows = []
+def _method(f: forces.Forces) -> str:
+    return "unchecked" if f.unchecked else (
+        f"{f.sub_structures} hanging part(s)" if f.sub_structures else "whole program")
+
+
+def _scaling_grids():
+    """(name, grid, whether to check every build prefix) of the scaling rows."""
     for name, outer, wall, rim, prefixes in SCALING_CASES:
         # walls standing on the table, a slab of six plate layers on top reaching out all round
         filled = np.zeros(outer, dtype=bool)
         filled[rim:-rim, rim:-rim, :-6] = True
         filled[rim + wall:-rim - wall, rim + wall:-rim - wall, :-6] = False
         filled[:, :, -6:] = True
-        grid = Grid(np.zeros(3), np.array(CELL_MM), filled)
+        yield name, Grid(np.zeros(3), np.array(CELL_MM), filled), prefixes
+    for name, side in HOLLOW_CUBES:
+        solid = Grid(np.zeros(3), np.array(CELL_MM), np.ones((side, side, int(side * 2.5)), bool))
+        yield name, hollow.hollow(solid, hollow.SHELL_STUDS)[0], False
+
+
+def bench_scaling() -> list[dict]:
+    """The force check of the :data:`SCALING_CASES` (1,474, 454 and 269 bricks) and the
+    :data:`HOLLOW_CUBES` (3,091 and 22,657) and, where asked, every build prefix, on a
+    table; up to :data:`core.forces.MAX_BODIES` bodies also by the whole program alone."""
+    rows = []
+    for name, grid, prefixes in _scaling_grids():
         lay = layout.lay_out(grid, catalog.CATALOG, seed=0)
         start = time.perf_counter()
         f = forces.analyse(lay, ground="table")
@@ -96,9 +115,16 @@ def bench_scaling() -> list[dict]:
         verdict_s = time.perf_counter() - start
         order = build_order.plan(lay)
         row = {"case": name, "cells": grid.count, "bricks": len(lay.bricks),
-               "verdict": _verdict(f), "verdict only s": verdict_s,
+               "verdict": _verdict(f), "method": _method(f), "verdict only s": verdict_s,
                "verdict + per-brick s": analyse_s, "steps": len(order.steps),
                "quick agrees": quick.stable == f.stable}
+        if f.sub_structures and len(lay.bricks) <= forces.MAX_BODIES:
+            exact_at, forces.EXACT_BODIES = forces.EXACT_BODIES, forces.MAX_BODIES
+            start = time.perf_counter()
+            whole = forces.analyse(lay, ground="table", detail=False)
+            row.update({"whole program": _verdict(whole),
+                        "whole program s": time.perf_counter() - start})
+            forces.EXACT_BODIES = exact_at
         if prefixes:
             checker = forces.BuildChecker(lay, ground="table")
             start = time.perf_counter()
@@ -115,13 +141,15 @@ def main() -> int:
     parser.add_argument("--out", default=str(ROOT / "bench" / "out"))
     parser.add_argument("--ground", default=None, choices=forces.GROUNDS,
                         help="one ground only (default: both, table and baseplate)")
+    parser.add_argument("--scaling-only", action="store_true",
+                        help="only the synthetic scaling rows, not the models")
     args = parser.parse_args()
     if not MODELS.is_dir():
         print(f"note: {MODELS} is absent: only the bundled demo model is measured")
     warm = trimesh.creation.box((20, 20, 10))
     forces.analyse(layout.lay_out(voxelize.legofy(warm), catalog.CATALOG))
     rows = []
-    for path in model_paths():
+    for path in [] if args.scaling_only else model_paths():
         for ground in [args.ground] if args.ground else list(forces.GROUNDS):
             rows.append(bench_model(path, ground))
             print(f"  measured {path.name}: {rows[-1]}", file=sys.stderr)
@@ -136,9 +164,10 @@ def main() -> int:
     if refused:
         text += ["## Refused or failed", "", table(refused, ["model", "error"]), ""]
     text += ["## Force check scaling", "",
-            table(scaling, ["case", "cells", "bricks", "verdict", "verdict only s",
-                            "verdict + per-brick s", "steps", "prefix programs", "all prefixes s",
-                            "every step stands", "quick agrees"]), ""]
+            table(scaling, ["case", "cells", "bricks", "verdict", "method", "verdict only s",
+                            "verdict + per-brick s", "whole program", "whole program s", "steps",
+                            "prefix programs", "all prefixes s", "every step stands",
+                            "quick agrees"]), ""]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "forces.md").write_text("\n".join(text))

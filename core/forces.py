@@ -44,6 +44,20 @@ carries only what it must and its utilisation means something.  The layout stand
 holds at all (it floats, or it tips off the table whatever the joints do) is
 *unsupported*: its utilisation is infinite.
 
+**Big builds.**  The program grows faster than the build: 20-35 s for 1,474
+bricks.  Past :data:`EXACT_BODIES` bodies the verdict comes first from the
+parts that *hang* (:meth:`_Model._by_parts`): the bodies with a cell over air,
+what rests on them, and :data:`MARGIN_LEVELS` levels of bodies under them.
+Every other body has each cell on a cell down to the ground, so it carries
+what presses on it straight down; a hanging part is solved standing on those
+*supports*, which only press (no pull on their studs), and a big one is cut in
+plan into groups with no force between them, merged back where a group cannot
+stand alone.  These forces and pure compression elsewhere balance every body,
+so when every group stands the build stands, and the worst utilisation
+reported is what these forces reach: at least the whole program's least (the
+same on the scaling cases of ``make bench``).  When a group does not stand,
+the whole program decides, up to :data:`MAX_BODIES` bodies.
+
 **Calibration.**  StableLego's staircase of 2x4 bricks, each offset by two
 studs, on a baseplate stands at 19 levels and falls at 20 on real builds,
 failing at the second brick.  With the clutch of 0.98 N per contact point
@@ -620,8 +634,11 @@ EXACT_BODIES = 500
 MARGIN_LEVELS = 2
 #: Most bodies in one program of a hanging part (bigger ones are cut in plan)...
 WINDOW_BODIES = 350
-#: ...and of a group solved again with its neighbours when it does not stand alone.
-MERGED_BODIES = 2500
+#: ...and of a group solved again with its neighbours when it does not stand alone...
+MERGED_BODIES = 1200
+#: ...while the bodies of all the groups solved stay within this many times the hanging ones
+#: (cut too small, a roof's groups merged over and over: 500 s on a 1 m hollow cube).
+EFFORT = 4
 #: Below this worst utilisation a hanging part's bricks are each given its worst (an upper
 #: bound; their own utilisations would cost a second program and stay in the dark range).
 DETAIL_ABOVE = 0.25
@@ -885,7 +902,8 @@ class _Model:
         :meth:`_windows` one program standing on its supports, which only press: their own
         cells rest on cells down to the ground, so what presses on them goes straight down.
         Forces between two groups are held at zero; a group that does not stand so is
-        solved again with the groups it touches, up to :data:`MERGED_BODIES`.  Put together,
+        solved again with the groups it touches, up to :data:`MERGED_BODIES` and within
+        :data:`EFFORT`.  Put together,
         the groups' forces and pure compression elsewhere balance every body, so a build
         whose every group stands stands, with at most the groups' worst utilisation (the
         whole program's may be lower).  With ``detail``, a group whose worst is below
@@ -899,9 +917,11 @@ class _Model:
         pairs = sparse.triu(under + under.T).tocoo()
         solved: dict[int, Forces] = {}
         todo = sorted(groups)
+        effort = 0
         while todo:
             w = todo.pop(0)
             f = self._window(groups[w], support, under, False)
+            effort += len(groups[w])
             if f.stable:
                 solved[w] = f
                 continue
@@ -909,7 +929,8 @@ class _Model:
             touch = set(b[(a == w) & (b >= 0)].tolist()) | set(a[(b == w) & (a >= 0)].tolist())
             touch.discard(w)
             merged = np.concatenate([groups[v] for v in sorted(touch | {w})])
-            if not touch or len(merged) > MERGED_BODIES:
+            if (not touch or len(merged) > MERGED_BODIES
+                    or effort + len(merged) > EFFORT * int(hanging.sum())):
                 lay = self.layout.bricks[int(np.flatnonzero(np.isin(self.body_of, groups[w]))[0])]
                 worst = "infinite" if not math.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
                 count = f"{len(groups[w])} brick{'s' if len(groups[w]) != 1 else ''}"
