@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit
 from scipy import sparse
 
+from core import forces
 from core.errors import InputError
 from core.model import Layout
 from core.request import DEFAULTS
@@ -373,7 +374,7 @@ def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
 #: Steps ahead of the planned next one that :func:`standing` may put first.
 LOOKAHEAD = 8
 #: A partial build whose worst utilisation is above this is fragile (the instructions warn).
-FRAGILE = 0.8
+FRAGILE = forces.FRAGILE
 
 
 def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD) -> BuildOrder:

@@ -250,6 +250,10 @@ def printed_mass_g(volume_mm3: float, area_mm2: float, profile: dict[str, str] |
     return density * (shell + fill * (volume_mm3 - shell)) / 1000.0
 
 
+class SolverTrouble(RuntimeError):
+    """HiGHS ended a force program without an answer (a numerical failure, not the input's)."""
+
+
 @dataclass
 class _Program:
     """A linear program in HiGHS's terms, built block by block."""
@@ -345,7 +349,7 @@ class _Program:
         if status in (highspy.HighsModelStatus.kUnbounded,
                       highspy.HighsModelStatus.kUnboundedOrInfeasible):
             return "unbounded", None
-        raise RuntimeError(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
+        raise SolverTrouble(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
 
 
 def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
@@ -397,6 +401,78 @@ def build_unchecked(verdict: Forces) -> str | None:
     return None
 
 
+class _Warm:
+    """The phase-1 program of one model, re-solved for subsets of its bodies by the primal
+    simplex from the previous basis (consecutive build prefixes differ by a few bricks)."""
+
+    def __init__(self, model: "_Model"):
+        import highspy
+        self.model = m = model
+        prog, parts = m._program(detail=False)
+        self.factor = parts["factor"]
+        coo = prog.matrix().tocoo()
+        eq_rows = (coo.row < 6 * m.nbody) & (coo.col != self.factor)
+        # bodies each force column touches through the equilibrium rows (not the load factor)
+        self.col_body = (coo.col[eq_rows], coo.row[eq_rows] // 6)
+        self.row_lo, self.row_hi = prog.row_bounds()
+        self.col_lo, self.col_hi = prog.col_bounds()
+        self.section_rows = [(idx, rows) for idx, rows in parts["section_rows"]]
+        self.table = parts.get("table")
+        self.highs = prog.highs(simplex=True)
+        self.present = np.ones(m.nbody, dtype=bool)
+        self.basis = None
+        self._ok = highspy.HighsModelStatus.kOptimal
+
+    def factor_of(self, body_present: np.ndarray) -> float | None:
+        """The largest load factor the bodies ``body_present`` carry; None when the warm start
+        lost its way (a degenerate set: a piece about to tip, seen on the Stanford bunny),
+        with the last good basis put back."""
+        m, h = self.model, self.highs
+        self._apply(body_present)
+        if self.table is not None and len(self.table["cols"]):
+            active, _ = m.resting(body_present)
+            cols = self.table["cols"]
+            hi = np.where(active[self.table["index"]] & body_present[m._table_points()[1][self.table["index"]]],
+                          np.inf, 0.0)
+            h.changeColsBounds(len(cols), cols.astype(np.int32), np.zeros(len(cols)), hi)
+        h.run()
+        if h.getModelStatus() != self._ok:
+            if self.basis is not None:
+                h.setBasis(self.basis)
+            else:
+                h.clearSolver()
+            return None
+        self.basis = h.getBasis()
+        return float(h.getSolution().col_value[self.factor])
+
+    def _apply(self, body_present: np.ndarray) -> None:
+        """Bounds for the bodies now present: absent bodies' rows free, their forces zero."""
+        changed = body_present != self.present
+        if not changed.any():
+            return
+        self.present = body_present.copy()
+        m, h = self.model, self.highs
+        cols, bodies = self.col_body
+        touched = np.unique(cols[changed[bodies]])
+        absent_col = np.zeros(len(self.col_lo), dtype=bool)
+        absent_col[cols[~body_present[bodies]]] = True
+        lo = np.where(absent_col[touched], 0.0, self.col_lo[touched])
+        hi = np.where(absent_col[touched], 0.0, self.col_hi[touched])
+        h.changeColsBounds(len(touched), touched.astype(np.int32), lo, hi)
+        rows = [np.arange(6 * b, 6 * b + 6) for b in np.flatnonzero(changed)]
+        rows += [r for idx, r in self.section_rows if changed[m.body_of[idx]]]
+        if rows:
+            rows = np.concatenate(rows).astype(np.int64)
+            free = ~body_present[np.where(rows < 6 * m.nbody, rows // 6, 0)]
+            for idx, r in self.section_rows:
+                if changed[m.body_of[idx]]:
+                    free[np.isin(rows, r)] = ~body_present[m.body_of[idx]]
+            lo = np.where(free, -np.inf, self.row_lo[rows])
+            hi = np.where(free, np.inf, self.row_hi[rows])
+            for r, a, b in zip(rows.tolist(), lo.tolist(), hi.tolist()):
+                h.changeRowBounds(r, a, b)
+
+
 class BuildChecker:
     """Whether partial builds of one layout stand: every prefix of a build order.
 
@@ -404,10 +480,13 @@ class BuildChecker:
     the object carries goes on when it is built), it answers :meth:`stands`
     for any set of its bricks.  A set whose every cell rests on a cell of the
     set (or the ground) stands in pure compression and needs no program;
-    otherwise the verdict's program of the whole layout is solved with the
-    absent bodies' rows let go and every force touching them held at zero,
-    warm-started from the previous answer (consecutive prefixes differ by a
-    few bricks).
+    otherwise a program is solved with the absent bodies' rows let go and
+    every force touching them held at zero, warm-started from the previous
+    answer (:class:`_Warm`).  Past :data:`EXACT_BODIES` bodies that is the
+    program of the layout's hanging part on its supports (as
+    :meth:`_Model._by_parts`, uncut) while every present brick outside it
+    rests on present cells: an upper bound of the worst utilisation, so a set
+    it finds above :data:`FRAGILE` is solved again with the whole program.
     """
 
     def __init__(self, layout: Layout, ground: str = "table", printed=(), clamp=None,
@@ -432,34 +511,27 @@ class BuildChecker:
         by_lower = by_upper.T.tocsr()
         self._lowers = np.split(by_upper.indices, by_upper.indptr[1:-1])
         self._uppers = np.split(by_lower.indices, by_lower.indptr[1:-1])
+        # the hanging part's bricks and its supports' (None: the whole program only)
+        self._part = None
+        self._outside = np.zeros(n, dtype=bool)
+        if self.model.nbody > EXACT_BODIES:
+            hanging, support, under = self.model._hanging_part()
+            low = np.full(self.model.nbody, np.iinfo(np.int64).max)
+            np.minimum.at(low, self.model.body_of, self.model.corners[:, 2])
+            if not np.any(low[hanging] == 0):
+                self._part = (hanging, support, under)
+                self._outside = ~hanging[self.model.body_of]
         # the bricks of the last set asked about, and in it: pairs whose upper brick is in
-        # and lower one out, and bricks with a cell above nothing (kept step by step)
+        # and lower one out (all, and those whose upper brick is outside the hanging part),
+        # and bricks with a cell above nothing (kept step by step)
         self._last = np.zeros(n, dtype=bool)
         self._missing = 0
+        self._missing_outside = 0
         self._hanging = 0
         self.solves = 0
         self.fresh = 0
-        self._highs = None
-        self._basis = None
-
-    def _setup(self) -> None:
-        """Build the program once and index which columns and rows belong to which bodies."""
-        import highspy
-        m = self.model
-        prog, parts = m._program(detail=False)
-        self.factor = parts["factor"]
-        mat = prog.matrix()
-        coo = mat.tocoo()
-        eq_rows = (coo.row < 6 * m.nbody) & (coo.col != self.factor)
-        # bodies each force column touches through the equilibrium rows (not the load factor)
-        self.col_body = (coo.col[eq_rows], coo.row[eq_rows] // 6)
-        self.row_lo, self.row_hi = prog.row_bounds()
-        self.col_lo, self.col_hi = prog.col_bounds()
-        self.section_rows = [(idx, rows) for idx, rows in parts["section_rows"]]
-        self.table = parts.get("table")
-        self._highs = prog.highs(simplex=True)
-        self._present = np.ones(m.nbody, dtype=bool)
-        self._highspy = highspy
+        self._whole: _Warm | None = None
+        self._sub: tuple[_Warm, np.ndarray] | None = None
 
     def stands(self, present) -> tuple[bool, float]:
         """(stands, worst utilisation) of the bricks ``present`` (a bool per brick of the
@@ -468,55 +540,43 @@ class BuildChecker:
         present = np.asarray(present, dtype=bool)
         if self._supported(present):
             return True, 0.0                     # every present cell rests on a present cell
-        body_present = np.zeros(m.nbody, dtype=bool)
-        body_present[m.body_of[present]] = True
         if not self._held(present):
             return False, math.inf
-        if self._highs is None:
-            self._setup()
-        self._apply(body_present)
-        h = self._highs
-        if self.table is not None and len(self.table["cols"]):
-            active, _ = m.resting(body_present)
-            cols = self.table["cols"]
-            hi = np.where(active[self.table["index"]] & body_present[m._table_points()[1][self.table["index"]]],
-                          np.inf, 0.0)
-            h.changeColsBounds(len(cols), cols.astype(np.int32), np.zeros(len(cols)), hi)
-        h.run()
-        self.solves += 1
-        if h.getModelStatus() != self._highspy.HighsModelStatus.kOptimal:
-            # the warm start lost its way on a degenerate set (a piece about to tip, seen on
-            # the Stanford bunny): answer from a program of its own, go on from the last basis
-            self.fresh += 1
-            if self._basis is not None:
-                h.setBasis(self._basis)
-            else:
-                h.clearSolver()
-            present_bricks = [b for b, keep in zip(self.layout.bricks, present) if keep]
-            model = _Model(Layout(self.layout.grid, present_bricks), m.ground, [], self._printed,
-                           self._clamp, m.clutch_n, self._profile)
-            verdict = model.verdict(detail=False)
-            return verdict.stable, verdict.max_utilisation
-        self._basis = h.getBasis()
-        worst = _worst(float(h.getSolution().col_value[self.factor]))
+        if self._part is not None and self._missing_outside == 0:
+            if self._sub is None:
+                hanging, support, under = self._part
+                model, members = m._sub_model(np.flatnonzero(hanging), support, under)
+                self._sub = (_Warm(model), members)
+            warm, members = self._sub
+            worst = self._solve(warm, present[members])
+            if worst <= FRAGILE:
+                return True, worst
+        if self._whole is None:
+            self._whole = _Warm(m)
+        worst = self._solve(self._whole, present)
         return bool(worst <= FAIL_ABOVE), worst
 
     def _supported(self, present: np.ndarray) -> bool:
         """Every brick of ``present`` rests on the ground or on bricks of ``present`` under
         every cell of it (it then stands in pure compression).  Kept up to date brick by
         brick from the last set asked about: consecutive build prefixes differ by a step,
-        so a 104,488-brick build's 17,643 prefixes cost no more than its bricks."""
-        last = self._last
+        so a 104,488-brick build's 17,643 prefixes cost no more than its bricks.  Keeps the
+        same count for the present bricks outside the hanging part."""
+        last, outside = self._last, self._outside
         for b in np.flatnonzero(present != last).tolist():
             lowers, uppers = self._lowers[b], self._uppers[b]
+            sign = 1 if present[b] else -1
             if present[b]:
-                self._missing += int(np.count_nonzero(~last[lowers])) - int(np.count_nonzero(last[uppers]))
+                gaps = int(np.count_nonzero(~last[lowers]))
                 last[b] = True
-                self._hanging += int(self._hangs[b])
             else:
                 last[b] = False
-                self._missing += int(np.count_nonzero(last[uppers])) - int(np.count_nonzero(~last[lowers]))
-                self._hanging -= int(self._hangs[b])
+                gaps = int(np.count_nonzero(~last[lowers]))
+            above = last[uppers]
+            self._missing += sign * (gaps - int(np.count_nonzero(above)))
+            self._missing_outside += sign * ((gaps if outside[b] else 0)
+                                             - int(np.count_nonzero(above & outside[uppers])))
+            self._hanging += sign * int(self._hangs[b])
         return self._missing == 0 and self._hanging == 0
 
     def _held(self, present: np.ndarray) -> bool:
@@ -536,34 +596,20 @@ class BuildChecker:
         body_present[m.body_of[present]] = True
         return bool(np.all(comp[:nb][body_present] == comp[nb])) if n else True
 
-    def _apply(self, body_present: np.ndarray) -> None:
-        """Bounds for the bodies now present: absent bodies' rows free, their forces zero."""
-        changed = body_present != self._present
-        if not changed.any():
-            return
-        self._present = body_present.copy()
-        m = self.model
-        h = self._highs
-        cols, bodies = self.col_body
-        touched = np.unique(cols[changed[bodies]])
-        absent_col = np.zeros(len(self.col_lo), dtype=bool)
-        absent_col[cols[~body_present[bodies]]] = True
-        lo = np.where(absent_col[touched], 0.0, self.col_lo[touched])
-        hi = np.where(absent_col[touched], 0.0, self.col_hi[touched])
-        h.changeColsBounds(len(touched), touched.astype(np.int32), lo, hi)
-        rows = [np.arange(6 * b, 6 * b + 6) for b in np.flatnonzero(changed)]
-        rows += [r for idx, r in self.section_rows if changed[m.body_of[idx]]]
-        if rows:
-            rows = np.concatenate(rows).astype(np.int64)
-            free = ~body_present[np.where(rows < 6 * m.nbody, rows // 6, 0)]
-            for idx, r in self.section_rows:
-                if changed[m.body_of[idx]]:
-                    free[np.isin(rows, r)] = ~body_present[m.body_of[idx]]
-            lo = np.where(free, -np.inf, self.row_lo[rows])
-            hi = np.where(free, np.inf, self.row_hi[rows])
-            for r, a, b in zip(rows.tolist(), lo.tolist(), hi.tolist()):
-                h.changeRowBounds(r, a, b)
-
+    def _solve(self, warm: _Warm, present: np.ndarray) -> float:
+        """The worst utilisation of the bricks ``present`` of ``warm``'s model."""
+        model = warm.model
+        body_present = np.zeros(model.nbody, dtype=bool)
+        body_present[model.body_of[present]] = True
+        self.solves += 1
+        factor = warm.factor_of(body_present)
+        if factor is not None:
+            return _worst(factor)
+        # answer from a program of its own
+        self.fresh += 1
+        idx = np.flatnonzero(present)
+        own = model._model_of(idx, model.support[model.body_of[idx]] if model.on_supports else None)
+        return own.verdict(detail=False).max_utilisation
 
 def _worst(factor: float) -> float:
     """The worst utilisation of a largest load factor: its inverse; 0 for a structure that
@@ -629,11 +675,11 @@ MAX_BODIES = 2500
 
 #: A build of more bodies than this, some of them hanging, is checked by its hanging parts
 #: (:meth:`_Model._by_parts`) before the whole program is solved.
-EXACT_BODIES = 500
+EXACT_BODIES = 300
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Most bodies in one program of a hanging part (bigger ones are cut in plan)...
-WINDOW_BODIES = 350
+WINDOW_BODIES = 250
 #: ...and of a group solved again with its neighbours when it does not stand alone...
 MERGED_BODIES = 1200
 #: ...while the bodies of all the groups solved stay within this many times the hanging ones
@@ -652,6 +698,10 @@ SUB_MEANS = ("the parts that hang (bricks with a cell over air, what rests on th
              "reach, at least the least possible. In a part whose worst is below "
              f"{DETAIL_ABOVE}, every brick is given that worst")
 
+
+#: A build prefix the hanging part's program finds above this is checked by the whole program
+#: (build steps above it are fragile: the instructions warn).
+FRAGILE = 0.8
 
 #: Phase 2 bounds every joint's utilisation by phase 1's worst times 1 + this: held exactly
 #: there the program has almost no interior, and HiGHS's interior point took 173 s instead
@@ -895,15 +945,46 @@ class _Model:
             if left.all() or not left.any():
                 left = xy[:, axis] < mid
             todo += [group[left], group[~left]]
-        return sorted(out, key=lambda g: int(g[0]))
+        return self._reattached(sorted(out, key=lambda g: int(g[0])), support, under)
+
+    def _reattached(self, groups: list[np.ndarray], support: np.ndarray,
+                    under: sparse.csr_matrix) -> list[np.ndarray]:
+        """``groups`` with every body that a cut left joined to no support of its own group
+        moved to a group it is joined to (a few passes): alone it would float."""
+        if len(groups) < 2:
+            return groups
+        joined = (under + under.T).tocsr()
+        window = np.full(self.nbody, -1)
+        for w, g in enumerate(groups):
+            window[g] = w
+        for _ in range(4):
+            moved = False
+            for w in range(len(groups)):
+                mine = np.flatnonzero(window == w)
+                if not len(mine):
+                    continue
+                rests = np.zeros(self.nbody, dtype=bool)
+                rests[mine] = np.asarray((joined[mine].multiply(support[None, :].astype(float))).sum(axis=1)).ravel() > 0
+                held = _reach(joined[:, mine][mine].tocsr(), rests[mine])
+                for body in mine[~held].tolist():
+                    near = window[joined[body].indices]
+                    near = near[(near >= 0) & (near != w)]
+                    if len(near):
+                        window[body] = int(np.bincount(near).argmax())
+                        moved = True
+            if not moved:
+                break
+        out = [np.flatnonzero(window == w) for w in range(len(groups))]
+        return [g for g in out if len(g)]
 
     def _by_parts(self, detail: bool) -> tuple[Forces | None, str]:
         """The verdict from the hanging parts alone (:meth:`_hanging_part`), each group of
         :meth:`_windows` one program standing on its supports, which only press: their own
         cells rest on cells down to the ground, so what presses on them goes straight down.
         Forces between two groups are held at zero; a group that does not stand so is
-        solved again with the groups it touches, up to :data:`MERGED_BODIES` and within
-        :data:`EFFORT`.  Put together,
+        solved again with the group it shares most joints with, up to
+        :data:`MERGED_BODIES` and within :data:`EFFORT` (past :data:`MAX_BODIES` only: below,
+        the whole program answers instead).  Put together,
         the groups' forces and pure compression elsewhere balance every body, so a build
         whose every group stands stands, with at most the groups' worst utilisation (the
         whole program's may be lower).  With ``detail``, a group whose worst is below
@@ -920,16 +1001,21 @@ class _Model:
         effort = 0
         while todo:
             w = todo.pop(0)
-            f = self._window(groups[w], support, under, False)
+            try:
+                f = self._window(groups[w], support, under, False)
+            except SolverTrouble:                # as if it did not stand: merged or the whole
+                f = self._forces(False, math.inf, {}, [], [], [])
             effort += len(groups[w])
             if f.stable:
                 solved[w] = f
                 continue
             a, b = window[pairs.row], window[pairs.col]
-            touch = set(b[(a == w) & (b >= 0)].tolist()) | set(a[(b == w) & (a >= 0)].tolist())
-            touch.discard(w)
+            near = np.concatenate([b[(a == w) & (b >= 0) & (b != w)], a[(b == w) & (a >= 0) & (a != w)]])
+            # with the group it shares most joints with
+            touch = {int(np.bincount(near).argmax())} if len(near) else set()
             merged = np.concatenate([groups[v] for v in sorted(touch | {w})])
-            if (not touch or len(merged) > MERGED_BODIES
+            # the whole program answers builds it can solve: merging would cost more
+            if (not touch or len(merged) > MERGED_BODIES or self.nbody <= MAX_BODIES
                     or effort + len(merged) > EFFORT * int(hanging.sum())):
                 lay = self.layout.bricks[int(np.flatnonzero(np.isin(self.body_of, groups[w]))[0])]
                 worst = "infinite" if not math.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
@@ -951,7 +1037,10 @@ class _Model:
             if not detail:
                 continue
             if f.max_utilisation >= DETAIL_ABOVE:
-                f = self._window(groups[w], support, under, True)
+                try:
+                    f = self._window(groups[w], support, under, True)
+                except SolverTrouble:            # each brick keeps the group's worst
+                    pass
             mine = [self.layout.bricks[i].id for i in np.flatnonzero(np.isin(self.body_of, groups[w]))]
             util.update((b, f.utilisation.get(b, f.max_utilisation)) for b in mine)
         out = self._forces(True, max(f.max_utilisation for f in solved.values()), util, [], [], [])
@@ -960,15 +1049,28 @@ class _Model:
 
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
                 detail: bool) -> Forces:
-        """The verdict of the bodies ``group`` on the supports right under them, as a model
-        of their own in the box of their bricks (masses and loads as in this model)."""
+        """The verdict of the bodies ``group`` on the supports right under them."""
+        return self._sub_model(group, support, under)[0].verdict(detail)
+
+    def _sub_model(self, group: np.ndarray, support: np.ndarray,
+                   under: sparse.csr_matrix) -> tuple["_Model", np.ndarray]:
+        """The model of the bodies ``group`` on the bodies of ``support`` right under them,
+        and its bricks' indices in this model's layout."""
         below = np.zeros(self.nbody, dtype=bool)
         below[under[group].indices] = True
         below &= support
         inside = np.zeros(self.nbody, dtype=bool)
         inside[group] = True
         members = np.flatnonzero((inside | below)[self.body_of])
+        return self._model_of(members, below[self.body_of[members]]), members
+
+    def _model_of(self, members: np.ndarray, support: np.ndarray | None) -> "_Model":
+        """A model of this model's bricks ``members`` (indices; whole bodies) alone, their
+        masses and loads as here: standing on the ground, or (``support``, a bool per
+        member) on those of them that are supports, in the box of their bricks."""
         lo = self.corners[members].min(axis=0)
+        if support is None:
+            lo[2] = 0                                          # the ground stays where it is
         hi = (self.corners[members] + self.sizes[members]).max(axis=0)
         bricks = [dataclasses.replace(self.layout.bricks[i],
                                       cell=tuple(int(c - o) for c, o in zip(self.layout.bricks[i].cell, lo)))
@@ -985,9 +1087,8 @@ class _Model:
         first = np.unique(bodies, return_index=True)[1]
         full = bodies[np.sort(first)]                      # the sub-model's bodies, in its order
         points = {n: self.point_masses[i] for n, i in enumerate(members.tolist()) if i in self.point_masses}
-        model = _Model(sub, self.ground, [], (), clamp, self.clutch_n, None,
-                       support=below[bodies], masses=(self.mass_g[full], self.com[full], points))
-        return model.verdict(detail)
+        return _Model(sub, self.ground, [], (), clamp, self.clutch_n, None, support=support,
+                      masses=(self.mass_g[full], self.com[full], points))
 
     def _tipping(self, pushed: np.ndarray) -> np.ndarray:
         """Per body: in a structure that tips as a whole.  Phase 2 lets every joint pull as

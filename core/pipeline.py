@@ -287,8 +287,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         clamp = printed_stage.clamp_masks(layout, made)
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     settings = _slicer_settings(req) if made else None
-    force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made, clamp,
-                  req.clutch_n, settings)
+    if reinforced is not None and not made and reinforced.layout is layout:
+        force = reinforced.forces            # the same check of this very layout, made there
+    else:
+        force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made,
+                      clamp, req.clutch_n, settings)
     order = timed("build_order", 0.82, build_order.plan, layout)
     if forces_stage.build_unchecked(force) is None:
         checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)

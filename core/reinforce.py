@@ -45,6 +45,7 @@ class Reinforced:
     after: dict
     attempts: int
     kept: int
+    forces: forces_stage.Forces | None = None
 
     def to_json(self) -> dict:
         return {"before": self.before, "after": self.after, "attempts": self.attempts,
@@ -79,7 +80,7 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
     key, f, st = judge(layout)
     before = _summary(f, st, len(layout.bricks))
     if f.unchecked:
-        return Reinforced(layout, before, before, 0, 0)
+        return Reinforced(layout, before, before, 0, 0, f)
     best = layout
     attempts = kept = 0
     frozen = np.zeros(layout.grid.shape, bool) if frozen is None else np.asarray(frozen, bool)
@@ -107,7 +108,7 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
                 break
         if not improved:
             break
-    return Reinforced(best, before, _summary(f, st, len(best.bricks)), attempts, kept)
+    return Reinforced(best, before, _summary(f, st, len(best.bricks)), attempts, kept, f)
 
 
 def _sites(layout: Layout, f: forces_stage.Forces, frozen: np.ndarray) -> list[int]:

@@ -434,9 +434,14 @@ def test_a_big_build_is_checked_by_its_hanging_parts_as_the_whole_program_says(m
     walls = [b.id for b in lay.bricks if b.cell[2] + b.size[2] <= slab_from - 3 * forces.MARGIN_LEVELS]
     assert walls and all(parted.utilisation[b] == 0.0 for b in walls)
     assert set(parted.utilisation) == {b.id for b in lay.bricks}
-    # cut in plan, the slab's halves would each tip off the walls: solved as one again
+    # cut in plan, some of the slab's pieces would tip off the walls: the whole program
+    # answers, and past MAX_BODIES (where it cannot) those pieces are merged with a neighbour
     monkeypatch.setattr(forces, "WINDOW_BODIES", 25)
-    assert forces.analyse(lay, detail=False).sub_structures == 1
+    assert forces.analyse(lay, detail=False).sub_structures == 0
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    merged = forces.analyse(lay, detail=False)
+    assert merged.stable and merged.sub_structures >= 1
+    assert merged.max_utilisation >= whole.max_utilisation - 1e-6
 
 
 def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
@@ -446,9 +451,11 @@ def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars
     from core import catalog, hollow, layout as layout_stage
     solid = Grid(np.zeros(3), CELL.copy(), np.ones((26, 26, 40), dtype=bool))
     lay = layout_stage.lay_out(hollow.hollow(solid, 2)[0], catalog.CATALOG, seed=0)
+    monkeypatch.setattr(forces, "EXACT_BODIES", forces.MAX_BODIES)
     whole = forces.analyse(lay, detail=False)
     assert whole.stable and whole.sub_structures == 0
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
     monkeypatch.setattr(forces, "WINDOW_BODIES", 30)
     cut = forces.analyse(lay)
     assert cut.stable and cut.sub_structures > 1
@@ -474,3 +481,32 @@ def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_progr
     unchecked = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert unchecked.unchecked and "hanging part of 1 brick from layer 4 (cell 0, 0)" in unchecked.unchecked
     assert forces.build_unchecked(unchecked) and forces.build_unchecked(result)
+
+
+def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch):
+    """Past EXACT_BODIES each partial build is solved on the layout's hanging part while
+    every present brick outside it rests on present cells: step by step the same verdicts
+    as the whole program, and a worst utilisation no lower."""
+    from core import build_order
+    lay = slab_over_box()
+    order = build_order.plan(lay)
+    monkeypatch.setattr(forces, "EXACT_BODIES", forces.MAX_BODIES)
+    whole = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    checker = forces.BuildChecker(lay)
+    part = build_order.standing(lay, order, checker.stands)
+    assert checker._sub is not None and checker._part is not None
+    assert [s.bricks for s in part.steps] == [s.bricks for s in whole.steps]
+    assert part.unstable == whole.unstable
+    got, want = np.array(part.utilisation), np.array(whole.utilisation)
+    assert np.all(got >= want - 1e-6) and np.any(want > 0.01)
+    # the count of present bricks outside the hanging part with a gap under them
+    lab = lay.labels()
+    below, above = lab[:, :, :-1].ravel(), lab[:, :, 1:].ravel()
+    rng = np.random.default_rng(5)
+    for present in [rng.random(len(lay.bricks)) < rng.random() for _ in range(30)]:
+        checker._supported(present)
+        on = (above >= 0) & present[np.maximum(above, 0)] & checker._outside[np.maximum(above, 0)]
+        gaps = on & (below >= 0) & (below != above) & ~present[np.maximum(below, 0)]
+        pairs = {(int(a), int(b)) for a, b in zip(below[gaps], above[gaps])}
+        assert checker._missing_outside == len(pairs)
