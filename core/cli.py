@@ -227,7 +227,10 @@ def _stability(args) -> int:
         except OSError as exc:
             tmp.unlink(missing_ok=True)
             raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
-    worst = "infinite (something floats or tips)" if doc["max_utilisation"] is None else f"{doc['max_utilisation']:.3f}"
+    if result.unchecked:
+        print(f"force check skipped: {result.unchecked}")
+        return 0
+    worst = _worst_words(doc, 3)
     print(f"{'stands' if result.stable else 'does not stand'} on a {result.ground}: "
           f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g"
           + (f", resting leaning {result.tilt_deg:.1f}° on its lower points"
@@ -239,6 +242,17 @@ def _stability(args) -> int:
     if len(result.failures) > 20:
         print(f"  ... and {len(result.failures) - 20} more failing bricks")
     return 0
+
+
+def _worst_words(force: dict, digits: int) -> str:
+    """The worst utilisation of a ``stability.force`` document in words: "at most" when
+    the build was checked by its hanging parts (an upper bound)."""
+    if force["max_utilisation"] is None:
+        return "infinite (something floats or tips)"
+    worst = f"{force['max_utilisation']:.{digits}f}"
+    if force.get("sub_structures"):
+        return f"at most {worst} (checked by its {force['sub_structures']} hanging part(s))"
+    return worst
 
 
 def _printed_meshes(folder, layout) -> list:
@@ -333,8 +347,7 @@ def _summary(doc: dict, out) -> None:
     if force and not force.get("checked", True):
         print(f"force check skipped: {force['unchecked_why']}")
     elif force:
-        worst = ("infinite: something floats or tips" if force["max_utilisation"] is None
-                 else f"{force['max_utilisation']:.2f}")
+        worst = _worst_words(force, 2)
         print(f"{'stands' if force['stable'] else 'does NOT stand'} on a {force['ground']} with "
               f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
               + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"

@@ -423,6 +423,8 @@ def force_words(force: dict | None) -> str:
         return f"not checked: {force['unchecked_why']}"
     worst = ("infinite (something floats or tips)" if force["max_utilisation"] is None
              else f"{force['max_utilisation']:.2f}")
+    if force.get("sub_structures"):
+        worst = f"at most {worst} (checked by its {force['sub_structures']} hanging part(s))"
     failing = len(force["failing_bricks"])
     return (f"{'stands' if force['stable'] else 'does not stand'} on a {force['ground']} with "
             f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
