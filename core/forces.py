@@ -518,7 +518,8 @@ class BuildChecker:
             hanging, support, under = self.model._hanging_part()
             low = np.full(self.model.nbody, np.iinfo(np.int64).max)
             np.minimum.at(low, self.model.body_of, self.model.corners[:, 2])
-            if not np.any(low[hanging] == 0):
+            if not np.any(low[hanging] == 0) and \
+                    np.count_nonzero(hanging | support) <= PART_SHARE * self.model.nbody:
                 self._part = (hanging, support, under)
                 self._outside = ~hanging[self.model.body_of]
         # the bricks of the last set asked about, and in it: pairs whose upper brick is in
@@ -676,6 +677,9 @@ MAX_BODIES = 2500
 #: A build of more bodies than this, some of them hanging, is checked by its hanging parts
 #: (:meth:`_Model._by_parts`) before the whole program is solved.
 EXACT_BODIES = 300
+#: Up to MAX_BODIES, the hanging part is solved on its own only when it and its supports
+#: are at most this share of the bodies (a bunny hangs almost whole: the whole program).
+PART_SHARE = 0.7
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Most bodies in one program of a hanging part (bigger ones are cut in plan)...
@@ -991,6 +995,8 @@ class _Model:
         :data:`DETAIL_ABOVE` gives each of its bricks that worst.  Returns (the verdict, "")
         then, else (None, where a group does not stand)."""
         hanging, support, under = self._hanging_part()
+        if self.nbody <= MAX_BODIES and np.count_nonzero(hanging | support) > PART_SHARE * self.nbody:
+            return None, ""                      # hardly smaller than the whole program
         groups = dict(enumerate(self._windows(hanging, support, under)))
         window = np.full(self.nbody, -1)
         for w, g in groups.items():

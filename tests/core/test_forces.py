@@ -423,6 +423,9 @@ def test_a_big_build_is_checked_by_its_hanging_parts_as_the_whole_program_says(m
     whole = forces.analyse(lay)
     assert whole.sub_structures == 0 and whole.stable and 0.01 < whole.max_utilisation < 1
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    # most of this small build hangs: the whole program, unless told otherwise
+    assert forces.analyse(lay, detail=False).sub_structures == 0
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
     parted = forces.analyse(lay)
     assert parted.sub_structures == 1
     assert parted.stable == whole.stable
@@ -455,6 +458,7 @@ def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars
     whole = forces.analyse(lay, detail=False)
     assert whole.stable and whole.sub_structures == 0
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
     monkeypatch.setattr(forces, "MAX_BODIES", 10)
     monkeypatch.setattr(forces, "WINDOW_BODIES", 30)
     cut = forces.analyse(lay)
@@ -468,6 +472,7 @@ def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_progr
     only presses it cannot stand, so the verdict is the whole program's (the hand figure
     of the cantilever test); past MAX_BODIES it is reported unchecked, saying where."""
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
     tip = "40,0,12.8,48,8,16:20"
     result = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert result.sub_structures == 0 and not result.stable and 2 in result.failing_bricks
@@ -493,6 +498,7 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
     monkeypatch.setattr(forces, "EXACT_BODIES", forces.MAX_BODIES)
     whole = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
     checker = forces.BuildChecker(lay)
     part = build_order.standing(lay, order, checker.stands)
     assert checker._sub is not None and checker._part is not None
