@@ -919,8 +919,8 @@ class _Model:
 
     def _windows(self, hanging: np.ndarray, support: np.ndarray,
                  under: sparse.csr_matrix) -> list[np.ndarray]:
-        """The hanging bodies in groups of at most :data:`WINDOW_BODIES`: each connected
-        piece, cut in two across its longer side in plan until small enough.  A cut goes
+        """The hanging bodies in groups: each connected piece, and past :data:`MAX_BODIES`
+        bodies cut in two across its longer side in plan until at most :data:`WINDOW_BODIES`.  A cut goes
         through the middle 40 % where most of the piece rests on supports (a cut through a
         span would leave both halves hanging in the air)."""
         idx = np.flatnonzero(hanging)
@@ -934,7 +934,7 @@ class _Model:
         todo = [idx[comp == c] for c in np.unique(comp)]
         while todo:
             group = todo.pop()
-            if len(group) <= WINDOW_BODIES:
+            if len(group) <= WINDOW_BODIES or self.nbody <= MAX_BODIES:
                 out.append(group)
                 continue
             xy = centre[group]
