@@ -516,3 +516,11 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
         gaps = on & (below >= 0) & (below != above) & ~present[np.maximum(below, 0)]
         pairs = {(int(a), int(b)) for a, b in zip(below[gaps], above[gaps])}
         assert checker._missing_outside == len(pairs)
+
+
+def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monkeypatch):
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 1)
+    monkeypatch.setattr(forces, "MAX_HANGING", 1)
+    result = forces.analyse(slab_over_box(), detail=False)
+    assert result.unchecked and "hanging part has" in result.unchecked and "more than the 1 " in result.unchecked
