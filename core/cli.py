@@ -230,7 +230,7 @@ def _stability(args) -> int:
     if result.unchecked:
         print(f"force check skipped: {result.unchecked}")
         return 0
-    worst = _worst_words(doc, 3)
+    worst = forces.worst_words(doc, 3)
     print(f"{'stands' if result.stable else 'does not stand'} on a {result.ground}: "
           f"worst utilisation {worst}, {len(layout.bricks)} bricks, {result.mass_g:.1f} g"
           + (f", resting leaning {result.tilt_deg:.1f}° on its lower points"
@@ -242,17 +242,6 @@ def _stability(args) -> int:
     if len(result.failures) > 20:
         print(f"  ... and {len(result.failures) - 20} more failing bricks")
     return 0
-
-
-def _worst_words(force: dict, digits: int) -> str:
-    """The worst utilisation of a ``stability.force`` document in words: "at most" when
-    the build was checked by its hanging parts (an upper bound)."""
-    if force["max_utilisation"] is None:
-        return "infinite (something floats or tips)"
-    worst = f"{force['max_utilisation']:.{digits}f}"
-    if force.get("sub_structures"):
-        return f"at most {worst} (checked by its {force['sub_structures']} hanging part(s))"
-    return worst
 
 
 def _printed_meshes(folder, layout) -> list:
@@ -330,6 +319,8 @@ def _calibration_strip(args) -> int:
 
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
+    from core import forces
+
     if doc["model"]["repaired"]:
         sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
     for warning in doc["model"]["warnings"]:
@@ -347,9 +338,7 @@ def _summary(doc: dict, out) -> None:
     if force and not force.get("checked", True):
         print(f"force check skipped: {force['unchecked_why']}")
     elif force:
-        worst = _worst_words(force, 2)
-        print(f"{'stands' if force['stable'] else 'does NOT stand'} on a {force['ground']} with "
-              f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
+        print(forces.verdict_words(force)
               + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"
                  if force["failing_bricks"] else "")
               + (f"; it rests leaning {force['rests_tilted_deg']:.0f}° on its lower points"

@@ -167,6 +167,25 @@ FORCE_MEANS = ("Utilisation is how hard the hardest-working joint holding a bric
                "breaks. 'Unsupported' bricks float or tip over whatever their studs do.")
 
 
+def worst_words(force: dict, digits: int = 2) -> str:
+    """The worst utilisation of a ``stability.force`` document in words: "infinite" when
+    something floats or tips, "at most X (checked by its N hanging part(s))" when the build
+    was checked by its hanging parts (an upper bound), else the figure."""
+    if force["max_utilisation"] is None:
+        return "infinite (something floats or tips)"
+    worst = f"{force['max_utilisation']:.{digits}f}"
+    if force.get("sub_structures"):
+        return f"at most {worst} (checked by its {force['sub_structures']} hanging part(s))"
+    return worst
+
+
+def verdict_words(force: dict) -> str:
+    """A checked ``stability.force`` document's verdict in one clause: "stands on a table with
+    120 g: worst joint utilisation 0.31" (what the CLI prints and FreeCAD's Forces holds)."""
+    return (f"{'stands' if force['stable'] else 'does not stand'} on a {force['ground']} with "
+            f"{force['mass_g']:.0f} g: worst joint utilisation {worst_words(force)}")
+
+
 #: How the verdict was found: one program of the whole build (or :data:`SUB_MEANS`).
 WHOLE_MEANS = "one program of the whole build: the worst utilisation is the least any forces reach"
 

@@ -417,18 +417,14 @@ def _restore_parameters(obj) -> None:
 
 def force_words(force: dict | None) -> str:
     """The force check of report.json (``stability.force``) in one line."""
+    from core import forces
+
     if not force:
         return "not checked"
     if not force.get("checked", True):
         return f"not checked: {force['unchecked_why']}"
-    worst = ("infinite (something floats or tips)" if force["max_utilisation"] is None
-             else f"{force['max_utilisation']:.2f}")
-    if force.get("sub_structures"):
-        worst = f"at most {worst} (checked by its {force['sub_structures']} hanging part(s))"
     failing = len(force["failing_bricks"])
-    return (f"{'stands' if force['stable'] else 'does not stand'} on a {force['ground']} with "
-            f"{force['mass_g']:.0f} g: worst joint utilisation {worst}"
-            + (f", {failing} failing brick(s)" if failing else ""))
+    return forces.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
 
 
 def _store_forces(obj, force: dict | None) -> None:

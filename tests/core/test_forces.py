@@ -524,3 +524,17 @@ def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monk
     monkeypatch.setattr(forces, "MAX_HANGING", 1)
     result = forces.analyse(slab_over_box(), detail=False)
     assert result.unchecked and "hanging part has" in result.unchecked and "more than the 1 " in result.unchecked
+
+
+def test_verdict_words_say_at_most_for_hanging_parts_and_infinite_for_a_float():
+    """The one sentence the CLI and FreeCAD both show: an upper bound says 'at most' and how
+    many hanging parts found it; no figure says why."""
+    doc = {"stable": True, "ground": "table", "mass_g": 54985.2, "max_utilisation": 0.1712,
+           "sub_structures": 18}
+    assert forces.verdict_words(doc) == ("stands on a table with 54985 g: worst joint "
+                                         "utilisation at most 0.17 (checked by its 18 hanging "
+                                         "part(s))")
+    whole = dict(doc, sub_structures=0, stable=False, max_utilisation=1.2345)
+    assert forces.worst_words(whole, 3) == "1.234"
+    assert forces.verdict_words(whole).startswith("does not stand on a table")
+    assert forces.worst_words(dict(doc, max_utilisation=None)).startswith("infinite")
