@@ -43,19 +43,20 @@ time limit is only a safety net that ordinary windows never reach).
 from __future__ import annotations
 
 import dataclasses
+import time
 from dataclasses import dataclass
 from typing import Callable, Iterable
 
 import highspy
 import numpy as np
 from numba import njit
-from scipy import sparse
+from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import _summed_volume, fitting_positions
+from core.lower_bound import MAX_VARIABLES, _summed_volume, fitting_positions
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -257,6 +258,130 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
                    "than the layout; ask for it with --lower-bound"}
     block["seconds"] = seconds
     return block
+
+
+#: Regions of more cells than this need at least three bricks (no part covers more than
+#: 48 cells), so a leaf brick in them makes its neighbour a weak point.
+LEAF_FREE_REGION_CELLS = 96
+
+
+def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0) -> dict:
+    """A lower bound on the bricks of any layout that the improvement's targets accept: one
+    component per region and no weak point but those holding a leaf on a one-cell-thin
+    feature (:func:`thin_weak_points`).
+
+    The exact-cover program (:mod:`core.lower_bound`) with what such a layout cannot have:
+    a brick touching nothing above or below in a region it does not fill alone (it would
+    be a component of its own), and, in regions of more than
+    :data:`LEAF_FREE_REGION_CELLS` cells, a brick that touches cells on one side only, at
+    least two of them, all under (or over) one other brick (a leaf: that brick would be a
+    weak point, and not a thin one).  Both are necessary conditions, so the answer is a
+    lower bound, usually above the plain exact cover's, and the gap between them is what
+    connection costs at least.  Returns ``{"bound", "optimal", "objective", "status",
+    "seconds", "variables"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is
+    the larger of the relaxation's bound (interior point, certified by weak duality) and
+    HiGHS's dual bound, rounded up (0 when neither came in ``time_limit_s``; None past
+    :data:`core.lower_bound.MAX_VARIABLES` placements, ``status`` "too large"),
+    ``objective`` the best such cover found or None.
+    """
+    start = time.perf_counter()
+    filled = np.ascontiguousarray(np.asarray(grid.filled, dtype=bool))
+    shapes = sorted({(sx, sy, p.layers): p.number for p in parts for sx, sy in p.orientations()}.items())
+    boxes = _placements(filled, None, shapes)
+    n, m = len(boxes), int(filled.sum())
+
+    def result(bound, optimal, objective, status):
+        return {"bound": bound, "optimal": optimal, "objective": objective, "status": status,
+                "seconds": round(time.perf_counter() - start, 4), "variables": n}
+
+    if m == 0:
+        return result(0, True, 0, "optimal")
+    if n > MAX_VARIABLES:
+        return result(None, False, None, "too large")
+    labels = ndimage.label(filled, structure=ndimage.generate_binary_structure(3, 1))[0]
+    region_cells = np.bincount(labels.ravel())
+    cell_index = np.full(filled.shape, -1, dtype=np.int64)
+    cell_index[filled] = np.arange(m)
+    cover = _cover_matrix(boxes, cell_index, m).tocsr()
+    _, below, above, bbox, _ = _contacts(boxes, filled, filled, np.full(filled.shape, -1, np.int64))
+    region = region_cells[labels[boxes[:, 0], boxes[:, 1], boxes[:, 2]]]
+    island = (below == 0) & (above == 0) & (boxes[:, 3] * boxes[:, 4] * boxes[:, 5] < region)
+    cand = np.flatnonzero((region > LEAF_FREE_REGION_CELLS) & (bbox[:, 4] >= 0)
+                          & (below + above >= 2))
+    t, q = _covering(boxes, bbox[cand], cover.indptr.astype(np.int64),
+                     cover.indices.astype(np.int64), cell_index)
+    keep = cand[t] != q
+    t, q = t[keep], q[keep]
+    leaf = sparse.csr_matrix((np.ones(len(cand) + len(t)),
+                              (np.concatenate([np.arange(len(cand)), t]),
+                               np.concatenate([cand, q]))), shape=(len(cand), n))
+    leaf.data[:] = 1.0
+    a = sparse.vstack([cover, leaf]).tocsc()
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = n, a.shape[0]
+    lp.col_cost_ = np.ones(n)
+    lp.col_lower_ = np.zeros(n)
+    lp.col_upper_ = np.where(island, 0.0, 1.0)
+    lp.row_lower_ = np.concatenate([np.ones(m), np.full(len(cand), -highspy.kHighsInf)])
+    lp.row_upper_ = np.ones(a.shape[0])
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = a.indices.astype(np.int32)
+    lp.a_matrix_.value_ = a.data.astype(np.float64)
+    # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, did
+    # not finish a 1,636-cell model's in 10 s), its bound certified by weak duality
+    h = _bound_highs(0.5 * time_limit_s, solver="ipm", run_crossover="off", presolve="off")
+    h.passModel(lp)
+    h.run()
+    if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
+        return result(None, True, None, "infeasible")
+    y = np.asarray(h.getSolution().row_dual)
+    bound = 0
+    if len(y) == a.shape[0]:
+        lp_bound = _dual_bound(a, y, m, lp.col_upper_)
+        bound = max(0, int(np.ceil(lp_bound - 1e-6)))
+    lp.integrality_ = [highspy.HighsVarType.kInteger] * n
+    h = _bound_highs(max(time_limit_s - (time.perf_counter() - start), 0.05),
+                     mip_abs_gap=1.0 - 1e-3)
+    h.passModel(lp)
+    h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
+    h.run()
+    status = h.getModelStatus()
+    if status == highspy.HighsModelStatus.kInfeasible:
+        return result(None, True, None, "infeasible")
+    info = h.getInfo()
+    found = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
+    objective = round(info.objective_function_value) if found else None
+    dual = info.mip_dual_bound
+    if np.isfinite(dual):
+        bound = max(bound, int(np.ceil(dual - 1e-6)))
+    optimal = objective is not None and (status == highspy.HighsModelStatus.kOptimal
+                                         or bound >= objective)
+    if optimal:
+        bound = objective
+    return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+
+
+def _bound_highs(time_limit_s: float, **options) -> highspy.Highs:
+    """A silent, single-threaded, seeded HiGHS with a time limit and ``options``."""
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("threads", 1)
+    h.setOptionValue("random_seed", 0)
+    h.setOptionValue("time_limit", float(time_limit_s))
+    for key, value in options.items():
+        h.setOptionValue(key, value)
+    return h
+
+
+def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, m: int, upper: np.ndarray) -> float:
+    """A lower bound on ``min sum x`` subject to ``a[:m] x = 1``, ``a[m:] x <= 1`` and
+    ``0 <= x <= upper``, from any row prices ``y`` (weak duality: the rows past ``m`` take
+    prices of at most 0; an inexact interior-point answer still gives a valid bound)."""
+    y = np.nan_to_num(np.asarray(y, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    y[m:] = np.minimum(y[m:], 0.0)
+    reduced = 1.0 - a.T @ y
+    return float(y.sum() + np.minimum(reduced, 0.0) @ upper)
 
 
 def thin_weak_points(layout: Layout) -> list[int]:
@@ -578,6 +703,21 @@ def _placements(free, apart, shapes):
     return np.concatenate(out).astype(np.int64) if out else np.empty((0, 6), dtype=np.int64)
 
 
+def _cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:
+    """The (cells x placements) 0/1 matrix of which placement covers which cell: ``boxes``
+    (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them)."""
+    cols, rows = [], []
+    for (sx, sy, sz) in {tuple(b) for b in boxes[:, 3:]}:
+        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
+        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
+        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
+                           boxes[sel, 2, None] + dk.ravel()]
+        cols.append(np.repeat(sel, cells.shape[1]))
+        rows.append(cells.ravel())
+    cols, rows = np.concatenate(cols), np.concatenate(rows)
+    return sparse.coo_matrix((np.ones(cols.size), (rows, cols)), shape=(m, len(boxes)))
+
+
 @njit(cache=True)
 def _contacts(boxes, free, filled, lab):
     """Per placement: distinct fixed bricks touching it above or below (capped at 2), freed
@@ -702,18 +842,8 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     cell_index = np.full(free.shape, -1, dtype=np.int64)
     cell_index[free] = np.arange(int(free.sum()))
     m = int(free.sum())
-    # constraint columns: the cells of each placement
-    cols, rows = [], []
-    for (sx, sy, sz) in {tuple(b) for b in boxes[:, 3:]}:
-        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
-        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
-        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
-                           boxes[sel, 2, None] + dk.ravel()]
-        cols.append(np.repeat(sel, cells.shape[1]))
-        rows.append(cells.ravel())
-    cols = np.concatenate(cols)
-    rows = np.concatenate(rows)
-    cover = sparse.csr_matrix((np.ones(cols.size), (rows, cols)), shape=(m, n))
+    cover = _cover_matrix(boxes, cell_index, m)
+    rows, cols = cover.row, cover.col
     by_cell = cover.tocsr()
     fixed, wb, wa, bbox, seams = _contacts(boxes, free, filled, lab)
     cost = BRICK_COST + SEAM_COST * seams + 1e-4 * rng.random(n)

@@ -233,3 +233,39 @@ def test_the_pipeline_improves_and_reports_layout_quality(tmp_path):
     assert bound["bound"] == 6 and bound["proven"] and block["bricks"] == 6
     assert set(block["seconds"]) == {"layout", "improve", "lower_bound"}
     assert covers_once(normal.layout)
+
+
+def test_leaf_free_bound_of_a_column_is_the_hand_count():
+    """A 2x4 column five bricks tall from 2x4 and 2x2 bricks.  The plain cover stacks five
+    2x4s, the top and bottom ones leaves.  Without leaves the top and bottom 2x4 must each
+    rest on two 2x2s, so by hand at least 1 + 2 + 1 + 2 + 1 = 7; and without weak points
+    the middle layer is split too (else its 2x4 joins the halves alone): 8, which the
+    bound does not exceed."""
+    from core.lower_bound import brick_lower_bound
+    grid = grid_of(np.ones((2, 4, 15), bool))
+    parts = tuple(p for p in catalog.CATALOG if p.number in ("3001", "3003"))
+    assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 5
+    found = improve.leaf_free_bound(grid, parts, time_limit_s=10)
+    assert found["bound"] == 7 and found["optimal"] and found["objective"] == 7
+    by_hand = [Brick(0, "3001", (2, 4, 3), (0, 0, 0)), Brick(7, "3001", (2, 4, 3), (0, 0, 12))]
+    by_hand += [Brick(1 + 2 * k + side, "3003", (2, 2, 3), (0, 2 * side, 3 + 3 * k))
+                for k in range(3) for side in range(2)]
+    assert covers_once(Layout(grid, by_hand))
+    assert improve.quality(Layout(grid, by_hand)) == (1, 0, 0, 8)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(filled=shapes())
+def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(filled):
+    """Validity: any layout the targets accept (one component per region, no weak point but
+    thin ones) has at least the bound's bricks; and the bound is at least the plain cover's."""
+    from core.lower_bound import brick_lower_bound
+    grid = grid_of(filled)
+    lay = improve.improve(layout_stage.lay_out(grid, catalog.CATALOG, seed=0), catalog.CATALOG,
+                          "normal", 0)
+    found = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10)
+    assert found["bound"] >= brick_lower_bound(grid, catalog.CATALOG, time_limit_s=10)["bound"]
+    comps, _, weak, bricks = improve.quality(lay)
+    regions = improve.layout_quality(lay, lay, catalog.CATALOG)["regions"]
+    if comps == regions and weak == len(improve.thin_weak_points(lay)):
+        assert found["bound"] <= bricks
