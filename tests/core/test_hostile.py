@@ -469,10 +469,18 @@ def test_a_high_res_box_outside_the_model_is_a_warning(box_stl, tmp_path, capsys
 
 # --- signals -------------------------------------------------------------------------
 
+def _terminal_ctrl_c() -> None:
+    """In the child before it starts: SIGINT back to its default."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def running(args, until: str) -> subprocess.Popen:
-    """The CLI started with ``args``, returned once a stderr line holds ``until``."""
+    """The CLI started with ``args``, returned once a stderr line holds ``until``.  It gets
+    Ctrl-C as from a terminal: a suite started in the background of a shell without job
+    control inherits SIGINT ignored, and the CLI rightly keeps that (the run went on)."""
     proc = subprocess.Popen([sys.executable, "-m", "core", *map(str, args)], cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_terminal_ctrl_c)
     lines = []
     for line in proc.stderr:
         lines.append(line)
