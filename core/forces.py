@@ -671,6 +671,32 @@ def _facet_under(points: np.ndarray, xy: np.ndarray, hull_of, hull_error):
     return None
 
 
+def _cut_margins(cuts: np.ndarray, axis: int, xy: np.ndarray, mass: np.ndarray,
+                 rests: np.ndarray, resting: np.ndarray) -> np.ndarray:
+    """Per cut ``c`` across ``axis`` (between cells ``c`` and ``c + 1``): how deep, in
+    cells, each half's centre of mass lies inside the box of the support contacts under
+    it, in x and in y, the least of the two halves' (negative: outside, so it tips; -inf:
+    a half rests on nothing).  ``xy`` and ``mass`` are the bodies' centres in plan (cells)
+    and masses; ``rests`` the support contacts' cells (n, 2) and ``resting`` the centre
+    along ``axis`` of the body each holds (a contact goes with its body's half)."""
+    out = np.full(len(cuts), -np.inf)
+    for n, c in enumerate(cuts):
+        line = c + 0.5
+        worst = np.inf
+        for body_side, rest_side in ((xy[:, axis] < line, resting < line),
+                                     (xy[:, axis] >= line, resting >= line)):
+            on = rests[rest_side]
+            weight = mass[body_side].sum()
+            if not len(on) or weight <= 0:
+                worst = -np.inf
+                break
+            com = (mass[body_side, None] * xy[body_side]).sum(axis=0) / weight
+            worst = min(worst, float(np.min(com - (on.min(axis=0) - 0.5))),
+                        float(np.min(on.max(axis=0) + 0.5 - com)))
+        out[n] = worst
+    return out
+
+
 def _reach(graph: sparse.csr_matrix, start: np.ndarray) -> np.ndarray:
     """The nodes ``start`` (bool) and every node reached from them along ``graph``'s edges."""
     seen = np.asarray(start, dtype=bool).copy()
@@ -711,6 +737,9 @@ MERGED_BODIES = 1200
 #: ...while the bodies of all the groups solved stay within this many times the hanging ones
 #: (cut too small, a roof's groups merged over and over: 500 s on a 1 m hollow cube).
 EFFORT = 4
+#: Levels of seated bodies a group that does not stand on its supports takes in, step by
+#: step (:meth:`_Model._deepened`).
+DEEPER_LEVELS = (4, 12, 32)
 #: Below this worst utilisation a hanging part's bricks are each given its worst (an upper
 #: bound; their own utilisations would cost a second program and stay in the dark range).
 DETAIL_ABOVE = 0.25
@@ -943,8 +972,11 @@ class _Model:
                  under: sparse.csr_matrix) -> list[np.ndarray]:
         """The hanging bodies in groups: each connected piece, and past :data:`MAX_BODIES`
         bodies cut in two across its longer side in plan until at most :data:`WINDOW_BODIES`.  A cut goes
-        through the middle 40 % where most of the piece rests on supports (a cut through a
-        span would leave both halves hanging in the air)."""
+        through the middle 40 % where both halves' centres of mass lie deepest inside the
+        supports under them, in both directions (:func:`_cut_margins`): supports only press,
+        so a half whose weight falls outside them tips (a bridge cut in mid-span; a roof cut
+        along a row of pillars, which leaves a strip on that row alone).  A piece that no
+        cut leaves with two such halves stays whole."""
         idx = np.flatnonzero(hanging)
         _, comp = connected_components(under[idx][:, idx], directed=False)
         lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
@@ -963,13 +995,15 @@ class _Model:
             axis = int(np.argmax(np.ptp(xy, axis=0)))
             lo, mid, hi = np.quantile(xy[:, axis], [0.3, 0.5, 0.7])
             cuts = np.arange(math.ceil(lo), math.floor(hi) + 1)
-            rests = rest_ij[np.isin(rest_body, group), axis]
-            score = np.array([np.count_nonzero(rests == c) for c in cuts]) if len(cuts) else []
-            cut = (cuts[np.lexsort((np.abs(cuts + 0.5 - mid), -np.asarray(score)))[0]] + 0.5
-                   if len(cuts) else mid)
+            mine = np.isin(rest_body, group)
+            margin = _cut_margins(cuts, axis, xy, self.mass_g[group], rest_ij[mine],
+                                  centre[rest_body[mine], axis])
+            if not len(cuts) or margin.max() <= 0:
+                out.append(group)                # every cut would leave a half that tips
+                continue
+            # the deepest-seated halves, nearest the middle among equals
+            cut = cuts[np.argmax(np.minimum(margin, 2.0) - np.abs(cuts + 0.5 - mid) / (4 * max(hi - lo, 1.0)))] + 0.5
             left = xy[:, axis] < cut
-            if left.all() or not left.any():
-                left = xy[:, axis] < mid
             todo += [group[left], group[~left]]
         return self._reattached(sorted(out, key=lambda g: int(g[0])), support, under)
 
@@ -1030,6 +1064,9 @@ class _Model:
         solved: dict[int, Forces] = {}
         todo = sorted(groups)
         effort = 0
+        # seated bodies a group took in (:meth:`_deepened`), and that group's (bodies, supports)
+        claimed = hanging.copy()
+        deep: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         while todo:
             w = todo.pop(0)
             try:
@@ -1037,6 +1074,11 @@ class _Model:
             except SolverTrouble:                # as if it did not stand: merged or the whole
                 f = self._forces(False, math.inf, {}, [], [], [])
             effort += len(groups[w])
+            if not f.stable and self.nbody > MAX_BODIES:
+                f, members, below = self._deepened(groups[w], hanging, claimed, under)
+                if f.stable:
+                    claimed[members] = True
+                    deep[w] = (members, below)
             if f.stable:
                 solved[w] = f
                 continue
@@ -1067,16 +1109,50 @@ class _Model:
         for w, f in solved.items():
             if not detail:
                 continue
+            members, below = deep.get(w, (groups[w], support))
             if f.max_utilisation >= DETAIL_ABOVE:
                 try:
-                    f = self._window(groups[w], support, under, True)
+                    f = self._window(members, below, under, True)
                 except SolverTrouble:            # each brick keeps the group's worst
                     pass
-            mine = [self.layout.bricks[i].id for i in np.flatnonzero(np.isin(self.body_of, groups[w]))]
+            mine = [self.layout.bricks[i].id for i in np.flatnonzero(np.isin(self.body_of, members))]
             util.update((b, f.utilisation.get(b, f.max_utilisation)) for b in mine)
         out = self._forces(True, max(f.max_utilisation for f in solved.values()), util, [], [], [])
         out.sub_structures = len(solved)
         return out, ""
+
+    def _deepened(self, group: np.ndarray, hanging: np.ndarray, claimed: np.ndarray,
+                  under: sparse.csr_matrix) -> tuple[Forces, np.ndarray, np.ndarray]:
+        """The verdict of the bodies ``group`` with the seated bodies under them taken in,
+        :data:`DEEPER_LEVELS` levels at a time (never a body on the ground nor one
+        ``claimed`` by another group), until it stands or :data:`MERGED_BODIES`; and the
+        bodies and support mask it was found with.  A strip of roof that rests on a wall
+        two studs thick tips on supports that only press, where the wall's own studs,
+        far enough down, hold it (seen on a 2 m hollow cube).  The bodies taken in carry
+        this group's forces only: what other groups press on them goes straight down."""
+        low = np.full(self.nbody, np.iinfo(np.int64).max)
+        np.minimum.at(low, self.body_of, self.corners[:, 2])
+        inside = np.zeros(self.nbody, dtype=bool)
+        inside[group] = True
+        f = None
+        for levels in DEEPER_LEVELS:
+            for _ in range(levels):
+                more = np.unique(under[np.flatnonzero(inside)].indices)
+                more = more[~inside[more] & ~claimed[more] & (low[more] >= 1)]
+                if not len(more):
+                    break
+                inside[more] = True
+            members = np.flatnonzero(inside)
+            if len(members) > MERGED_BODIES:
+                break
+            below = ~inside & ~hanging
+            try:
+                f = self._window(members, below, under, False)
+            except SolverTrouble:
+                f = None
+            if f is not None and f.stable:
+                return f, members, below
+        return (f if f is not None else self._forces(False, math.inf, {}, [], [], [])), group, hanging
 
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
                 detail: bool) -> Forces:

@@ -488,6 +488,28 @@ def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_progr
     assert forces.build_unchecked(unchecked) and forces.build_unchecked(result)
 
 
+def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
+    """A ledge four studs wide on top of a wall two studs thick: on supports that only
+    press, the ledge and the wall's top levels tip over the wall's inner edge; taking more
+    of the wall in (its own studs pull) it stands, no better than the whole program says.
+    Past MAX_BODIES, without that, the verdict would be unchecked."""
+    from core import catalog, layout as layout_stage
+    filled = np.zeros((16, 6, 42), dtype=bool)
+    filled[:, :2, :39] = True
+    filled[:, :, 39:] = True
+    lay = layout_stage.lay_out(Grid(np.zeros(3), CELL.copy(), filled), catalog.CATALOG, seed=0)
+    whole = forces.analyse(lay, detail=False)
+    assert whole.sub_structures == 0 and whole.stable
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 1)
+    parted = forces.analyse(lay, detail=False)
+    assert parted.unchecked is None and parted.sub_structures >= 1 and parted.stable
+    assert parted.max_utilisation >= whole.max_utilisation - 1e-6
+    monkeypatch.setattr(forces, "DEEPER_LEVELS", ())
+    assert forces.analyse(lay, detail=False).unchecked
+
+
 def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch):
     """Past EXACT_BODIES each partial build is solved on the layout's hanging part while
     every present brick outside it rests on present cells: step by step the same verdicts
