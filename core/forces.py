@@ -535,8 +535,7 @@ class BuildChecker:
         self._outside = np.zeros(n, dtype=bool)
         if self.model.nbody > EXACT_BODIES:
             hanging, support, under = self.model._hanging_part()
-            low = np.full(self.model.nbody, np.iinfo(np.int64).max)
-            np.minimum.at(low, self.model.body_of, self.model.corners[:, 2])
+            low = self.model._lowest_layer()
             if not np.any(low[hanging] == 0) and \
                     np.count_nonzero(hanging | support) <= PART_SHARE * self.model.nbody:
                 self._part = (hanging, support, under)
@@ -939,6 +938,12 @@ class _Model:
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
         return self._detail(x, parts, stable, worst, self._tipping(residual > 1e-6))
 
+    def _lowest_layer(self) -> np.ndarray:
+        """Per body, the lowest layer of its cells (0: on the ground)."""
+        low = np.full(self.nbody, np.iinfo(np.int64).max)
+        np.minimum.at(low, self.body_of, self.corners[:, 2])
+        return low
+
     def _hanging_part(self) -> tuple[np.ndarray, np.ndarray, sparse.csr_matrix]:
         """(hanging, support, under) of the bodies: *hanging* are those with a cell over air
         (not on the ground), every body resting on one of them (over and over), and
@@ -955,8 +960,7 @@ class _Model:
                           axis=0)
         over = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
         under = over.T.tocsr()
-        low = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(low, self.body_of, self.corners[:, 2])
+        low = self._lowest_layer()
         hanging = _reach(over, seeds)
         for _ in range(MARGIN_LEVELS):
             more = np.unique(under[np.flatnonzero(hanging)].indices)
@@ -1003,7 +1007,8 @@ class _Model:
                 out.append(group)                # every cut would leave a half that tips
                 continue
             # the deepest-seated halves, nearest the middle among equals
-            cut = cuts[np.argmax(np.minimum(margin, 2.0) - np.abs(cuts + 0.5 - mid) / (4 * max(hi - lo, 1.0)))] + 0.5
+            off_middle = np.abs(cuts + 0.5 - mid) / (4 * max(hi - lo, 1.0))
+            cut = cuts[np.argmax(np.minimum(margin, 2.0) - off_middle)] + 0.5
             left = xy[:, axis] < cut
             todo += [group[left], group[~left]]
         return self._reattached(sorted(out, key=lambda g: int(g[0])), support, under)
@@ -1131,8 +1136,7 @@ class _Model:
         two studs thick tips on supports that only press, where the wall's own studs,
         far enough down, hold it (seen on a 2 m hollow cube).  The bodies taken in carry
         this group's forces only: what other groups press on them goes straight down."""
-        low = np.full(self.nbody, np.iinfo(np.int64).max)
-        np.minimum.at(low, self.body_of, self.corners[:, 2])
+        low = self._lowest_layer()
         inside = np.zeros(self.nbody, dtype=bool)
         inside[group] = True
         f = None

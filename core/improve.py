@@ -56,7 +56,7 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import MAX_VARIABLES, _summed_volume, fitting_positions
+from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume, fitting_positions
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -286,7 +286,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     """
     start = time.perf_counter()
     filled = np.ascontiguousarray(np.asarray(grid.filled, dtype=bool))
-    shapes = sorted({(sx, sy, p.layers): p.number for p in parts for sx, sy in p.orientations()}.items())
+    shapes = _shapes(parts)
     boxes = _placements(filled, None, shapes)
     n, m = len(boxes), int(filled.sum())
 
@@ -298,7 +298,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         return result(0, True, 0, "optimal")
     if n > MAX_VARIABLES:
         return result(None, False, None, "too large")
-    labels = ndimage.label(filled, structure=ndimage.generate_binary_structure(3, 1))[0]
+    labels = ndimage.label(filled, structure=_SIX)[0]
     region_cells = np.bincount(labels.ravel())
     cell_index = np.full(filled.shape, -1, dtype=np.int64)
     cell_index[filled] = np.arange(m)
@@ -330,7 +330,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     lp.a_matrix_.value_ = a.data.astype(np.float64)
     # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, did
     # not finish a 1,636-cell model's in 10 s), its bound certified by weak duality
-    h = _bound_highs(0.5 * time_limit_s, solver="ipm", run_crossover="off", presolve="off")
+    h = _highs(0.5 * time_limit_s, random_seed=0, solver="ipm", run_crossover="off",
+               presolve="off")
     h.passModel(lp)
     h.run()
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
@@ -341,8 +342,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         lp_bound = _dual_bound(a, y, m, lp.col_upper_)
         bound = max(0, int(np.ceil(lp_bound - 1e-6)))
     lp.integrality_ = [highspy.HighsVarType.kInteger] * n
-    h = _bound_highs(max(time_limit_s - (time.perf_counter() - start), 0.05),
-                     mip_abs_gap=1.0 - 1e-3)
+    h = _highs(max(time_limit_s - (time.perf_counter() - start), 0.05), random_seed=0,
+               mip_abs_gap=1.0 - 1e-3)
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
     h.run()
@@ -360,18 +361,6 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     if optimal:
         bound = objective
     return result(bound, optimal, objective, "optimal" if optimal else "time limit")
-
-
-def _bound_highs(time_limit_s: float, **options) -> highspy.Highs:
-    """A silent, single-threaded, seeded HiGHS with a time limit and ``options``."""
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
-    h.setOptionValue("threads", 1)
-    h.setOptionValue("random_seed", 0)
-    h.setOptionValue("time_limit", float(time_limit_s))
-    for key, value in options.items():
-        h.setOptionValue(key, value)
-    return h
 
 
 def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, m: int, upper: np.ndarray) -> float:
@@ -415,6 +404,12 @@ def _contact_cells(filled: np.ndarray, brick: Brick) -> int:
         if 0 <= z < filled.shape[2]:
             total += int(np.count_nonzero(filled[x0:x0 + sx, y0:y0 + sy, z]))
     return total
+
+
+def _shapes(parts) -> list[tuple[tuple[int, int, int], str]]:
+    """Each box a part of ``parts`` takes when placed, (cells x, y, z), with the part's
+    number (the last part of a shape wins), sorted by box."""
+    return sorted({(sx, sy, p.layers): p.number for p in parts for sx, sy in p.orientations()}.items())
 
 
 def _silent(fraction: float, message: str) -> None:
@@ -465,8 +460,7 @@ class _Search:
         self.grid = layout.grid
         self.filled = np.ascontiguousarray(np.asarray(layout.grid.filled, dtype=bool))
         self.apart = None if apart is None else np.asarray(apart, dtype=bool) & self.filled
-        self.shapes = sorted({(sx, sy, p.layers): p.number for p in parts
-                              for sx, sy in p.orientations()}.items())
+        self.shapes = _shapes(parts)
         self.rng = np.random.default_rng(seed)
         self.failing = failing
         self.source = layout
