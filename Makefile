@@ -46,20 +46,30 @@ demo: examples/build/hmd.step
 	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate.3mf), instructions.html, assembly.mpd, bom.csv, bricklink.xml"
 
 # the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb),
-# on this machine's FreeCAD (0.20 on Debian 12), then all three again on FreeCAD 1.x
+# on this machine's FreeCAD (0.20 on Debian 12), then all three again on FreeCAD 1.x.
+# The FreeCAD 1.x root (mostly downloads and unpacking) is built meanwhile, in the
+# background, where no password can be asked (as root, or with sudo that needs none).
 test: $(VENV)/.installed
-	$(MAKE) --no-print-directory test-core
-	$(MAKE) --no-print-directory test-app
-	$(MAKE) --no-print-directory test-gui
-	$(MAKE) --no-print-directory test-freecad1
+	@if [ "$$(id -u)" = 0 ] || sudo -n true 2>/dev/null; then \
+	  echo "== building the FreeCAD 1.x root in the background, log: $(FREECAD1_LOG)"; \
+	  $(MAKE) --no-print-directory freecad1-root >$(FREECAD1_LOG) 2>&1 & root=$$!; \
+	else root=; fi; \
+	$(MAKE) --no-print-directory test-core && $(MAKE) --no-print-directory test-app && \
+	  $(MAKE) --no-print-directory test-gui; s=$$?; \
+	if [ -n "$$root" ]; then wait $$root || { s=1; echo "== the FreeCAD 1.x root failed:"; }; \
+	  cat $(FREECAD1_LOG); fi; \
+	[ $$s = 0 ] && $(MAKE) --no-print-directory test-freecad1
 
+# the test files are shared between the cores (a file's tests stay together: they share
+# their module fixtures)
 test-core: $(VENV)/.installed
-	$(PY) -m pytest tests/core -q --durations=15
+	$(PY) -m pytest tests/core -q -n auto --dist loadfile --durations=15
 
 # --- FreeCAD 1.x: a Debian 13 (trixie) root made with debootstrap, beside the host's apt
 # sources (which stay Debian 12); built once into FREECAD1_ROOT, the suites run on a copy
 # of this tree with a Python 3.13 venv of the root's own
 FREECAD1_ROOT ?= /var/tmp/fabrickator-trixie
+FREECAD1_LOG  := $(FREECAD1_ROOT).build.log
 FREECAD1_MAKE := make --no-print-directory -o .apt.stamp VENV=/root/venv
 
 .PHONY: test-core test-freecad1 freecad1-root
