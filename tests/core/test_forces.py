@@ -510,10 +510,12 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     assert forces.analyse(lay, detail=False).unchecked
 
 
-def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch):
-    """Past EXACT_BODIES each partial build is solved on the layout's hanging part while
-    every present brick outside it rests on present cells: step by step the same verdicts
-    as the whole program, and a worst utilisation no lower."""
+@pytest.mark.parametrize("margin", [forces.MARGIN_LEVELS, forces.BUILD_MARGIN_LEVELS])
+def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch, margin):
+    """Past EXACT_BODIES each partial build is solved on the layout's hanging part (with
+    ``margin`` levels under it) while every present brick outside it rests on present
+    cells: step by step the same verdicts as the whole program, and a worst utilisation
+    no lower."""
     from core import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
@@ -521,6 +523,7 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
     whole = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
     monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    monkeypatch.setattr(forces, "BUILD_MARGIN_LEVELS", margin)
     checker = forces.BuildChecker(lay)
     part = build_order.standing(lay, order, checker.stands)
     assert checker._sub is not None and checker._part is not None
