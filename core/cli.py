@@ -348,6 +348,9 @@ def _summary(doc: dict, out) -> None:
         build = st.get("build") or {}
         if build.get("checked") is False:
             print(f"build steps not force-checked: {build['why']}")
+        elif build.get("graph_only_steps"):
+            print(f"{build['graph_only_steps']} build step(s) from step {build['first_graph_only_step']} "
+                  f"not force-checked: {build['graph_only_why']}")
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
     hollow = doc.get("hollow")

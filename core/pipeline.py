@@ -524,11 +524,19 @@ def stress_title(fab: Fabrication) -> str:
             f"utilisation {worst} (dark 0, red 1, white fails)")
 
 
-def build_stability(order: build_order.BuildOrder) -> dict:
-    """The report's ``stability.build``: does the partial build stand after every step."""
-    worst = max(order.utilisation)
+def build_stability(order: build_order.BuildOrder, bodies: int) -> dict:
+    """The report's ``stability.build``: does the partial build (of ``bodies`` bricks and
+    printed parts) stand after every step; where steps were checked by the brick graph
+    only (a NaN utilisation), how many, from which step, and why."""
+    values = np.asarray(order.utilisation, dtype=float)
+    graph_only = np.flatnonzero(np.isnan(values))
+    worst = float(np.max(values[~np.isnan(values)], initial=0.0))
+    extra = {} if not len(graph_only) else {
+        "graph_only_steps": int(len(graph_only)), "first_graph_only_step": int(graph_only[0]) + 1,
+        "graph_only_why": forces_stage.graph_only_why(bodies)}
     return {"stands_every_step": not order.unstable,
             "worst_step_utilisation": None if not np.isfinite(worst) else round(worst, 4),
+            **extra,
             "unstable_steps": list(order.unstable),
             "fragile_steps": [n + 1 for n, u in enumerate(order.utilisation)
                               if build_order.FRAGILE < u <= forces_stage.FAIL_ABOVE],
@@ -544,7 +552,7 @@ def _build_block(fab: Fabrication) -> dict:
     """``{"build": ...}`` for the report's stability: the step-by-step check, or why there
     is none; empty when the forces were not asked for."""
     if fab.order.utilisation:
-        return {"build": build_stability(fab.order)}
+        return {"build": build_stability(fab.order, fab.forces.bodies)}
     why = None if fab.forces is None else forces_stage.build_unchecked(fab.forces)
     return {} if why is None else {"build": {"checked": False, "why": why}}
 

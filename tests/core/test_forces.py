@@ -485,7 +485,7 @@ def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_progr
     monkeypatch.setattr(forces, "MAX_BODIES", 1)
     unchecked = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert unchecked.unchecked and "hanging part of 1 brick from layer 4 (cell 0, 0)" in unchecked.unchecked
-    assert forces.build_unchecked(unchecked) and forces.build_unchecked(result)
+    assert forces.build_unchecked(unchecked) and forces.build_unchecked(result) is None
 
 
 def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
@@ -541,6 +541,51 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
         gaps = on & (below >= 0) & (below != above) & ~present[np.maximum(below, 0)]
         pairs = {(int(a), int(b)) for a, b in zip(below[gaps], above[gaps])}
         assert checker._missing_outside == len(pairs)
+
+
+def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(monkeypatch):
+    """Past MAX_BODIES no program is solved for a build step: a step whose every brick rests
+    on bricks or the ground gets 0, as the programs give it; a step that would need one is
+    NaN (joined to the ground: the graph's verdict), and the report counts those steps."""
+    from core import build_order, pipeline
+    lay = slab_over_box()
+    order = build_order.plan(lay)
+    full = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    checker = forces.BuildChecker(lay)
+    graph = build_order.standing(lay, order, checker.stands)
+    assert checker.solves == 0 and not graph.unstable and not full.unstable
+    assert [s.bricks for s in graph.steps] == [s.bricks for s in full.steps]
+    g, f = np.array(graph.utilisation), np.array(full.utilisation)
+    assert np.all((g == 0) | np.isnan(g)) and np.any(g == 0) and np.any(np.isnan(g))
+    assert np.all(f[g == 0] == 0) and np.all(np.isnan(g[f > 0]))
+    doc = pipeline.build_stability(graph, len(lay.bricks))
+    first = int(np.flatnonzero(np.isnan(g))[0]) + 1
+    assert doc["graph_only_steps"] == int(np.isnan(g).sum()) and doc["first_graph_only_step"] == first
+    assert doc["worst_step_utilisation"] == 0 and doc["stands_every_step"]
+    assert "brick graph only" in doc["graph_only_why"]
+    assert "graph_only_steps" not in pipeline.build_stability(full, len(lay.bricks))
+
+
+def test_joined_to_the_ground_step_by_step_agrees_with_the_whole_graph():
+    """The step-by-step search from the last set found joined to the ground gives the same
+    answer as the components of the whole graph, on sets growing in random orders (most
+    of them with a floating brick) and on sets that shrink."""
+    lay = slab_over_box(outer=(14, 14, 12), rim=2)
+    checker = forces.BuildChecker(lay)
+    rng = np.random.default_rng(3)
+    n, answers = len(lay.bricks), []
+    for _ in range(4):
+        present = np.zeros(n, dtype=bool)
+        for b in np.array_split(rng.permutation(n), 12):
+            present[b] = True
+            want = checker._held_all(present)
+            answers.append(want)
+            assert checker._held(present) == want
+    for _ in range(10):
+        present = rng.random(n) < rng.random()
+        assert checker._held(present) == checker._held_all(present)
+    assert any(answers) and not all(answers)
 
 
 def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monkeypatch):
