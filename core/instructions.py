@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import html
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -586,12 +587,20 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
 def step_warnings(order: build_order.BuildOrder) -> dict[int, str]:
     """Step number -> the warning the builder reads at that step: the partial build does
     not stand after it (:func:`core.build_order.standing`'s ``unstable``), or it stands with
-    its hardest joint above :data:`core.build_order.FRAGILE` of its clutch."""
+    its hardest joint above :data:`core.build_order.FRAGILE` of its clutch; or, at the first
+    of a run of steps checked by the brick graph only (a NaN utilisation), that the forces
+    of the partial builds from there on were not checked."""
     out = {u["step"]: "Does not stand on its own: " + u["why"] + "." for u in order.unstable}
+    before = 0.0
     for n, value in enumerate(order.utilisation, start=1):
         if n not in out and build_order.FRAGILE < value:
             out[n] = (f"Fragile: after this step the hardest-working joint uses {value:.0%} of its "
                       "clutch. Press the bricks fully home and handle the build gently.")
+        elif n not in out and math.isnan(value) and not math.isnan(before):
+            out[n] = ("Not force-checked from here on: the build has too many bricks for the "
+                      "force check of each step, so these steps were only checked to be joined "
+                      "to the ground. Support overhanging bricks until what holds them is on.")
+        before = value
     return out
 
 

@@ -565,6 +565,11 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     assert doc["worst_step_utilisation"] == 0 and doc["stands_every_step"]
     assert "brick graph only" in doc["graph_only_why"]
     assert "graph_only_steps" not in pipeline.build_stability(full, len(lay.bricks))
+    # the builder reads it once, at the first step of each run of such steps
+    from core import instructions
+    notes = {n for n, text in instructions.step_warnings(graph).items() if "Not force-checked" in text}
+    runs = {n + 1 for n in range(len(g)) if np.isnan(g[n]) and (n == 0 or not np.isnan(g[n - 1]))}
+    assert notes == runs and first in notes
 
 
 def test_joined_to_the_ground_step_by_step_agrees_with_the_whole_graph():
