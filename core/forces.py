@@ -1016,8 +1016,9 @@ class _Model:
     def _hanging_part(self, margin: int = MARGIN_LEVELS) -> tuple[np.ndarray, np.ndarray, sparse.csr_matrix]:
         """(hanging, support, under) of the bodies: *hanging* are those with a cell over air
         (not on the ground), every body resting on one of them (over and over), and
-        ``margin`` levels of bodies under them off the ground with what rests on those; *support* the other bodies right under a hanging one; ``under[b]`` lists the
-        bodies ``b`` rests on.  The bodies that are not hanging have every cell on a cell or
+        ``margin`` levels of bodies under them off the ground with what rests on those;
+        *support* the other bodies right under a hanging one; ``under[b]`` lists the bodies
+        ``b`` rests on.  The bodies that are not hanging have every cell on a cell or
         on the ground, and nothing hanging rests on them but on a support."""
         lower, upper = self.blab[:, :, :-1], self.blab[:, :, 1:]
         n = self.nbody
