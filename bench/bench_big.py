@@ -85,6 +85,13 @@ def run(model: Path, options: list[str], hollow: str, work: Path) -> dict:
                html_s=doc["assembly"]["timings_s"].get("html", 0.0),
                **{f"{s}_s": doc["timings_s"].get(s, 0.0) for s in STAGES})
     row["layout_s"] += doc["timings_s"].get("layout_solid", 0.0)
+    force = doc["stability"].get("force") or {}
+    if not force.get("checked", False):
+        row["force"] = "unchecked"
+    elif force.get("max_utilisation") is None:
+        row["force"] = "falls"
+    else:
+        row["force"] = ("stands" if force["stable"] else "falls") + f" {force['max_utilisation']:.2f}"
     return row
 
 
@@ -92,7 +99,7 @@ def main() -> None:
     load = os.getloadavg()
     print(f"# Big objects (bench/bench_big.py), {os.cpu_count()} cores, load average "
           f"{load[0]:.1f} at the start\n")
-    head = ["model", "hollow", "cells (solid)", "bricks", "assembly h", "comp/reg",
+    head = ["model", "hollow", "cells (solid)", "bricks", "assembly h", "comp/reg", "force",
             *[s.replace("build_order", "order") for s in STAGES], "(html)", "wall s", "peak GB"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
@@ -110,6 +117,7 @@ def main() -> None:
                     label += " (hollow)" if r["hollow_on"] else " (solid)"
                 print(f"| {name} | {label} | {r['cells']:,} ({r['solid_cells']:,}) | "
                       f"{r['bricks']:,} | {r['assembly_h']:.1f} | {r['components']}/{r['regions']} | "
+                      f"{r['force']} | "
                       + " | ".join(f"{r[s + '_s']:.1f}" for s in STAGES)
                       + f" | {r['html_s']:.1f} | {r['wall_s']:.1f} | {r['rss_gb']:.2f} |", flush=True)
     load = os.getloadavg()

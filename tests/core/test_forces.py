@@ -601,6 +601,31 @@ def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monk
     assert result.unchecked and "hanging part has" in result.unchecked and "more than the 1 " in result.unchecked
 
 
+def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monkeypatch):
+    """A slab on one central pillar: cut in two across either side, each half's weight falls
+    outside the pillar, so the slab stays one piece.  Past MERGED_BODIES that piece is not
+    solved as one program (a bunny scaled x3 hangs almost whole: 360 s for one program),
+    it is reported unchecked at once, saying where and why."""
+    from core import catalog, layout as layout_stage
+    filled = np.zeros((20, 20, 18), dtype=bool)
+    filled[9:11, 9:11, :] = True
+    filled[:, :, -6:] = True
+    lay = layout_stage.lay_out(Grid(np.zeros(3), CELL.copy(), filled), catalog.CATALOG, seed=0)
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(forces, "WINDOW_BODIES", 5)
+    monkeypatch.setattr(forces, "MERGED_BODIES", 10)
+
+    def no_program(self):
+        raise AssertionError("a program was solved")
+
+    monkeypatch.setattr(forces._Program, "solve", no_program)
+    result = forces.analyse(lay, detail=False)
+    assert result.unchecked and result.stable is False
+    assert "no cut in plan splits" in result.unchecked and "more than the 10 solved" in result.unchecked
+    assert "from layer" in result.unchecked
+
+
 def test_verdict_words_say_at_most_for_hanging_parts_and_infinite_for_a_float():
     """The one sentence the CLI and FreeCAD both show: an upper bound says 'at most' and how
     many hanging parts found it; no figure says why."""
