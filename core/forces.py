@@ -974,6 +974,9 @@ class _Model:
             # every cell rests on a cell (or the ground): it all stands in pure compression
             util = {b.id: 0.0 for b in self.layout.bricks} if detail else {}
             return self._forces(True, 0.0, util, [], [], [])
+        fallen = self._falls_over()
+        if fallen is not None:
+            return fallen
         where = ""
         if self.nbody > EXACT_BODIES and not self.on_supports:
             parted, where = self._by_parts(detail)
@@ -1006,6 +1009,33 @@ class _Model:
                 raise RuntimeError(f"the force program with slack ended {status}")
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
         return self._detail(x, parts, stable, worst, self._tipping(residual > 1e-6))
+
+    def _falls_over(self) -> Forces | None:
+        """On a table, a build whose every structure joined to the ground tips over as a rigid
+        body (:meth:`resting`) fails whatever its joints do: the program's own answer
+        (infinite utilisation, every brick tipping or floating) without solving it, so a
+        toppling build of any size is judged at once.  None when something could stand."""
+        if self.ground != "table" or self.on_supports:
+            return None
+        everything = np.ones(self.nbody, dtype=bool)
+        active, self.tilt = self.resting(everything)
+        _, body = self._table_points()
+        standing = np.zeros(self.nbody, dtype=bool)
+        standing[body[active]] = True
+        i, j, k = self._stud_joints()
+        graph = sparse.coo_matrix((np.ones(len(i)), (self.blab[i, j, k], self.blab[i, j, k + 1])),
+                                  shape=(self.nbody, self.nbody))
+        _, comp = connected_components(graph, directed=False)
+        if not self.topples or np.isin(comp, comp[standing]).any():
+            return None
+        n = len(self.layout.bricks)
+        floats = ~self.held[self.body_of]
+        mode = np.where(floats, "floats", "tips")
+        ids = [b.id for b in self.layout.bricks]
+        failures = sorted((self._failure(b, math.inf, str(mode[b])) for b in range(n)),
+                          key=lambda f: f["brick"])
+        return self._forces(False, math.inf, {b: math.inf for b in ids}, sorted(ids), sorted(ids),
+                            failures)
 
     def _lowest_layer(self) -> np.ndarray:
         """Per body, the lowest layer of its cells (0: on the ground)."""

@@ -327,6 +327,38 @@ def test_a_build_that_would_lean_further_tips_too():
     assert "on a baseplate" in topple["why"]
 
 
+@pytest.mark.parametrize("bricks", [
+    [Brick(1, "3004", (2, 1, 3), (0, 0, 0)), Brick(2, "3008", (8, 1, 3), (0, 0, 3))],
+    [Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3)),
+     Brick(3, "3005", (1, 1, 3), (3, 0, 6))],
+    [Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3)),
+     Brick(3, "3005", (1, 1, 3), (6, 0, 0))]])
+def test_a_build_that_tips_as_a_whole_is_judged_without_a_program_as_the_program_judges(
+        monkeypatch, bricks):
+    """A build whose every structure tips over on a table fails whatever its joints do: the
+    same bricks, utilisations and words as the whole program's answer, without solving it
+    (a bunny scaled x3 tips: judged in 0.1 s, where its hanging part was never checked).
+    A build with a structure that stands beside one that tips (the third) gets the program."""
+    layout = layout_of(bricks)
+    solved = []
+    real = forces._Program.solve
+
+    def counted(self):
+        solved.append(1)
+        return real(self)
+
+    monkeypatch.setattr(forces._Program, "solve", counted)
+    quick = forces.analyse(layout, ground="table")
+    quick_count = len(solved)
+    monkeypatch.setattr(forces._Model, "_falls_over", lambda self: None)
+    whole = forces.analyse(layout, ground="table")
+    assert not whole.stable and whole.topples
+    assert quick.to_json() | {"seconds": 0} == whole.to_json() | {"seconds": 0}
+    assert quick_count == (len(solved) - quick_count if len(bricks) == 3 and bricks[2].cell[2] == 0
+                           else 0)
+    assert forces.analyse(layout, ground="baseplate").topples == []
+
+
 def arm_of_plates() -> Layout:
     """A 2x2 tower two bricks high and, on it, a 1-wide arm 10 studs long, three plate layers
     thick, laid as 1x2 plates in a running bond (and 1x2 plates capping the tower)."""
