@@ -36,7 +36,8 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT.parent / "shared" / "models"
 if not MODELS.is_dir():
     MODELS = Path("/work/shared/models")
-STAGES = ("load", "legofy", "hollow", "layout", "stability", "build_order", "write")
+STAGES = ("load", "legofy", "hollow", "layout", "improve", "reinforce", "stability", "build_order",
+          "write")
 
 
 def cases(work: Path) -> list[tuple[str, Path, list[str], list[str]]]:
@@ -88,6 +89,8 @@ def run(model: Path, options: list[str], hollow: str, work: Path) -> dict:
     force = doc["stability"].get("force") or {}
     if not force.get("checked", False):
         row["force"] = "unchecked"
+    elif force.get("topples"):
+        row["force"] = "tips over"
     elif force.get("max_utilisation") is None:
         row["force"] = "falls"
     else:

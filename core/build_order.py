@@ -97,7 +97,9 @@ class BuildOrder:
     partial build after each step (inf where something floats or tips),
     ``unstable`` the steps after which it does not stand ({"step",
     "utilisation", "bricks", "why"}), ``moved`` how many steps were put
-    earlier than planned so that the build stands.
+    earlier than planned so that the build stands; ``graph_only_why`` why the steps
+    with a NaN utilisation were checked by the brick graph only ("" when told by
+    the number of bodies alone).
     """
 
     steps: list[Step] = field(default_factory=list)
@@ -106,6 +108,7 @@ class BuildOrder:
     utilisation: list[float] = field(default_factory=list)
     unstable: list[dict] = field(default_factory=list)
     moved: int = 0
+    graph_only_why: str = ""
 
     def step_of(self) -> dict[int, int]:
         """Brick id -> step number."""

@@ -417,11 +417,14 @@ def build_unchecked(verdict: Forces) -> str | None:
 
 def graph_only_why(bodies: int) -> str:
     """Why a build of ``bodies`` bricks and printed parts has steps checked by the brick graph
-    only (:meth:`BuildChecker.stands` gave them NaN)."""
+    only (:meth:`BuildChecker.stands` gave them NaN) when it has too many bodies for the
+    programs (:attr:`BuildChecker.why` says it when the time budget ran out instead)."""
     return (f"{bodies} bricks and printed parts: a step that hangs would need a program of the "
-            f"partial build, and more than {MAX_BODIES} take minutes each; the steps that need "
-            "one were checked by the brick graph only (joined to the ground), the others stand "
-            "in pure compression")
+            f"partial build, and more than {MAX_BODIES} take minutes each; " + _GRAPH_ONLY)
+
+
+_GRAPH_ONLY = ("the steps that need one were checked by the brick graph only (joined to the "
+               "ground), the others stand in pure compression")
 
 
 class _Warm:
@@ -529,13 +532,21 @@ class BuildChecker:
     rests on present cells: an upper bound of the worst utilisation, so a set
     it finds above :data:`FRAGILE` is solved again with the whole program.
     Past :data:`MAX_BODIES` bodies no program is solved: a set that would need
-    one is checked by the brick graph only (:func:`graph_only_why`).
+    one is checked by the brick graph only (:func:`graph_only_why`); so are the
+    sets asked about once the programs have taken ``budget_s`` seconds in all
+    (None: :data:`BUILD_BUDGET_S`; :attr:`why` then says so).
     """
 
     def __init__(self, layout: Layout, ground: str = "table", printed=(), clamp=None,
-                 clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None):
+                 clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None,
+                 budget_s: float | None = None):
         self.layout = layout
         self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
+        self.budget_s = BUILD_BUDGET_S if budget_s is None else budget_s
+        self.seconds = 0.0
+        #: why sets that need a program are checked by the graph only (None: they are not)
+        self.why: str | None = None if self.model.nbody <= MAX_BODIES else graph_only_why(
+            self.model.nbody)
         self._printed, self._clamp, self._profile = printed, clamp, profile
         # bricks on bricks (lower, upper; by position in layout.bricks), and bricks with a cell
         # above nothing (not on the ground): what a partial build's checks need, once
@@ -592,8 +603,22 @@ class BuildChecker:
             return True, 0.0                     # every present cell rests on a present cell
         if not self._held(present):
             return False, math.inf
+        if self.programs and self.seconds > self.budget_s:
+            self.programs = False
+            self.why = (f"{m.nbody} bricks and printed parts: the programs of the partial builds "
+                        f"took {self.seconds:.0f} s in all, past the {self.budget_s:.0f} s they "
+                        "are given; from here on " + _GRAPH_ONLY)
         if not self.programs:
             return True, math.nan
+        start = time.perf_counter()
+        try:
+            return self._programs(present)
+        finally:
+            self.seconds += time.perf_counter() - start
+
+    def _programs(self, present: np.ndarray) -> tuple[bool, float]:
+        """:meth:`stands` of a set joined to the ground that needs a program."""
+        m = self.model
         if self._part is not None and self._missing_outside == 0:
             if self._sub is None:
                 hanging, support, under = self._part
@@ -791,6 +816,11 @@ PART_SHARE = 0.7
 #: A hanging piece that no cut splits (a bunny scaled x3: 6,908 of its 6,912 bricks) is
 #: solved whole only up to MERGED_BODIES: that one program ran 360 s (infeasible).
 MAX_HANGING = 20000
+#: Seconds the programs of one build's partial builds may take in all (:class:`BuildChecker`);
+#: past them the steps that need one are checked by the brick graph only.  A 2,512-brick
+#: connecting rod (Assembly4's, scaled x5) had run its steps' programs for more than 13
+#: minutes, each a whole program of its solid, overhanging body.
+BUILD_BUDGET_S = 60.0
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Levels of bricks under the hanging part that the build steps' program of it takes in

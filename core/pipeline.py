@@ -296,6 +296,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     if forces_stage.build_unchecked(force) is None:
         checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
         order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
+        order = dataclasses.replace(order, graph_only_why=checker.why or "")
     layout = build_order.numbered(layout, order)
     iteration = None
     if before is not None:
@@ -533,7 +534,7 @@ def build_stability(order: build_order.BuildOrder, bodies: int) -> dict:
     worst = float(np.max(values[~np.isnan(values)], initial=0.0))
     extra = {} if not len(graph_only) else {
         "graph_only_steps": int(len(graph_only)), "first_graph_only_step": int(graph_only[0]) + 1,
-        "graph_only_why": forces_stage.graph_only_why(bodies)}
+        "graph_only_why": order.graph_only_why or forces_stage.graph_only_why(bodies)}
     return {"stands_every_step": not order.unstable,
             "worst_step_utilisation": None if not np.isfinite(worst) else round(worst, 4),
             **extra,

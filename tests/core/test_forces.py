@@ -575,6 +575,29 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
         assert checker._missing_outside == len(pairs)
 
 
+def test_steps_past_the_time_budget_are_checked_by_the_graph_and_the_report_says_why():
+    """Once the partial builds' programs have taken the checker's budget, later steps that
+    need one are NaN (checked by the brick graph); the steps before keep the programs'
+    answers, the steps in pure compression stay 0, and the report gives the budget reason."""
+    import dataclasses
+    from core import build_order, pipeline
+    lay = slab_over_box()
+    order = build_order.plan(lay)
+    full_checker = forces.BuildChecker(lay)
+    full = build_order.standing(lay, order, full_checker.stands)
+    assert full_checker.why is None and full_checker.solves > 1
+    checker = forces.BuildChecker(lay, budget_s=0.0)
+    cut = build_order.standing(lay, order, checker.stands)
+    assert checker.solves == 1 and checker.why and "past the 0 s they are given" in checker.why
+    f, c = np.array(full.utilisation), np.array(cut.utilisation)
+    assert [s.bricks for s in cut.steps] == [s.bricks for s in full.steps]
+    first = int(np.flatnonzero(f > 0)[0])
+    assert c[first] == pytest.approx(f[first]) and np.all(c[:first] == 0)
+    assert np.all(np.isnan(c[f > 0][1:])) and np.all(c[f == 0] == 0)
+    doc = pipeline.build_stability(dataclasses.replace(cut, graph_only_why=checker.why), len(lay.bricks))
+    assert doc["graph_only_why"] == checker.why and doc["first_graph_only_step"] > first + 1
+
+
 def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(monkeypatch):
     """Past MAX_BODIES no program is solved for a build step: a step whose every brick rests
     on bricks or the ground gets 0, as the programs give it; a step that would need one is
