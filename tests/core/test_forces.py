@@ -479,6 +479,30 @@ def test_a_big_build_is_checked_by_its_hanging_parts_as_the_whole_program_says(m
     assert merged.max_utilisation >= whole.max_utilisation - 1e-6
 
 
+def test_a_big_build_standing_easily_gives_each_brick_its_worst_without_phase_two(monkeypatch):
+    """Past EXACT_BODIES, a whole build standing below DETAIL_ABOVE gives each brick the
+    worst utilisation (an upper bound of its own) without the second program: the same
+    verdict and worst as with it, one program solved instead of two."""
+    lay = slab_over_box()
+    exact = forces.analyse(lay)
+    assert exact.stable and exact.sub_structures == 0 and exact.max_utilisation < forces.DETAIL_ABOVE
+    solved = []
+    real = forces._Program.solve
+
+    def counted(self):
+        solved.append(1)
+        return real(self)
+
+    monkeypatch.setattr(forces._Program, "solve", counted)
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    quick = forces.analyse(lay)
+    assert len(solved) == 1 and quick.sub_structures == 0
+    assert quick.stable and quick.max_utilisation == pytest.approx(exact.max_utilisation, rel=1e-6)
+    assert set(quick.utilisation) == set(exact.utilisation)
+    assert all(quick.utilisation[b] >= u - 1e-6 for b, u in exact.utilisation.items())
+    assert set(quick.utilisation.values()) == {quick.max_utilisation}
+
+
 def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
     """A 21 cm hollow cube's roof (on its walls and the hollow stage's pillars) cut in plan
     into groups: each stands on what is under it, so the cube stands, with a worst
