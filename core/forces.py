@@ -355,14 +355,19 @@ class _Program:
         h.passModel(lp)
         return h
 
-    def solve(self) -> tuple[str, np.ndarray | None]:
-        """('optimal', column values), ('infeasible', None) or ('unbounded', None)."""
+    def solve(self, seconds: float | None = None) -> tuple[str, np.ndarray | None]:
+        """('optimal', column values), ('infeasible', None), ('unbounded', None), or
+        ('time', None) when ``seconds`` (None: no limit) passed first."""
         import highspy
         h = self.highs()
+        if seconds is not None:
+            h.setOptionValue("time_limit", float(seconds))
         h.run()
         status = h.getModelStatus()
         if status == highspy.HighsModelStatus.kOptimal:
             return "optimal", np.asarray(h.getSolution().col_value)
+        if status == highspy.HighsModelStatus.kTimeLimit:
+            return "time", None
         if status == highspy.HighsModelStatus.kInfeasible:
             return "infeasible", None
         if status in (highspy.HighsModelStatus.kUnbounded,
@@ -816,6 +821,10 @@ PART_SHARE = 0.7
 #: A hanging piece that no cut splits (a bunny scaled x3: 6,908 of its 6,912 bricks) is
 #: solved whole only up to MERGED_BODIES: that one program ran 360 s (infeasible).
 MAX_HANGING = 20000
+#: Seconds one program of a whole build (or of a hanging part) may take before the build
+#: is reported unchecked (the interior point needs minutes on solid, overhanging builds of
+#: thousands of bricks: 371 s for a 3,923-brick HMD shell scaled x5).
+PROGRAM_SECONDS = 120.0
 #: Seconds the programs of one build's partial builds may take in all (:class:`BuildChecker`);
 #: past them the steps that need one are checked by the brick graph only.  A 2,512-brick
 #: connecting rod (Assembly4's, scaled x5) had run its steps' programs for more than 13
@@ -1023,7 +1032,13 @@ class _Model:
                              + "; the brick graph's verdict stands alone")
             return out
         prog, parts = self._program(detail=False)
-        status, x = prog.solve()
+        status, x = prog.solve(PROGRAM_SECONDS)
+        if status == "time":
+            out = self._forces(False, math.nan, {}, [], [], [])
+            out.unchecked = (f"{self.nbody} bricks and printed parts: the force program of the "
+                             f"whole build ran past the {PROGRAM_SECONDS:.0f} s it is given"
+                             "; the brick graph's verdict stands alone")
+            return out
         factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
         worst = _worst(factor)
         floats = ~self.held[self.body_of]
@@ -1031,12 +1046,15 @@ class _Model:
         if not detail:
             failing = [b.id for b, f in zip(self.layout.bricks, floats) if f]
             return self._forces(stable, worst, {}, sorted(failing), sorted(failing), [])
+        each_worst = self._forces(stable, worst, {b.id: worst for b in self.layout.bricks}, [], [], [])
         if stable and worst < DETAIL_ABOVE and self.nbody > EXACT_BODIES:
             # each brick gets the worst (as a hanging part's do): phase 2 took 78 of the 125 s
             # of a 2,151-brick connecting rod standing at 0.009
-            return self._forces(True, worst, {b.id: worst for b in self.layout.bricks}, [], [], [])
+            return each_worst
         prog, parts = self._program(detail=True, cap=worst)
-        status, x = prog.solve()
+        status, x = prog.solve(PROGRAM_SECONDS if stable else None)
+        if status == "time":
+            return each_worst                    # standing: the worst bounds every brick's
         residual = np.zeros(self.nbody)
         if status != "optimal":
             slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e3)
@@ -1222,6 +1240,9 @@ class _Model:
                 f = self._window(groups[w], support, under, False)
             except SolverTrouble:                # as if it did not stand: merged or the whole
                 f = self._forces(False, math.inf, {}, [], [], [])
+            if f.unchecked:
+                return None, (f"a program of {len(groups[w])} of its hanging bricks ran past the "
+                              f"{PROGRAM_SECONDS:.0f} s it is given")
             effort += len(groups[w])
             if not f.stable and self.nbody > MAX_BODIES:
                 f, members, below = self._deepened(groups[w], hanging, claimed, under)
@@ -1300,6 +1321,8 @@ class _Model:
                 f = None
             if f is not None and f.stable:
                 return f, members, below
+            if f is not None and f.unchecked:
+                break
         return (f if f is not None else self._forces(False, math.inf, {}, [], [], [])), group, hanging
 
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,

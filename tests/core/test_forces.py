@@ -503,6 +503,20 @@ def test_a_big_build_standing_easily_gives_each_brick_its_worst_without_phase_tw
     assert set(quick.utilisation.values()) == {quick.max_utilisation}
 
 
+def test_a_program_past_its_seconds_leaves_the_build_unchecked_saying_so(monkeypatch):
+    """No force program runs for minutes: past PROGRAM_SECONDS the whole build is reported
+    unchecked (the graph's verdict stands alone), and so is a build checked in parts."""
+    lay = slab_over_box()
+    monkeypatch.setattr(forces, "PROGRAM_SECONDS", 1e-9)
+    whole = forces.analyse(lay)
+    assert whole.unchecked and f"ran past the {forces.PROGRAM_SECONDS:.0f} s" in whole.unchecked
+    assert whole.to_json()["checked"] is False and whole.to_json()["stable"] is None
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    parted = forces.analyse(lay, detail=False)
+    assert parted.unchecked and "ran past" in parted.unchecked
+
+
 def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
     """A 21 cm hollow cube's roof (on its walls and the hollow stage's pillars) cut in plan
     into groups: each stands on what is under it, so the cube stands, with a worst
