@@ -10,3 +10,45 @@ components, weak points).  ``pipeline.fabricate`` runs them all; the CLI
 """
 
 __version__ = "0.1.0"
+
+
+def _writable_caches() -> None:
+    """Point numba's cache (``cache=True`` kernels) and matplotlib's configuration and font
+    cache at per-user folders in the temporary folder when their usual places cannot be
+    written (a read-only install run by a user without a home): numba would fail with
+    "cannot cache function ... no locator available", matplotlib print warnings.  Runs
+    before any module of the package imports them; NUMBA_CACHE_DIR and MPLCONFIGDIR set
+    by the user are kept."""
+    import os
+    import tempfile
+
+    def writable(folder: str) -> bool:
+        probe = folder
+        while not os.path.isdir(probe) and os.path.dirname(probe) != probe:
+            probe = os.path.dirname(probe)          # the nearest folder that exists
+        return os.path.isabs(folder) and os.access(probe, os.W_OK | os.X_OK)
+
+    home = os.path.expanduser("~")
+    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(home, ".cache")
+    config = os.environ.get("XDG_CONFIG_HOME") or os.path.join(home, ".config")
+    wanted = (("NUMBA_CACHE_DIR", "numba", (os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                                         "__pycache__"),
+                                            os.path.join(cache, "numba"))),
+              ("MPLCONFIGDIR", "matplotlib", (os.path.join(config, "matplotlib"),)))
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    for variable, name, usual in wanted:
+        if os.environ.get(variable) or any(writable(folder) for folder in usual):
+            continue
+        fallback = os.path.join(tempfile.gettempdir(), f"fabrickator-{name}-cache-{uid}")
+        try:
+            os.makedirs(fallback, mode=0o700, exist_ok=True)
+            st = os.lstat(fallback)
+            if os.path.islink(fallback) or not os.path.isdir(fallback) or (
+                    hasattr(os, "getuid") and (st.st_uid != uid or st.st_mode & 0o022)):
+                fallback = tempfile.mkdtemp(prefix=f"fabrickator-{name}-cache-")  # not ours
+        except OSError:
+            continue
+        os.environ[variable] = fallback
+
+
+_writable_caches()

@@ -20,9 +20,10 @@ import signal
 import sys
 import threading
 import time
+import warnings
 
 from core import __version__, request
-from core.errors import InputError, bug_line
+from core.errors import InputError, bug_line, check_path
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -170,17 +171,30 @@ def main(argv: list[str] | None = None) -> int:
     for stream in (sys.stdout, sys.stderr):       # a file name that is not UTF-8 prints escaped
         with contextlib.suppress(AttributeError, ValueError):
             stream.reconfigure(errors="backslashreplace")
+    if sys.stdout is None:                          # started with stdout closed (>&-): quiet
+        sys.stdout = open(os.devnull, "w")
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
                "stability": _stability}.get(args.command, _fabricate)
+    given = sys.stdout
+    out = sys.stdout = _Stdout(given)
     try:
-        with _stop_signals():
+        with _stop_signals(), warnings.catch_warnings():
+            # numbers at the edge of a float (a huge box, a load) are checked where they are
+            # used; Python's own warnings are no line for the user
+            warnings.simplefilter("ignore", RuntimeWarning)
             status = command(args)
         sys.stdout.flush()                          # a closed pipe shows here, not at exit
+        if out.failed is not None:
+            err = out.failed
+            sys.stderr.write(f"error: standard output could not be written "
+                             f"({getattr(err, 'strerror', None) or err}); what the run wrote "
+                             f"into files is complete\n")
+            return 2
         return status
     except BrokenPipeError:                         # stdout piped into a reader that quit
         with contextlib.suppress(OSError, ValueError):
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            os.dup2(os.open(os.devnull, os.O_WRONLY), given.fileno())
         return 0
     except InputError as err:
         sys.stderr.write(f"error: {err}\n")
@@ -195,6 +209,59 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
         sys.stderr.write(bug_line(exc, f"python -m core {args.command}") + "\n")
         return 1
+    finally:
+        if sys.stdout is out:
+            sys.stdout = given
+
+
+class _Stdout:
+    """Standard output during a command: a failure to write it (a full disk, a file opened
+    read-only, a closed file) is kept in :attr:`failed` and stdout pointed at the null
+    device, so that the run finishes and ends in one line (:func:`main`); a reader that
+    quit (BrokenPipeError) still raises."""
+
+    def __init__(self, stream):
+        self._stream, self.failed = stream, None
+
+    def write(self, text: str) -> int:
+        return self._guarded(self._stream.write, text, default=len(text))
+
+    def flush(self) -> None:
+        self._guarded(self._stream.flush)
+
+    def _guarded(self, call, *args, default=None):
+        if self.failed is not None:
+            return default
+        try:
+            return call(*args)
+        except BrokenPipeError:
+            raise
+        except (OSError, ValueError) as err:
+            self.failed = err
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+            return default
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+#: The path options of fabricate and watch: flag (as messages name it), argparse dest.
+PATH_OPTIONS = (("MODEL", "model"), ("FOLDER", "folder"), ("--out", "out"),
+                ("--previous", "previous"), ("--high-res-solid", "high_res_solids"))
+
+
+def _check_paths(args, out_name_checked: bool = False) -> None:
+    """One line for a path option whose name the system refuses outright (too long, a loop
+    of symbolic links): :func:`core.errors.check_path` of each of :data:`PATH_OPTIONS` given
+    (with ``out_name_checked``, of --out's folder only: the output folder checks its name)."""
+    for flag, dest in PATH_OPTIONS:
+        value = getattr(args, dest, None)
+        for path in value if isinstance(value, list) else [value]:
+            if path and dest == "out" and out_name_checked:
+                check_path(os.path.dirname(os.path.abspath(path)), flag)
+            elif path:
+                check_path(path, flag)
 
 
 def _stability(args) -> int:
@@ -203,30 +270,33 @@ def _stability(args) -> int:
     from pathlib import Path
 
     from core import forces
-    from core.model import Layout
+    from core.layout_file import layout_from_document
 
     path = Path(args.layout)
+    text = _read_small_file(path, "layout.json")
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeError) as exc:
-        raise InputError(f"{path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
-    try:
-        layout = Layout.from_json(json.loads(text))
-    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        data = json.loads(text)
+    except RecursionError:
+        raise InputError(f"{path}: not a layout.json (its values are nested too deeply)") from None
+    except ValueError as exc:
         raise InputError(f"{path}: not a layout.json ({type(exc).__name__}: {exc})") from None
+    try:
+        layout = layout_from_document(data, path.parent / "parts")
+    except InputError as err:
+        raise InputError(f"{path}: {err}") from None
+    del data, text
+    out = _report_target(args.out, path) if args.out else None
     printed = _printed_meshes(path.parent / "parts", layout)
+    unread = sorted({b.printed_part for b in layout.bricks if b.printed_part}
+                    - {p.id for p in printed if len(getattr(p.mesh, "faces", ())) > 0})
+    if unread:
+        raise InputError(f"{path}: printed part {unread[0]}: parts/{unread[0]}.stl beside the "
+                         f"layout cannot be read as a mesh (or has no triangles)")
     result = forces.analyse(layout, ground=args.ground, loads=args.loads, printed=printed,
                             clutch_n=args.clutch_n)
     doc = result.to_json()
-    if args.out:
-        out = Path(args.out)
-        tmp = out.with_name(f".{out.name}.tmp")
-        try:
-            tmp.write_text(json.dumps(doc, indent=2))
-            tmp.replace(out)
-        except OSError as exc:
-            tmp.unlink(missing_ok=True)
-            raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
+    if out is not None:
+        _write_report(out, json.dumps(doc, indent=2))
     if result.unchecked:
         print(f"force check skipped: {result.unchecked}")
         return 0
@@ -242,6 +312,123 @@ def _stability(args) -> int:
     if len(result.failures) > 20:
         print(f"  ... and {len(result.failures) - 20} more failing bricks")
     return 0
+
+
+#: Largest layout.json (and earlier stability report) the ``stability`` command reads: a
+#: layout of a metre-sized part is a few tens of MB; anything larger is not a layout.
+_MAX_LAYOUT_BYTES = 100 * 1024 * 1024
+
+#: Keys by which an earlier ``stability --out`` report is known (forces.Forces.to_json).
+_REPORT_KEYS = frozenset({"stable", "ground", "checked", "max_utilisation", "failures",
+                          "utilisation", "mass_g"})
+
+
+def _read_small_file(path, what: str) -> str:
+    """The UTF-8 text of the regular file ``path``; InputError for a missing file, a folder,
+    a named pipe, socket or device (refused before it is opened, as
+    :func:`core.mesh_io._check_file` does: reading a pipe waits for ever, a device may never
+    end), an unreadable file or one larger than :data:`_MAX_LAYOUT_BYTES`."""
+    import stat
+    from pathlib import Path
+
+    from core.mesh_io import _special_kind, regular_file
+
+    regular_file(Path(path), what, f"a {what}")
+    limit = f"larger than {_MAX_LAYOUT_BYTES // 2**20} MB, the most read as a {what}"
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as stream:
+            opened = os.fstat(stream.fileno())
+            if not stat.S_ISREG(opened.st_mode):
+                raise InputError(f"{path}: is {_special_kind(opened.st_mode)}, not a regular file")
+            if opened.st_size > _MAX_LAYOUT_BYTES:
+                raise InputError(f"{path}: is {opened.st_size / 2**20:.0f} MB, {limit}")
+            data = stream.read(_MAX_LAYOUT_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if len(data) > _MAX_LAYOUT_BYTES:
+        raise InputError(f"{path}: is {limit}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeError as exc:
+        raise InputError(f"{path}: cannot read it (not UTF-8 text: {exc.reason} at byte "
+                         f"{exc.start})") from None
+
+
+def _is_stability_report(path) -> bool:
+    """Whether the file ``path`` is a report an earlier ``stability --out`` wrote."""
+    import json
+
+    try:
+        doc = json.loads(_read_small_file(path, "report"))
+    except (InputError, ValueError, RecursionError):
+        return False
+    return isinstance(doc, dict) and _REPORT_KEYS <= doc.keys()
+
+
+def _report_target(out_arg, layout_path):
+    """The file ``--out`` names, checked before any work: InputError when it is the layout
+    itself, a folder, a device or other special file, a broken symbolic link, lies in no
+    folder, or is an existing file other than an earlier stability report (which may be
+    replaced).  A symbolic link to an earlier report stands for its target."""
+    import stat
+    from pathlib import Path
+
+    from core.mesh_io import _special_kind
+
+    out = Path(out_arg)
+    try:
+        st = os.stat(out)
+    except FileNotFoundError:
+        if os.path.lexists(out):
+            raise InputError(f"--out {out}: is a broken symbolic link; remove it or choose "
+                             f"another name") from None
+        if not out.parent.is_dir():
+            raise InputError(f"--out {out}: no such folder {out.parent}") from None
+        return out
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
+    source = os.stat(layout_path)
+    if (st.st_dev, st.st_ino) == (source.st_dev, source.st_ino):
+        raise InputError(f"--out {out}: is the layout being checked; the report would replace "
+                         f"it: choose another file")
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"--out {out}: is a directory; name the report file")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"--out {out}: is {_special_kind(st.st_mode)}, not a regular file: "
+                         f"the report is only written to a file")
+    if not _is_stability_report(out):
+        raise InputError(f"--out {out}: exists and is not a stability report written by this "
+                         f"command; not overwriting it: remove it or choose another name")
+    return Path(os.path.realpath(out))
+
+
+def _write_report(out, text: str) -> None:
+    """Write ``text`` to ``out`` atomically: a new temporary file in the same folder, then
+    renamed over ``out``; on any failure the temporary file is removed (InputError for an
+    OSError: a full disk, a read-only folder)."""
+    import tempfile
+
+    try:
+        fd, tmp = tempfile.mkstemp(dir=os.fspath(out.parent), prefix=f".{out.name}.",
+                                   suffix=".tmp")
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as stream:
+            stream.write(text)
+            stream.flush()
+            os.fsync(stream.fileno())
+        umask = os.umask(0o022)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, out)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise InputError(f"--out {out}: cannot write it ({exc.strerror or exc})") from None
+        raise
 
 
 def _printed_meshes(folder, layout) -> list:
@@ -267,6 +454,7 @@ def _fabricate(args) -> int:
     """The ``fabricate`` command: one Request, the driver, the summary."""
     from core import pipeline
 
+    _check_paths(args, out_name_checked=True)
     progress = None if args.quiet else _progress_printer(sys.stderr)
     doc = pipeline.fabricate(request.from_options(args, args.model), args.out, progress=progress)
     _summary(doc, args.out)
@@ -277,13 +465,21 @@ def _watch(args) -> int:
     """The ``watch`` command: each new file fabricated with the same settings as
     ``fabricate``, as an iteration on the last output of a version of the same model
     (:class:`core.watch.Versions`, the one version rule the workbench uses too)."""
-    from core import output_dir, pipeline, watch
+    from core import output_dir, pipeline, result, watch
 
+    _check_paths(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
     job = request.from_options(args, "watched")
     timeout = request.timeout_seconds(args.timeout)
-    files = watch.watch(args.folder, include_existing=args.existing, timeout_s=timeout)
-    root, runs, built = output_dir.check_root(args.out), 0, 0
+    if job.previous is not None:
+        result.snapshot_state(job.previous)         # a bad --previous now, not at the first file
+
+    def skipped(path, why):
+        sys.stderr.write(f"skipped: {path.name}: {why}\n")
+
+    files = watch.watch(args.folder, include_existing=args.existing, timeout_s=timeout,
+                        on_skip=skipped)
+    root, runs, built = output_dir.check_root(args.out, watched=args.folder), 0, 0
     versions = watch.Versions(first=job.previous)
     try:
         sys.stderr.write(f"watching {args.folder} (Ctrl-C to stop)\n")

@@ -32,6 +32,33 @@ class InputError(Exception):
         super().__init__(" ".join(str(message).split()))
 
 
+def shown_path(path, limit: int = 80) -> str:
+    """``path`` as a one-line message shows it: whole up to ``limit`` characters, else its
+    start and end around ``...`` (a 5,000-character name must not fill the terminal)."""
+    text = os.fspath(path) if isinstance(path, (str, os.PathLike)) else str(path)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit // 2 - 2]}...{text[-(limit - limit // 2 - 1):]}"
+
+
+def check_path(path, flag: str) -> None:
+    """InputError (one line naming ``flag``, the path shortened and the system's reason) when
+    looking up the user-given ``path`` fails for a reason other than its absence, a file
+    where a folder is expected or a permission: a name too long (ENAMETOOLONG), a loop
+    of symbolic links (ELOOP), an input/output error...  Those three are left to the
+    checks of each option, whose messages say more."""
+    import errno
+
+    try:
+        os.stat(path)
+    except OSError as err:
+        if err.errno in (errno.ENOENT, errno.ENOTDIR, errno.EACCES, errno.EPERM):
+            return
+        raise InputError(f"{flag} {shown_path(path)}: {err.strerror or err}") from None
+    except ValueError as err:                       # a NUL byte in the name
+        raise InputError(f"{flag} {shown_path(path)!r}: {err}") from None
+
+
 def log_folders() -> list[Path]:
     """Where :func:`log_bug` tries to write, in order: ``$XDG_STATE_HOME/fabrickator``
     (when XDG_STATE_HOME is set to an absolute path), ``~/.local/state/fabrickator``,

@@ -28,6 +28,8 @@ from core.model import Grid, Layout
 
 #: A box must overlap a cell by more than this (mm) along every axis to touch it.
 EPS_MM = 1e-6
+#: Cell numbers a box is clipped to (each way): far beyond any grid, well within int64.
+CELL_REACH = 1e12
 #: A brick marked by its id is recorded as its box shrunk by this much (mm) on every
 #: side, so that the box touches exactly the brick's own cells.
 BRICK_INSET_MM = 1e-3
@@ -70,6 +72,7 @@ def box_range(origin, cell, box) -> tuple[np.ndarray, np.ndarray]:
     not clipped to any grid."""
     cell = np.asarray(cell, dtype=np.float64)
     rel = (np.asarray(box, dtype=np.float64) - origin) / cell
+    rel = np.clip(rel, -CELL_REACH, CELL_REACH)     # a box of 1e300 mm holds the whole part
     eps = EPS_MM / cell
     return np.floor(rel[0] + eps).astype(np.int64), np.ceil(rel[1] - eps).astype(np.int64)
 

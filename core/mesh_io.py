@@ -31,7 +31,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
 from core import output_dir
-from core.errors import InputError
+from core.errors import InputError, shown_path
 from core.model import CELL_MM
 from core.request import UNITS
 
@@ -132,7 +132,8 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
         vertices, faces = _tessellate(brep, tolerance_mm, file.name)
     else:
         vertices, faces = _read_mesh(file, fmt, read)
-        vertices = vertices * factor
+        with np.errstate(over="ignore", invalid="ignore"):    # non-finite: _check_arrays says so
+            vertices = vertices * factor
     _check_arrays(vertices, faces, file.name)
     triangles = len(faces)
     mesh, repaired = repair(vertices, faces, file.name, report_merges=fmt in ("obj", "ply", "3mf"))
@@ -170,6 +171,33 @@ def _unit_factor(units: str, scale: float) -> float:
     return UNITS[units] * value
 
 
+#: The units a 3MF model may name (its ``<model unit=...>``; trimesh's own default, when
+#: none is named, is "millimeters").
+THREEMF_UNITS = ("micron", "millimeter", "centimeter", "inch", "foot", "meter")
+
+
+def regular_file(file: Path, what: str, read_as: str) -> os.stat_result:
+    """The status of ``file`` when it is a regular file; InputError (one line) when it is
+    missing, on a path the user may not search, a folder (not ``what``), or a named pipe,
+    socket or device (only files are read as ``read_as``): such a file is refused before
+    it is opened, since reading a pipe waits for a writer for ever."""
+    try:
+        st = os.stat(file)
+    except FileNotFoundError:
+        raise InputError(f"{shown_path(file)}: no such file") from None
+    except PermissionError:
+        raise InputError(f"{shown_path(file)}: permission denied: a folder on its path may not be "
+                         f"searched by you") from None
+    except OSError as exc:
+        raise InputError(f"{shown_path(file)}: cannot be read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{shown_path(file)}: is a directory, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{shown_path(file)}: is {_special_kind(st.st_mode)}, not a regular file: "
+                         f"only files are read as {read_as}")
+    return st
+
+
 def _check_file(path: str | os.PathLike) -> Path:
     """The path as a Path if it names a non-empty, readable regular file of a known format.
 
@@ -178,23 +206,10 @@ def _check_file(path: str | os.PathLike) -> Path:
     the file is opened without blocking to find out whether it can be read.
     """
     file = Path(path)
-    try:
-        st = os.stat(file)
-    except FileNotFoundError:
-        raise InputError(f"{file}: no such file") from None
-    except PermissionError:
-        raise InputError(f"{file}: permission denied: a folder on its path may not be "
-                         f"searched by you") from None
-    except OSError as exc:
-        raise InputError(f"{file}: cannot be read ({exc.strerror or exc})") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise InputError(f"{file}: is a directory, not a model file")
-    if not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{file}: is {_special_kind(st.st_mode)}, not a regular file: "
-                         f"only files are read as models and regions")
+    st = regular_file(file, "model file", "models and regions")
     if file.suffix.lower() not in FORMATS:
         known = ", ".join(sorted({s.lstrip(".").upper() for s in FORMATS}))
-        raise InputError(f"{file.name}: unknown file type {file.suffix or '(none)'!r}: "
+        raise InputError(f"{shown_path(file.name)}: unknown file type {file.suffix or '(none)'!r}: "
                          f"use one of {known}")
     try:
         fd = os.open(file, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
@@ -203,14 +218,14 @@ def _check_file(path: str | os.PathLike) -> Path:
         finally:
             os.close(fd)
     except PermissionError:
-        raise InputError(f"{file}: permission denied: you may not read this file "
+        raise InputError(f"{shown_path(file)}: permission denied: you may not read this file "
                          f"(mode {stat.filemode(st.st_mode)}, owner uid {st.st_uid})") from None
     except OSError as exc:
-        raise InputError(f"{file}: cannot be read ({exc.strerror or exc})") from None
+        raise InputError(f"{shown_path(file)}: cannot be read ({exc.strerror or exc})") from None
     if not stat.S_ISREG(opened.st_mode):
-        raise InputError(f"{file}: is {_special_kind(opened.st_mode)}, not a regular file")
+        raise InputError(f"{shown_path(file)}: is {_special_kind(opened.st_mode)}, not a regular file")
     if opened.st_size == 0:
-        raise InputError(f"{file.name}: the file is empty (0 bytes)")
+        raise InputError(f"{shown_path(file.name)}: the file is empty (0 bytes)")
     return file
 
 
@@ -269,6 +284,10 @@ def _read_mesh(file: Path, fmt: str, repaired: list[str] | None = None) -> tuple
     except Exception as exc:
         raise InputError(f"{file.name}: cannot be read as {_FORMAT_NAMES[fmt]}: "
                          f"{_first_line(exc)}") from None
+    unit = (getattr(loaded, "metadata", None) or {}).get("units") if fmt == "3mf" else None
+    if unit is not None and str(unit) not in THREEMF_UNITS and str(unit) != "millimeters":
+        raise InputError(f"{file.name}: the 3MF model's unit {str(unit)[:40]!r} is not a 3MF "
+                         f"unit (the format allows {', '.join(THREEMF_UNITS)})")
     meshes = [g for g in geometries
               if isinstance(g, trimesh.Trimesh) and len(g.faces) and len(g.vertices)]
     if not meshes:

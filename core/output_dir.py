@@ -334,10 +334,13 @@ class OutputFolder:
                 f"{where}; the unfinished output was removed and {self.out} is as it was")
 
 
-def check_root(root: str | os.PathLike, flag: str = "--out") -> Path:
+def check_root(root: str | os.PathLike, flag: str = "--out",
+               watched: str | os.PathLike | None = None) -> Path:
     """Check that the folder ``root`` (made when missing) can hold output folders, by making
     and removing a temporary folder in it; the root as an absolute Path.  InputError (one
-    line) for a system folder, a file, a folder that cannot be made or written."""
+    line) for a system folder, the root folder, the ``watched`` folder itself, a file, a
+    folder holding anything but earlier outputs (:func:`pipeline_output`) and the locks and
+    temporary folders of runs, a folder that cannot be made or written."""
     path = Path(os.path.abspath(os.fspath(root)))
     probe = OutputFolder(path / "probe", flag=flag)
     try:
@@ -346,12 +349,36 @@ def check_root(root: str | os.PathLike, flag: str = "--out") -> Path:
         raise InputError(str(err).replace(str(path / "probe"), str(path))) from None
     if path.exists() and not path.is_dir():
         raise InputError(f"{flag} {path} exists and is not a folder")
+    if path.parent == path:
+        raise InputError(f"{flag} {path} is the root folder: choose a folder inside it")
+    if watched is not None and os.path.realpath(path) == os.path.realpath(watched):
+        raise InputError(f"{flag} {path} is the watched folder itself: choose another folder "
+                         f"for the outputs")
+    if path.is_dir():
+        try:
+            why = _foreign([p.name for p in path.iterdir() if not _root_entry(p)])
+        except OSError as err:
+            raise InputError(f"{flag} {path}: cannot read it: {_reason(err)}") from None
+        if why:
+            raise InputError(f"{flag} {path} is a folder that is not an earlier output root: "
+                             f"{why}; choose an empty or new folder")
     try:
         path.mkdir(parents=True, exist_ok=True)
         os.rmdir(tempfile.mkdtemp(prefix=f".probe-{os.getpid()}-", dir=path))
     except OSError as err:
         raise InputError(f"{flag} {path}: cannot write into it: {_reason(err)}") from None
     return path
+
+
+def _root_entry(entry: Path) -> bool:
+    """Whether ``entry`` of an output root is ours: an earlier output folder, or the lock or
+    a temporary folder of a run into one."""
+    if re.fullmatch(r"\..+\.(lock|(part|old)-\d+-.*)|\.probe-\d+-.*", entry.name):
+        return True
+    try:
+        return entry.is_dir() and not entry.is_symlink() and pipeline_output(entry) is None
+    except OSError:
+        return False
 
 
 @contextlib.contextmanager

@@ -184,6 +184,20 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
             np.concatenate(colours)[order])
 
 
+def _drawable(title: str) -> str:
+    """``title`` with each character the picture's font has no glyph for (an emoji, a
+    script the font lacks, a name that is not UTF-8) shown as ``?``: matplotlib would
+    draw an empty box and warn on stderr for each one."""
+    from matplotlib import font_manager, ft2font
+
+    try:
+        font = ft2font.FT2Font(font_manager.findfont(font_manager.FontProperties()))
+        have = set(font.get_charmap())
+    except (OSError, RuntimeError, ValueError):
+        return title.encode("ascii", "replace").decode("ascii")
+    return "".join(c if c.isspace() or ord(c) in have else "?" for c in str(title))
+
+
 def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
                   title: str | None = None, palette: str = "bom",
                   colours: np.ndarray | None = None) -> None:
@@ -216,7 +230,7 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     ax = fig.add_axes((0.01, 0.01, 0.98, top_margin - 0.01))
     ax.set_axis_off()
     if title:
-        fig.text(0.5, 0.965, title, ha="center", va="center",
+        fig.text(0.5, 0.965, _drawable(title), ha="center", va="center", parse_math=False,
                  fontsize=min(16.0, max(7.0, 0.03 * height)))
 
     if not layout.bricks:

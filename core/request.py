@@ -27,6 +27,11 @@ EFFORTS = ("fast", "normal", "best")
 
 #: Unit names a model file's coordinates may be in, and their size in mm.
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+#: The --scale factors accepted: beyond them a model is nanometres or light years across.
+SCALE_RANGE = (1e-6, 1e6)
+#: A --load box is clipped to this reach (mm) on every side: a box of 1e308 mm means the
+#: whole part, and its cell numbers must stay within 64-bit integers.
+LOAD_REACH_MM = 1e12
 
 def _setting(default, help: str, flag: str | None = None, metavar: str | None = None,
              off: str | None = None):
@@ -153,6 +158,12 @@ class Request:
             raise InputError(f"--units {self.units!r} is not a unit: use one of {', '.join(UNITS)}")
         if not _number(self.scale) or not (math.isfinite(self.scale) and self.scale > 0):
             raise InputError(f"--scale {self.scale!r} must be a positive number")
+        if not SCALE_RANGE[0] <= self.scale <= SCALE_RANGE[1]:
+            raise InputError(f"--scale {self.scale!r} is out of range: use a factor from "
+                             f"{SCALE_RANGE[0]:g} to {SCALE_RANGE[1]:g}")
+        if self.parts is not None and not str(self.parts).replace(",", "").strip():
+            raise InputError(f"--parts {self.parts!r} names no part: give a brick set (all, "
+                             f"plates, bricks, 3001, plate2x4, ...) or leave the option out")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 32:
             raise InputError(f"--seed {self.seed!r} must be a whole number from 0 to {2 ** 32 - 1}")
         for name in ("seconds_per_brick", "seconds_per_part"):
@@ -214,6 +225,9 @@ def parse_load(text) -> Load:
     lo, hi = [min(a, b) for a, b in zip(box[:3], box[3:])], [max(a, b) for a, b in zip(box[:3], box[3:])]
     if any(b - a <= 0 for a, b in zip(lo, hi)):
         raise InputError(f"--load {text!r}: the box is empty (each side must be longer than 0 mm)")
+    lo, hi = ([min(max(v, -LOAD_REACH_MM), LOAD_REACH_MM) for v in side] for side in (lo, hi))
+    if any(b - a <= 0 for a, b in zip(lo, hi)):
+        raise InputError(f"--load {text!r}: the box lies farther than {LOAD_REACH_MM:g} mm away")
     return Load(tuple(float(v) for v in lo), tuple(float(v) for v in hi), grams)
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from core import high_res, printed as printed_stage
-from core.errors import InputError
+from core.errors import InputError, check_path, shown_path
 from core.model import Grid, Layout
 
 #: Folder inside an output folder that holds the iteration snapshot.
@@ -157,8 +157,9 @@ def snapshot_state(folder: str | os.PathLike) -> dict:
     """
     folder = Path(folder)
     state_file = folder / SNAPSHOT_DIR / "state.json"
+    check_path(folder, "--previous")            # a name too long, a loop of links: one line
     if not folder.is_dir():
-        raise InputError(f"--previous {folder}: no such folder")
+        raise InputError(f"--previous {shown_path(folder)}: no such folder")
     if not state_file.is_file():
         raise InputError(f"--previous {folder}: not an output folder with an iteration snapshot "
                          f"({SNAPSHOT_DIR}/state.json is missing); fabricate that version again")

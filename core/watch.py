@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from core.errors import InputError
+from core.errors import InputError, check_path
 
 #: Suffixes of the model files that are watched.
 WATCHED_SUFFIXES = (".stl", ".obj", ".ply", ".3mf", ".step", ".stp")
@@ -70,6 +70,20 @@ UNMARKED_SETTLE_S = 5.0
 UNMARKED_SUFFIXES = (".obj",)
 #: Seconds between two scans of :func:`watch`.
 POLL_S = 0.5
+#: Seconds beyond its settle time a file must stay the same yet not look complete
+#: (:func:`is_complete`) before it is skipped as no file of its format (said through
+#: ``on_skip``) until it changes.
+GIVE_UP_S = 5.0
+#: Why a file that stays incomplete is skipped, by suffix (:func:`is_complete`'s tests).
+INCOMPLETE_WHY = {
+    ".stl": "neither a binary STL whose size matches its triangle count nor an ASCII STL "
+            "ending with endsolid",
+    ".step": "a STEP file must end with END-ISO-10303-21;",
+    ".stp": "a STEP file must end with END-ISO-10303-21;",
+    ".3mf": "a 3MF file must be a readable zip archive",
+    ".ply": "not a PLY file holding the header and the vertices and faces it counts",
+    ".obj": "an OBJ file must end with a line break and its faces refer to vertices it has",
+}
 #: A version suffix at the end of a file's stem (module docstring): a separated
 #: (v|rev)number, a copy number in parentheses, or both.
 VERSION_SUFFIX = re.compile(r"(?:[ _.-](?:v|rev)?\d+(?:\.\d+)*)?(?: ?\(\d+\))?$", re.IGNORECASE)
@@ -222,12 +236,16 @@ class FolderWatcher:
     include_existing: bool = False
     clock: Callable[[], float] = time.monotonic
     unmarked_settle_s: float = UNMARKED_SETTLE_S
+    #: Called with (path, why) for a file that stays the same yet never looks complete
+    #: (:data:`GIVE_UP_S`): it is skipped until it changes.
+    on_skip: Callable[[Path, str], None] | None = None
     _reported: dict[str, tuple[int, int]] = field(default_factory=dict, init=False, repr=False)
     _pending: dict[str, tuple[tuple[int, int], float]] = field(default_factory=dict, init=False,
                                                                repr=False)
 
     def __post_init__(self):
         self.folder = Path(self.folder)
+        check_path(self.folder, "watch folder")     # a name too long, a loop of links: one line
         if not self.folder.is_dir():
             raise InputError(f"watch folder {self.folder} does not exist or is not a folder")
         self.suffixes = tuple(s.lower() for s in self.suffixes)
@@ -274,6 +292,13 @@ class FolderWatcher:
                 self._reported[name] = signature
                 del self._pending[name]
                 ready.append(self.folder / name)
+            elif now - pending[1] >= settle + GIVE_UP_S:
+                self._reported[name] = signature
+                del self._pending[name]
+                if self.on_skip is not None:
+                    why = INCOMPLETE_WHY.get(Path(name).suffix.lower(), "not a complete file")
+                    self.on_skip(self.folder / name, f"unchanged for {settle + GIVE_UP_S:g} s "
+                                                     f"but not a complete file: {why}")
         for name in set(self._pending) - seen:
             del self._pending[name]
         return sorted(ready)
@@ -283,7 +308,8 @@ def watch(folder: str | os.PathLike, suffixes: tuple[str, ...] = WATCHED_SUFFIXE
           settle_s: float = SETTLE_S, poll_s: float = POLL_S, include_existing: bool = False,
           stop: Callable[[], bool] | None = None, timeout_s: float | None = None,
           sleep: Callable[[float], None] = time.sleep,
-          clock: Callable[[], float] = time.monotonic) -> Iterator[Path]:
+          clock: Callable[[], float] = time.monotonic,
+          on_skip: Callable[[Path, str], None] | None = None) -> Iterator[Path]:
     """An iterator over each model file of ``folder`` that appears or changes, once it is
     complete.
 
@@ -296,7 +322,8 @@ def watch(folder: str | os.PathLike, suffixes: tuple[str, ...] = WATCHED_SUFFIXE
     from core.request import timeout_seconds
 
     timeout_s = timeout_seconds(timeout_s)
-    watcher = FolderWatcher(Path(folder), suffixes, settle_s, include_existing, clock)
+    watcher = FolderWatcher(Path(folder), suffixes, settle_s, include_existing, clock,
+                            on_skip=on_skip)
     return _polled(watcher, poll_s, stop, timeout_s, sleep, clock)
 
 

@@ -15,7 +15,7 @@ ORDER = [
     "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "layout", "lower_bound", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "print_time", "export", "render", "picture",
     "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
-    "iterate", "pipeline", "watch", "calibration", "cli", "__main__", "__init__",
+    "iterate", "pipeline", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
 ]
 
 
