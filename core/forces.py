@@ -826,7 +826,7 @@ MAX_HANGING = 20000
 #: thousands of bricks: 371 s for a 3,923-brick HMD shell scaled x5).
 PROGRAM_SECONDS = 120.0
 #: Seconds the programs of one build's partial builds may take in all (:class:`BuildChecker`);
-#: past them the steps that need one are checked by the brick graph only.  A 2,512-brick
+#: past them the steps that need one are checked by the brick graph only.  A 2,151-brick
 #: connecting rod (Assembly4's, scaled x5) had run its steps' programs for more than 13
 #: minutes, each a whole program of its solid, overhanging body.
 BUILD_BUDGET_S = 60.0
