@@ -327,6 +327,19 @@ def test_a_build_that_would_lean_further_tips_too():
     assert "on a baseplate" in topple["why"]
 
 
+def count_programs(monkeypatch) -> list:
+    """A list that gets an item for every force program solved from now on."""
+    solved = []
+    real = forces._Program.solve
+
+    def counted(self, *args):
+        solved.append(1)
+        return real(self, *args)
+
+    monkeypatch.setattr(forces._Program, "solve", counted)
+    return solved
+
+
 @pytest.mark.parametrize("bricks", [
     [Brick(1, "3004", (2, 1, 3), (0, 0, 0)), Brick(2, "3008", (8, 1, 3), (0, 0, 3))],
     [Brick(1, "3005", (1, 1, 3), (0, 0, 0)), Brick(2, "3010", (4, 1, 3), (0, 0, 3)),
@@ -340,14 +353,7 @@ def test_a_build_that_tips_as_a_whole_is_judged_without_a_program_as_the_program
     (a bunny scaled x3 tips: judged in 0.1 s, where its hanging part was never checked).
     A build with a structure that stands beside one that tips (the third) gets the program."""
     layout = layout_of(bricks)
-    solved = []
-    real = forces._Program.solve
-
-    def counted(self, *args):
-        solved.append(1)
-        return real(self, *args)
-
-    monkeypatch.setattr(forces._Program, "solve", counted)
+    solved = count_programs(monkeypatch)
     quick = forces.analyse(layout, ground="table")
     quick_count = len(solved)
     monkeypatch.setattr(forces._Model, "_falls_over", lambda self: None)
@@ -486,14 +492,7 @@ def test_a_big_build_standing_easily_gives_each_brick_its_worst_without_phase_tw
     lay = slab_over_box()
     exact = forces.analyse(lay)
     assert exact.stable and exact.sub_structures == 0 and exact.max_utilisation < forces.DETAIL_ABOVE
-    solved = []
-    real = forces._Program.solve
-
-    def counted(self, *args):
-        solved.append(1)
-        return real(self, *args)
-
-    monkeypatch.setattr(forces._Program, "solve", counted)
+    solved = count_programs(monkeypatch)
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
     quick = forces.analyse(lay)
     assert len(solved) == 1 and quick.sub_structures == 0
