@@ -407,6 +407,7 @@ def test_reinforce_leaves_a_standing_layout_alone():
 
 def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monkeypatch):
     monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(forces, "MAX_BANDED", 10)          # nor in height bands
     result = forces.analyse(staircase(12), ground="baseplate")
     doc = result.to_json()
     assert doc["checked"] is False and doc["stable"] is None and "12 bricks" in doc["unchecked_why"]
@@ -561,7 +562,7 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     """A ledge four studs wide on top of a wall two studs thick: on supports that only
     press, the ledge and the wall's top levels tip over the wall's inner edge; taking more
     of the wall in (its own studs pull) it stands, no better than the whole program says.
-    Past MAX_BODIES, without that, the verdict would be unchecked."""
+    Past MAX_BODIES, without that, only height bands give a verdict."""
     from core import catalog, layout as layout_stage
     filled = np.zeros((16, 6, 42), dtype=bool)
     filled[:, :2, :39] = True
@@ -576,6 +577,9 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     assert parted.unchecked is None and parted.sub_structures >= 1 and parted.stable
     assert parted.max_utilisation >= whole.max_utilisation - 1e-6
     monkeypatch.setattr(forces, "DEEPER_LEVELS", ())
+    banded = forces.analyse(lay, detail=False)
+    assert banded.bands and banded.stable and banded.max_utilisation >= whole.max_utilisation - 1e-6
+    monkeypatch.setattr(forces, "MAX_BANDED", 1)
     assert forces.analyse(lay, detail=False).unchecked
 
 
@@ -689,6 +693,7 @@ def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monk
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
     monkeypatch.setattr(forces, "MAX_BODIES", 1)
     monkeypatch.setattr(forces, "MAX_HANGING", 1)
+    monkeypatch.setattr(forces, "MAX_BANDED", 1)
     result = forces.analyse(slab_over_box(), detail=False)
     assert result.unchecked and "hanging part has" in result.unchecked and "more than the 1 " in result.unchecked
 
@@ -696,8 +701,9 @@ def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monk
 def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monkeypatch):
     """A slab on one central pillar: cut in two across either side, each half's weight falls
     outside the pillar, so the slab stays one piece.  Past MERGED_BODIES that piece is not
-    solved as one program (a bunny scaled x3 hangs almost whole: 360 s for one program),
-    it is reported unchecked at once, saying where and why."""
+    solved as one program (a bunny scaled x3 hangs almost whole: 360 s for one program):
+    past what height bands take too, it is reported unchecked at once, saying where and
+    why."""
     from core import catalog, layout as layout_stage
     filled = np.zeros((20, 20, 18), dtype=bool)
     filled[9:11, 9:11, :] = True
@@ -707,6 +713,7 @@ def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monke
     monkeypatch.setattr(forces, "MAX_BODIES", 10)
     monkeypatch.setattr(forces, "WINDOW_BODIES", 5)
     monkeypatch.setattr(forces, "MERGED_BODIES", 10)
+    monkeypatch.setattr(forces, "MAX_BANDED", 10)
 
     def no_program(self, *args):
         raise AssertionError("a program was solved")
@@ -730,3 +737,49 @@ def test_verdict_words_say_at_most_for_hanging_parts_and_infinite_for_a_float():
     assert forces.worst_words(whole, 3) == "1.234"
     assert forces.verdict_words(whole).startswith("does not stand on a table")
     assert forces.worst_words(dict(doc, max_utilisation=None)).startswith("infinite")
+
+
+def test_a_build_past_max_bodies_is_checked_in_height_bands_as_the_hand_calculation(monkeypatch):
+    """Past MAX_BODIES, when its hanging parts do not settle it, a build is solved in height
+    bands, top down, each on the bricks under it with the forces of the bands above fixed.
+    On the staircase (one way to hold each brick) that is exactly the whole program: 12 and
+    19 levels stand with the same worst, 20 fall, and then bands prove nothing: unchecked."""
+    monkeypatch.setattr(forces, "MAX_HANGING", 0)          # its hanging parts are not tried
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "BAND_BODIES", 3)
+    for levels in (12, 19):
+        whole = forces.analyse(staircase(levels), ground="baseplate", detail=False)
+        monkeypatch.setattr(forces, "MAX_BODIES", 2)
+        banded = forces.analyse(staircase(levels), ground="baseplate")
+        monkeypatch.setattr(forces, "MAX_BODIES", 2500)
+        assert banded.stable and banded.bands >= levels // 3 and banded.sub_structures == 0
+        assert banded.max_utilisation == pytest.approx(whole.max_utilisation, rel=1e-6)
+        assert set(banded.utilisation) == {b.id for b in staircase(levels).bricks}
+        assert max(banded.utilisation.values()) == pytest.approx(banded.max_utilisation)
+        doc = banded.to_json()
+        assert doc["method"] == forces.BAND_MEANS and doc["bands"] == banded.bands
+        assert "height bands" in forces.worst_words(doc)
+    monkeypatch.setattr(forces, "MAX_BODIES", 2)
+    twenty = forces.analyse(staircase(20), ground="baseplate")
+    assert twenty.unchecked and "height bands" in twenty.unchecked
+    assert "does not stand on the bricks under it" in twenty.unchecked
+
+
+def test_height_bands_bound_the_whole_programs_worst_from_above(monkeypatch):
+    """A slab over a hollow box on a table, in bands of about 20 bricks: it stands, and the
+    worst the bands' forces reach is at least the whole program's least; past the time
+    they are given, the build is unchecked."""
+    lay = slab_over_box()
+    whole = forces.analyse(lay, detail=False)
+    assert whole.stable
+    monkeypatch.setattr(forces, "MAX_HANGING", 0)
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(forces, "BAND_BODIES", 20)
+    banded = forces.analyse(lay)
+    assert banded.stable and banded.bands > 2
+    assert whole.max_utilisation - 1e-6 <= banded.max_utilisation < 1
+    assert set(banded.utilisation) == {b.id for b in lay.bricks}
+    monkeypatch.setattr(forces, "PROGRAM_SECONDS", 1e-9)
+    late = forces.analyse(lay, detail=False)
+    assert late.unchecked and "ran past" in late.unchecked
