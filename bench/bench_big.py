@@ -5,10 +5,11 @@ subprocess of its own under ``/usr/bin/time``, with the default (automatic)
 setting, hollowed (``--hollow``, a 2-stud shell with pillars) and solid
 (``--hollow=0``); the 2 m cube only by default and solid, which the size limit
 refuses.
+``solid bricks`` is what a hollowed run's report gives for the part built solid: its
+fast layout, or ``>=`` a lower bound (core.pipeline.hollow_report).
 The stages' seconds come from the run's report.json (``timings_s``; ``write``
 is everything written after the driver: instructions, LDraw, picture, ...;
-``layout`` includes the solid layout the default setting makes to compare when
-a shell does not surely save a third of the bricks),
+``layout`` includes the solid layout made beside a shell, core.hollow.solid_layout_wanted),
 the peak resident memory from ``/usr/bin/time``.  Prints a markdown table.
 
 The models: the Stanford bunny scaled x3 (its file is in metres), the
@@ -17,11 +18,14 @@ connecting rod, scaled x6 to 84 cm), a 1 m solid cube, and an HMD-like shell
 (the Relativty HMD body scaled x5 to 89 cm).  Models missing from
 ../shared/models are left out with a line saying so.
 
-Run: ``.venv/bin/python bench/bench_big.py`` (a few minutes on 2 cores).
+Run: ``.venv/bin/python bench/bench_big.py`` (a few minutes on 2 cores); ``--case TEXT``
+runs only the cases whose name holds TEXT, ``--setting auto|hollow|solid`` only those
+settings (both repeatable): ``--case "cube 1 m" --setting hollow``.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -79,8 +83,11 @@ def run(model: Path, options: list[str], hollow: str, work: Path) -> dict:
         return row
     doc = json.loads((out / "report.json").read_text())
     h = doc.get("hollow") or {}
+    solid = (h.get("bricks") or {})
     row.update(cells=doc["plates"], solid_cells=h.get("cells_solid", doc["plates"]),
                bricks=doc["bricks"]["total"], assembly_h=doc["assembly_s"] / 3600,
+               solid_bricks=(f"{solid['solid']:,} (fast)" if "solid" in solid else
+                             f">= {solid['solid_at_least']:,}" if "solid_at_least" in solid else "-"),
                hollow_on=h.get("on", False), components=doc["stability"]["components"],
                regions=doc["stability"]["regions"],
                html_s=doc["assembly"]["timings_s"].get("html", 0.0),
@@ -98,18 +105,34 @@ def run(model: Path, options: list[str], hollow: str, work: Path) -> dict:
     return row
 
 
-def main() -> None:
+#: The hollow settings by the name ``--setting`` gives them.
+SETTINGS = {"auto": "auto", "hollow": "--hollow", "solid": "--hollow=0"}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description="Big objects, hollow and solid: a markdown "
+                                                 "table of cells, bricks, seconds and memory.")
+    parser.add_argument("--case", action="append", default=[], metavar="TEXT",
+                        help="only the cases whose name holds TEXT (repeatable)")
+    parser.add_argument("--setting", action="append", default=[], choices=sorted(SETTINGS),
+                        help="only these hollow settings (repeatable)")
+    args = parser.parse_args(argv)
+    wanted = {SETTINGS[s] for s in args.setting}
     load = os.getloadavg()
     print(f"# Big objects (bench/bench_big.py), {os.cpu_count()} cores, load average "
           f"{load[0]:.1f} at the start\n")
-    head = ["model", "hollow", "cells (solid)", "bricks", "assembly h", "comp/reg", "force",
+    head = ["model", "hollow", "cells (solid)", "bricks", "solid bricks", "assembly h", "comp/reg", "force",
             *[s.replace("build_order", "order") for s in STAGES], "(html)", "wall s", "peak GB"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     with tempfile.TemporaryDirectory(prefix="bench-big-") as tmp:
         work = Path(tmp)
         for name, model, options, settings in cases(work):
+            if args.case and not any(text in name for text in args.case):
+                continue
             for hollow in settings:
+                if wanted and hollow not in wanted:
+                    continue
                 r = run(model, options, hollow, work)
                 label = {"auto": "default", "--hollow": "2 studs", "--hollow=0": "solid"}[hollow]
                 if "error" in r:
@@ -119,7 +142,8 @@ def main() -> None:
                 if hollow == "auto":
                     label += " (hollow)" if r["hollow_on"] else " (solid)"
                 print(f"| {name} | {label} | {r['cells']:,} ({r['solid_cells']:,}) | "
-                      f"{r['bricks']:,} | {r['assembly_h']:.1f} | {r['components']}/{r['regions']} | "
+                      f"{r['bricks']:,} | {r['solid_bricks']} | {r['assembly_h']:.1f} | "
+                      f"{r['components']}/{r['regions']} | "
                       f"{r['force']} | "
                       + " | ".join(f"{r[s + '_s']:.1f}" for s in STAGES)
                       + f" | {r['html_s']:.1f} | {r['wall_s']:.1f} | {r['rss_gb']:.2f} |", flush=True)

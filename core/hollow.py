@@ -39,6 +39,14 @@ shell only when its layout has fewer than two thirds of the solid part's
 bricks: surely so when it is below two thirds of the solid part's lower
 bound (:func:`surely_saves`), else by laying out the solid part too
 (:func:`compared`).
+
+Whether the driver lays out the solid part beside a shell is decided by
+:func:`solid_layout_wanted`: when the automatic choice needs it, and for the
+report whenever the solid part has at most :data:`SOLID_LAYOUT_MAX_CELLS`
+cells, so that the report gives the bricks with and without hollowing from
+two layouts; beyond that it gives the solid part's lower bound and says why.
+Both are the driver's fast layout (:func:`core.layout.lay_out`, greedy, before
+the improve stage takes some bricks off).
 """
 
 from __future__ import annotations
@@ -64,6 +72,12 @@ AUTO_MIN_CELLS = 50_000
 AUTO_KEEP_SHARE = 2.0 / 3.0
 #: Largest shell thickness accepted (studs).
 MAX_STUDS = 64
+#: Most cells of a solid part the driver lays out beside its shell only for the report
+#: (:func:`solid_layout_wanted`).  The fast layout of the 1 m cube's 4,890,625 cells took
+#: 16 s, its whole hollow run 52-55 s instead of 35: too close to the minute a 1 m part is
+#: given.  Its lower bound (101,889 against 104,488 laid out) is close anyway: a big
+#: block's interior is mostly the largest brick.
+SOLID_LAYOUT_MAX_CELLS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -209,9 +223,25 @@ def judged(h: Hollowing, bricks: int, largest_cells: int) -> Hollowing | None:
         f"{least:,}: no part covers more than {largest_cells} cells)"))
 
 
+def solid_layout_wanted(h: Hollowing, bricks: int, largest_cells: int) -> bool:
+    """Whether the driver lays out the solid part too, beside the shell ``h`` laid out in
+    ``bricks`` bricks (then :func:`compared`): for an automatic shell that does not
+    :func:`surely_saves` a third of the bricks, since only the solid layout can tell, and
+    for any shell whose solid part has at most :data:`SOLID_LAYOUT_MAX_CELLS` cells, so that
+    the report gives its bricks.  Never for a part kept solid."""
+    if not h.on:
+        return False
+    return h.solid_cells <= SOLID_LAYOUT_MAX_CELLS or (
+        h.setting < 0 and not surely_saves(h, bricks, largest_cells))
+
+
 def compared(h: Hollowing, solid: Grid, bricks_hollow: int, bricks_solid: int) -> Hollowing:
-    """The automatic choice once both were laid out: hollow (``h``) only when its
-    ``bricks_hollow`` are fewer than two thirds of ``bricks_solid``, else solid."""
+    """The shell ``h`` once both the shell and the ``solid`` part were laid out, in
+    ``bricks_hollow`` and ``bricks_solid`` bricks: a shell asked for stays, holding both
+    counts; an automatic one only when ``bricks_hollow`` are fewer than two thirds of
+    ``bricks_solid``, else the part is kept solid."""
+    if h.setting > 0:
+        return dataclasses.replace(h, bricks_hollow=bricks_hollow, bricks_solid=bricks_solid)
     if bricks_hollow < AUTO_KEEP_SHARE * bricks_solid:
         return dataclasses.replace(h, bricks_hollow=bricks_hollow, bricks_solid=bricks_solid,
                                    why=h.why + f"; it saves more than a third of the bricks: "

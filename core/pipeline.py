@@ -139,7 +139,10 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        and unless ``connectors`` is off, anchor tabs are added
        (:func:`core.high_res.anchor`).
     4. **layout**: fresh, marked and other cells laid out apart
-       (:func:`core.layout.lay_out_around`); iterating, the previous bricks
+       (:func:`core.layout.lay_out_around`), and beside a shell the solid part
+       too when :func:`core.hollow.solid_layout_wanted` (an automatic shell is
+       then kept only if it saves a third of the bricks, :func:`core.hollow.compared`);
+       iterating, the previous bricks
        kept where they still fit and the rest laid out anew
        (:func:`core.iterate.lay_out`); then **improve**d window by window
        as hard as ``effort`` says (:func:`core.improve.improve`; iterating,
@@ -242,16 +245,14 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     else:
         marked, cells, layout = fresh_layout(grid, "layout")
         largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
-        sure = hollowing.on and hollowing.setting < 0 and \
-            hollow_stage.judged(hollowing, len(layout.bricks), largest)
-        if sure:
-            hollowing = sure
-        elif hollowing.on and hollowing.setting < 0:
+        if hollow_stage.solid_layout_wanted(hollowing, len(layout.bricks), largest):
             solid_marked, solid_cells, solid_layout = fresh_layout(solid, "layout_solid", (0.6, 0.78))
             hollowing = hollow_stage.compared(hollowing, solid, len(layout.bricks),
                                               len(solid_layout.bricks))
             if not hollowing.on:
                 grid, marked, cells, layout = solid, solid_marked, solid_cells, solid_layout
+        elif hollowing.on and hollowing.setting < 0:
+            hollowing = hollow_stage.judged(hollowing, len(layout.bricks), largest)
     greedy = layout
     layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
@@ -653,12 +654,15 @@ def hollow_report(fab: Fabrication) -> dict | None:
     the bricks and assembly time with and without hollowing (an iteration hollows as its
     previous version: :func:`core.hollow.as_before`).
 
-    A hollowed run gives the solid part's bricks as laid out when the driver
-    compared both (:func:`core.hollow.compared`), else as a lower bound: no
-    catalog part covers more cells than the largest, so the solid part needs
-    at least its cells over the largest part's cells (within a few percent of
-    a real solid layout of a big block, whose interior is mostly the largest
-    brick).  The bench (bench/bench_big.py) lays out both.
+    For a hollowed run, ``bricks`` and ``assembly_s`` hold the LEGO bricks ``built`` and
+    the solid part's: ``solid``, its real bricks when the driver laid it out too
+    (:func:`core.hollow.solid_layout_wanted`), by the fast layout, which the improve stage
+    did not shorten (``solid_layout`` is ``"fast"``); else (``"none"``: a solid part too
+    big to lay out as well, or an iteration, which lays out only what changed)
+    ``solid_at_least``, a lower bound: no catalog part covers more cells than the largest,
+    so it needs at least its cells over the largest part's cells, which can be far below
+    a real layout (the bunny scaled x3: 2,321 against 6,912).  ``compare`` says it in a
+    sentence, and why a bound.
     """
     h = fab.hollowing
     if h is None:
@@ -670,13 +674,21 @@ def hollow_report(fab: Fabrication) -> dict | None:
         return doc
     largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in fab.parts)
     if h.bricks_solid is not None:
-        solid, key, words = h.bricks_solid, "solid", "solid it takes"
+        solid, key, how = h.bricks_solid, "solid", "fast"
+        words = f"solid, {solid:,} bricks (fast layout, not improved)"
+        bound = ""
     else:
-        solid, key, words = -(-h.solid_cells // largest), "solid_at_least", "solid it would take at least"
+        solid, key, how = -(-h.solid_cells // largest), "solid_at_least", "none"
+        words = f"solid at least {solid:,} bricks"
+        bound = (" (a lower bound: a new version is laid out only where it changed)"
+                 if fab.iteration is not None else
+                 f" (a lower bound: its {h.solid_cells:,} cells are more than the "
+                 f"{hollow_stage.SOLID_LAYOUT_MAX_CELLS:,} laid out solid beside a shell)")
     doc["bricks"][key] = solid
     doc["assembly_s"][key] = round(solid * fab.seconds_per_brick, 1)
+    doc["solid_layout"] = how
     doc["compare"] = (f"{lego:,} LEGO bricks, about {_hours(lego * fab.seconds_per_brick)} to build; "
-                      f"{words} {solid:,} bricks and {_hours(solid * fab.seconds_per_brick)}")
+                      f"{words} and {_hours(solid * fab.seconds_per_brick)}{bound}")
     return doc
 
 

@@ -105,10 +105,42 @@ def test_pipeline_hollows_on_request_and_reports_it(box_stl):
     h = doc["hollow"]
     assert h["on"] and h["setting"] == 2 and h["cells_solid"] == 8000 and h["cells_kept"] == 5480
     assert h["bricks"]["built"] == doc["bricks"]["lego"]
-    assert h["bricks"]["solid_at_least"] == -(-8000 // 48)
-    assert "timings_s" in doc and "hollow" in doc["timings_s"]
+    # the solid part (8,000 cells) is laid out too, by the driver's fast layout
+    solid_grid = pipeline.run(box_stl, slice_parts=False, hollow=0, effort="fast").grid
+    fast = len(layout_stage.lay_out(solid_grid, catalog.select(None), seed=0).bricks)
+    assert h["bricks"]["solid"] == h["laid_out_both"]["solid_bricks"] == fast > -(-8000 // 48)
+    assert h["solid_layout"] == "fast" and "solid_at_least" not in h["bricks"]
+    assert h["assembly_s"]["solid"] == round(fast * fab.seconds_per_brick, 1)
+    assert f"solid, {fast:,} bricks (fast layout, not improved)" in h["compare"]
+    assert "timings_s" in doc and "hollow" in doc["timings_s"] and "layout_solid" in doc["timings_s"]
     default = pipeline.run(box_stl, slice_parts=False)
     assert default.grid.count == 8000 and not default.hollowing.on
+
+
+def test_a_solid_part_beyond_the_limit_is_reported_as_a_lower_bound(box_stl, monkeypatch):
+    monkeypatch.setattr(hollow, "SOLID_LAYOUT_MAX_CELLS", 5000)
+    fab = pipeline.run(box_stl, slice_parts=False, hollow=2, effort="fast")
+    doc = pipeline.report(fab)
+    h = doc["hollow"]
+    assert h["bricks"]["solid_at_least"] == -(-8000 // 48) and "solid" not in h["bricks"]
+    assert h["solid_layout"] == "none" and "laid_out_both" not in h
+    assert "layout_solid" not in doc["timings_s"]
+    assert (f"solid at least {-(-8000 // 48):,} bricks" in h["compare"]
+            and "a lower bound: its 8,000 cells are more than the 5,000 laid out solid" in h["compare"])
+
+
+def test_the_solid_part_is_laid_out_when_the_choice_needs_it_or_it_is_affordable(monkeypatch):
+    grid = box_grid(40, 40, 60)                      # 96,000 cells: at least 2,000 bricks
+    auto, asked = hollow.decide(grid, -1), hollow.decide(grid, 2)
+    assert not hollow.solid_layout_wanted(hollow.decide(grid, 0), 10, 48)
+    assert hollow.solid_layout_wanted(auto, 1000, 48) and hollow.solid_layout_wanted(asked, 1000, 48)
+    monkeypatch.setattr(hollow, "SOLID_LAYOUT_MAX_CELLS", 50_000)
+    assert not hollow.solid_layout_wanted(asked, 1000, 48)
+    assert not hollow.solid_layout_wanted(auto, 1333, 48), "surely saves: no need to lay out"
+    assert hollow.solid_layout_wanted(auto, 1334, 48), "only the solid layout can tell"
+    kept = hollow.compared(asked, grid, 1900, 1600)
+    assert kept.on and kept.why == asked.why, "a shell asked for stays, even with more bricks"
+    assert (kept.bricks_hollow, kept.bricks_solid) == (1900, 1600)
 
 
 def test_request_and_command_line_take_hollow(box_stl):
@@ -218,6 +250,9 @@ def test_a_new_version_of_a_hollowed_part_is_hollowed_as_before(box_stl, tmp_pat
     assert again.hollowing.on and again.hollowing.studs == 2
     assert "as the previous version" in again.hollowing.why
     assert again.grid.count == 5480
+    h = pipeline.report(again)["hollow"]
+    assert h["solid_layout"] == "none" and h["bricks"]["solid_at_least"] == -(-7980 // 48)
+    assert "a lower bound: a new version is laid out only where it changed" in h["compare"]
     diff = again.iteration.diff
     assert int(np.count_nonzero(diff.added)) == 20 and len(diff.removed) == 20
     solid = pipeline.run(path, previous=tmp_path / "previous", slice_parts=False, hollow=0)
