@@ -17,6 +17,10 @@ system and inside FreeCAD's Qt timer):
   must end with a whole line whose faces refer to vertices it has, and stay
   the same for :data:`UNMARKED_SETTLE_S` seconds (a tool writing it in parts
   with longer pauses is picked up too early: write it aside and rename it);
+* a file that stays the same for :data:`GIVE_UP_S` seconds more yet does not
+  look complete is skipped until it changes, once, saying why: the line
+  ``fabricate`` refuses it with when it cannot be read as a model (a picture
+  or random bytes under a model's name), else what makes it look incomplete;
 * hidden files (``.name``) and other suffixes (``.part``, ``.tmp``) are
   ignored, so a writer that writes aside and renames is picked up at the
   rename.
@@ -71,10 +75,11 @@ UNMARKED_SUFFIXES = (".obj",)
 #: Seconds between two scans of :func:`watch`.
 POLL_S = 0.5
 #: Seconds beyond its settle time a file must stay the same yet not look complete
-#: (:func:`is_complete`) before it is skipped as no file of its format (said through
-#: ``on_skip``) until it changes.
+#: (:func:`is_complete`) before it is skipped until it changes (said through ``on_skip``,
+#: :func:`skip_reason`).
 GIVE_UP_S = 5.0
-#: Why a file that stays incomplete is skipped, by suffix (:func:`is_complete`'s tests).
+#: What makes a file that reads as a model look incomplete, by suffix (:func:`is_complete`'s
+#: tests).
 INCOMPLETE_WHY = {
     ".stl": "neither a binary STL whose size matches its triangle count nor an ASCII STL "
             "ending with endsolid",
@@ -221,6 +226,22 @@ def _obj_complete(data: bytes) -> bool:
     return True
 
 
+def skip_reason(path: str | os.PathLike, unchanged_s: float) -> str:
+    """Why the file at ``path``, unchanged for ``unchanged_s`` seconds yet not complete
+    (:func:`is_complete`), is skipped: the one line :func:`core.mesh_io.load_model` refuses
+    it with, as ``fabricate`` prints it (``x.stl: not a valid STL file (...)``), or, when it
+    reads as a model, what makes it look incomplete (:data:`INCOMPLETE_WHY`)."""
+    from core import mesh_io
+
+    p = Path(path)
+    try:
+        mesh_io.load_model(p)
+    except InputError as err:
+        return str(err)
+    why = INCOMPLETE_WHY.get(p.suffix.lower(), "its end is missing")
+    return f"{p.name}: unchanged for {unchanged_s:g} s but not a complete file: {why}"
+
+
 @dataclass
 class FolderWatcher:
     """Scans ``folder`` for new or changed model files (module docstring).
@@ -236,8 +257,9 @@ class FolderWatcher:
     include_existing: bool = False
     clock: Callable[[], float] = time.monotonic
     unmarked_settle_s: float = UNMARKED_SETTLE_S
-    #: Called with (path, why) for a file that stays the same yet never looks complete
-    #: (:data:`GIVE_UP_S`): it is skipped until it changes.
+    #: Called once with (path, why: :func:`skip_reason`, a line that names the file) for a
+    #: file that stays the same yet never looks complete (:data:`GIVE_UP_S`): it is skipped
+    #: until it changes.
     on_skip: Callable[[Path, str], None] | None = None
     _reported: dict[str, tuple[int, int]] = field(default_factory=dict, init=False, repr=False)
     _pending: dict[str, tuple[tuple[int, int], float]] = field(default_factory=dict, init=False,
@@ -296,9 +318,8 @@ class FolderWatcher:
                 self._reported[name] = signature
                 del self._pending[name]
                 if self.on_skip is not None:
-                    why = INCOMPLETE_WHY.get(Path(name).suffix.lower(), "not a complete file")
-                    self.on_skip(self.folder / name, f"unchanged for {settle + GIVE_UP_S:g} s "
-                                                     f"but not a complete file: {why}")
+                    self.on_skip(self.folder / name,
+                                 skip_reason(self.folder / name, settle + GIVE_UP_S))
         for name in set(self._pending) - seen:
             del self._pending[name]
         return sorted(ready)
