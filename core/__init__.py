@@ -51,4 +51,19 @@ def _writable_caches() -> None:
         os.environ[variable] = fallback
 
 
+def _blas_threads() -> None:
+    """One OpenBLAS thread, unless the user chose a number (OPENBLAS_NUM_THREADS,
+    GOTO_NUM_THREADS or OMP_NUM_THREADS set): numpy's and scipy's OpenBLAS would each start
+    a thread per core, each with a 32 MB buffer and a stack, address space that a limit
+    (``ulimit -v``) counts (core.errors.ADDRESS_SPACE_NEEDED is measured with one), for
+    linear algebra on 3 x 3 matrices that no thread speeds up.  Runs before numpy is
+    imported; where numpy already is (FreeCAD), it changes nothing."""
+    import os
+
+    if not any(os.environ.get(variable) for variable in
+               ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")):
+        os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
 _writable_caches()
+_blas_threads()

@@ -1,13 +1,23 @@
 """``python -m core``: the headless command line."""
 
+import contextlib
 import os
 import sys
 import threading
 
+from core.errors import address_space_shortage
+
+# before any library is loaded: below its limit OpenBLAS hangs while it loads, LLVM aborts
+shortage = address_space_shortage(sys.argv[1] if len(sys.argv) > 1 else "")
+if shortage is not None:
+    with contextlib.suppress(AttributeError, OSError, ValueError):   # no stderr: the status tells
+        sys.stderr.write(shortage + "\n")
+    sys.exit(2)
 try:
     from core.cli import main
 except KeyboardInterrupt:
-    sys.stderr.write("stopped by Ctrl-C while starting\n")
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        sys.stderr.write("stopped by Ctrl-C while starting\n")
     sys.exit(130)
 
 status = main()

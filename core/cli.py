@@ -5,7 +5,10 @@ help and defaults come from it); the command builds a Request, runs the
 driver (:func:`core.pipeline.fabricate`) and prints the result.  Bad input
 ends with one line on stderr naming the problem and exit status 2; any
 other failure is a bug: one line saying so and naming the log file with the
-traceback (:func:`core.errors.log_bug`), exit status 1.  Ctrl-C (and a
+traceback (:func:`core.errors.log_bug`), exit status 1; memory that runs out is one
+line ``not enough memory: ...`` and exit status 2 (:func:`core.errors.memory_shortage`;
+``python -m core`` checks the address-space limit before it loads anything,
+:func:`core.errors.address_space_shortage`).  Ctrl-C (and a
 SIGTERM or SIGHUP) stops a run in one line, exit status 128 + the signal
 (130 for Ctrl-C); an unfinished output is removed, a finished one stays.  Progress goes to
 stderr, a short summary to stdout.
@@ -23,7 +26,7 @@ import time
 import warnings
 
 from core import __version__, request
-from core.errors import InputError, bug_line, check_path
+from core.errors import InputError, bug_line, check_path, memory_shortage
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -166,18 +169,52 @@ def _stop_signals():
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 bad input, 1 a bug,
-    128 + the signal when stopped: 130 for Ctrl-C)."""
+    """Run the command line; returns the exit status (0 ok, 2 bad input or not enough
+    memory, 1 a bug, 128 + the signal when stopped: 130 for Ctrl-C).  A standard stream
+    that is closed (``2>&-``) or cannot be written changes no status: only its lines are
+    lost (standard output aside, :func:`_command`)."""
+    _open_standard_streams()
     for stream in (sys.stdout, sys.stderr):       # a file name that is not UTF-8 prints escaped
         with contextlib.suppress(AttributeError, ValueError):
             stream.reconfigure(errors="backslashreplace")
-    if sys.stdout is None:                          # started with stdout closed (>&-): quiet
-        sys.stdout = open(os.devnull, "w")
+    given = sys.stderr
+    err = sys.stderr = _Guarded(given, pipe_raises=False)
+    try:
+        return _command(argv)
+    finally:
+        if sys.stderr is err:
+            sys.stderr = given
+
+
+def _open_standard_streams() -> None:
+    """Give each standard stream the caller closed (``<&-``, ``>&-``, ``2>&-``) the null
+    device: its file descriptor, so that no file the run opens becomes descriptor 0, 1 or 2
+    (a slicer's messages would land in it), and the ``sys`` stream Python left None.  What
+    would have been shown is lost; the exit status still tells.  Left None (and dropped by
+    :class:`_Guarded`) when even the null device cannot be opened."""
+    for fd, name in ((0, "stdin"), (1, "stdout"), (2, "stderr")):
+        with contextlib.suppress(OSError):
+            try:
+                os.fstat(fd)
+            except OSError:
+                null = os.open(os.devnull, os.O_RDWR)
+                if null != fd:
+                    os.dup2(null, fd)
+                    os.close(null)
+            if getattr(sys, name) is None:
+                setattr(sys, name, open(fd, "r" if fd == 0 else "w", closefd=False))
+
+
+def _command(argv: list[str] | None) -> int:
+    """Parse ``argv`` and run its command: the exit status of :func:`main`.  Standard output
+    that cannot be written (a full disk, a file opened read-only) ends the run in one line
+    and status 2 once the files are written; a reader that quit (``| head``) ends it
+    quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
                "stability": _stability}.get(args.command, _fabricate)
     given = sys.stdout
-    out = sys.stdout = _Stdout(given)
+    out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
         with _stop_signals(), warnings.catch_warnings():
             # numbers at the edge of a float (a huge box, a load) are checked where they are
@@ -207,6 +244,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"stopped by {what}: nothing half-written was left behind\n")
         return 128 + int(signum)
     except Exception as exc:  # noqa: BLE001 - any other failure is a bug, reported as one
+        shortage = memory_shortage(exc)
+        if shortage is not None:
+            sys.stderr.write(shortage + "\n")
+            return 2
         sys.stderr.write(bug_line(exc, f"python -m core {args.command}") + "\n")
         return 1
     finally:
@@ -214,29 +255,30 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout = given
 
 
-class _Stdout:
-    """Standard output during a command: a failure to write it (a full disk, a file opened
-    read-only, a closed file) is kept in :attr:`failed` and stdout pointed at the null
-    device, so that the run finishes and ends in one line (:func:`main`); a reader that
-    quit (BrokenPipeError) still raises."""
+class _Guarded:
+    """A standard stream during a command: a failure to write it (a full disk, a file opened
+    read-only, a closed file, none at all) is kept in :attr:`failed` and the stream's file
+    pointed at the null device, so that the run finishes and its status stays what the
+    run decides; with ``pipe_raises`` (standard output) a reader that quit
+    (BrokenPipeError) still raises."""
 
-    def __init__(self, stream):
-        self._stream, self.failed = stream, None
+    def __init__(self, stream, pipe_raises: bool):
+        self._stream, self._pipe_raises, self.failed = stream, pipe_raises, None
 
     def write(self, text: str) -> int:
-        return self._guarded(self._stream.write, text, default=len(text))
+        return self._guarded("write", text, default=len(text))
 
     def flush(self) -> None:
-        self._guarded(self._stream.flush)
+        self._guarded("flush")
 
-    def _guarded(self, call, *args, default=None):
+    def _guarded(self, name: str, *args, default=None):
         if self.failed is not None:
             return default
         try:
-            return call(*args)
-        except BrokenPipeError:
-            raise
-        except (OSError, ValueError) as err:
+            return getattr(self._stream, name)(*args)
+        except (OSError, ValueError, AttributeError) as err:
+            if self._pipe_raises and isinstance(err, BrokenPipeError):
+                raise
             self.failed = err
             with contextlib.suppress(OSError, ValueError, AttributeError):
                 os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
@@ -475,7 +517,7 @@ def _watch(args) -> int:
         result.snapshot_state(job.previous)         # a bad --previous now, not at the first file
 
     def skipped(path, why):
-        sys.stderr.write(f"skipped: {path.name}: {why}\n")
+        sys.stderr.write(f"skipped: {_naming(path, why)}\n")
 
     files = watch.watch(args.folder, include_existing=args.existing, timeout_s=timeout,
                         on_skip=skipped)
@@ -491,7 +533,7 @@ def _watch(args) -> int:
                 doc = pipeline.fabricate(job.replace(model=str(path), previous=previous and str(previous)),
                                          out, progress=progress)
             except InputError as err:
-                sys.stderr.write(f"error: {path.name}: {err}\n")
+                sys.stderr.write(f"error: {_naming(path, str(err))}\n")
                 continue
             built += 1
             _summary(doc, out)
@@ -499,6 +541,14 @@ def _watch(args) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"stopped after {built} version(s) built\n")
     return 0
+
+
+def _naming(path, line: str) -> str:
+    """``line`` (a message about the watched file ``path``) as it names the file: itself
+    when it starts with the file's name or path, as ``fabricate``'s messages do, else
+    after the file's name."""
+    named = line.startswith((path.name + ":", os.fspath(path) + ":"))
+    return line if named else f"{path.name}: {line}"
 
 
 def _calibration_strip(args) -> int:

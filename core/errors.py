@@ -6,13 +6,20 @@ the CLI prints it and exits with status 2.  A stage that finds a caller of
 ours passing wrong data raises ValueError, TypeError or RuntimeError
 instead: that is a bug in Fabrickator, not the user's fault.
 
-For any exception that is not an InputError the CLI calls :func:`log_bug`
+Memory that runs out is neither: the system refused it.  The CLI checks the
+address-space limit (``ulimit -v``) before it loads any library
+(:func:`address_space_shortage`), and any exception that says the memory ran
+out (:func:`memory_shortage`) ends in one line, ``not enough memory: ...``,
+and exit status 2.
+
+For any other exception that is not an InputError the CLI calls :func:`log_bug`
 (the full traceback goes into a log file) and prints :func:`bug_message`
 (one line naming that file), then exits with status 1.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import platform
 import sys
@@ -57,6 +64,76 @@ def check_path(path, flag: str) -> None:
         raise InputError(f"{flag} {shown_path(path)}: {err.strerror or err}") from None
     except ValueError as err:                       # a NUL byte in the name
         raise InputError(f"{flag} {shown_path(path)!r}: {err}") from None
+
+
+#: Address space (bytes) a command of the CLI takes to load its libraries and run a small
+#: model, by command (anything else: ``"*"``).  Measured peaks on 2 cores with one OpenBLAS
+#: thread (core/__init__.py): fabricate of examples/build/hmd.step 1.16 GB (OpenCascade,
+#: LLVM for numba, two OpenBLAS), calibration-strip 1.22 GB, stability of the HMD's
+#: layout with a printed part 0.42 GB.  Below such a limit the libraries fail in ways no
+#: Python code sees: OpenBLAS (before 0.3.30) retries its buffer for ever while it is
+#: being loaded, LLVM aborts a thread ("cannot allocate memory for thread-local data").
+ADDRESS_SPACE_NEEDED = {"fabricate": 3 << 29, "watch": 3 << 29, "calibration-strip": 3 << 29,
+                        "stability": 3 << 28, "*": 3 << 28}
+
+
+def address_space_limit() -> int | None:
+    """The address space (bytes) this process may map (``ulimit -v``, RLIMIT_AS), or None
+    when it is not limited (or the system has no such limit)."""
+    try:
+        import resource
+    except ImportError:                              # not a POSIX system
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
+def _mb(size: int) -> str:
+    return f"{size / 2**20:,.0f} MB"
+
+
+def address_space_shortage(command: str) -> str | None:
+    """The one line (``not enough memory: ...``) saying that the address-space limit is
+    below what ``command`` of the CLI needs (:data:`ADDRESS_SPACE_NEEDED`), or None when it
+    is not.  Imports nothing beyond the standard library: it is checked before the
+    libraries that would hang below the limit are loaded."""
+    limit = address_space_limit()
+    need = ADDRESS_SPACE_NEEDED.get(command, ADDRESS_SPACE_NEEDED["*"])
+    if limit is None or limit >= need:
+        return None
+    what = "python -m core" + (f" {command}" if command in ADDRESS_SPACE_NEEDED else "")
+    return (f"not enough memory: the address space is limited to {_mb(limit)} (ulimit -v "
+            f"{limit // 1024}); {what} needs at least {_mb(need)} to load its libraries "
+            f"(ulimit -v {need // 1024})")
+
+
+def memory_shortage(exc: BaseException) -> str | None:
+    """The one line (``not enough memory: ...``) for an exception that says the memory ran
+    out, or None for any other.  Memory ran out when ``exc``, or an exception it was raised
+    from or while handling, is a MemoryError, a library that could not be mapped (an
+    ImportError or OSError saying "failed to map segment" or "cannot allocate memory",
+    ENOMEM) or a thread that could not be started.  The line names what failed and the
+    address-space limit when there is one."""
+    seen: set[int] = set()
+    what = None
+    while exc is not None and id(exc) not in seen and what is None:
+        seen.add(id(exc))
+        first = next((line.strip() for line in str(exc).splitlines() if line.strip()), "")
+        if isinstance(exc, MemoryError):
+            what = f"MemoryError: {first}" if first else "MemoryError"
+        elif isinstance(exc, (ImportError, OSError)) and (
+                getattr(exc, "errno", None) == errno.ENOMEM
+                or "failed to map segment" in first or "cannot allocate memory" in first.lower()):
+            what = f"a library could not be loaded: {shown_path(first, 160)}"
+        elif isinstance(exc, RuntimeError) and "can't start new thread" in first:
+            what = "a thread could not be started"
+        exc = exc.__cause__ or exc.__context__
+    if what is None:
+        return None
+    limit = address_space_limit()
+    return f"not enough memory: {what}" + (
+        f" (the address space is limited to {_mb(limit)}: ulimit -v {limit // 1024})"
+        if limit is not None else "")
 
 
 def log_folders() -> list[Path]:

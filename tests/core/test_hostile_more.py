@@ -1,13 +1,17 @@
 """More hostile input and environment (a second sweep): path names the system refuses,
 numbers at the edge of a float, titles the font cannot draw, a 3MF unit that is none,
 an empty brick set, watch output places, files a watch skips, a user without a home, a
-standard output that cannot be written.  Each ends in one line and exit status 2, or in
-a run that does what was asked without extra lines."""
+standard output that cannot be written, a standard error that is closed, too little
+memory.  Each ends in one line and exit status 2, or in a run that does what was asked
+without extra lines."""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
+import resource
+import shlex
 import shutil
 import subprocess
 import sys
@@ -15,11 +19,13 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
 from core import watch
-from core.errors import InputError, check_path, shown_path
+from core.errors import (ADDRESS_SPACE_NEEDED, InputError, check_path, memory_shortage,
+                         shown_path)
 from tests.core.test_hostile import (BOX_CELLS, BOX_MM, IS_ROOT, ROOT, assert_complete,  # noqa: F401
                                      box_stl, cli, in_process, one_line)
 
@@ -242,7 +248,7 @@ def test_watch_names_a_file_that_is_no_model_and_keeps_watching(tmp_path):
     assert lines[0].startswith("watching")
     skipped = [line for line in lines if "x.stl" in line]
     assert len(skipped) == 1 and skipped[0].startswith("skipped: x.stl:"), lines
-    assert "STL" in skipped[0]
+    assert "not a valid STL file" in skipped[0] and skipped[0].count("x.stl") == 1
     assert lines[-1] == "stopped after 0 version(s) built" or len(lines) == 2
 
 
@@ -313,3 +319,205 @@ def test_a_stdout_that_cannot_be_written_is_one_line(box_stl, tmp_path):
                                  "--out", tmp_path / "o"], read_only)
     one_line(proc.returncode, proc.stderr, "standard output could not be written")
     assert_complete(tmp_path / "o")
+
+
+# --- 10. a standard error that is closed ------------------------------------------------------------
+
+def shell(args, redirect: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    """``python -m core ARGS REDIRECT`` as the shell runs it (``2>&-`` closes stderr)."""
+    command = " ".join(shlex.quote(str(a)) for a in (sys.executable, "-m", "core", *args))
+    return subprocess.run(f"{command} {redirect}", shell=True, cwd=ROOT, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("redirect", ["2>&-", ">&- 2>&-", "<&- 2>&-", "2</dev/null"])
+def test_bad_input_with_stderr_closed_still_exits_2(tmp_path, redirect):
+    proc = shell(["fabricate", tmp_path / "missing.stl", "--out", tmp_path / "o"], redirect)
+    assert proc.returncode == 2 and proc.stderr == "", proc.stderr
+    assert not (tmp_path / "o").exists()
+    proc = shell(["fabricate", "--no-such-option"], redirect)
+    assert proc.returncode == 2 and proc.stderr == "", proc.stderr
+
+
+@pytest.mark.parametrize("redirect", ["2>&-", ">&- 2>&-", "2</dev/null"])
+def test_a_run_with_stderr_closed_finishes_and_exits_0(box_stl, tmp_path, redirect):
+    proc = shell(["fabricate", box_stl, "--out", tmp_path / "o", "--no-picture"], redirect)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert_complete(tmp_path / "o")
+    assert ("bricks" in proc.stdout) == (">&-" not in redirect.split()), proc.stdout
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs /proc/self/fd")
+def test_closed_standard_streams_get_the_null_device(tmp_path):
+    probe = tmp_path / "fds.txt"
+    code = ("import os, sys; from core import cli; cli._open_standard_streams(); "
+            f"f = open({str(probe)!r}, 'w'); "
+            "f.write(' '.join([os.readlink(f'/proc/self/fd/{n}') for n in range(3)]"
+            " + [str(s is None) for s in (sys.stdin, sys.stdout, sys.stderr)]))")
+    proc = subprocess.run(f"{shlex.quote(sys.executable)} -c {shlex.quote(code)} <&- >&- 2>&-",
+                          shell=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0
+    assert probe.read_text() == "/dev/null /dev/null /dev/null False False False"
+
+
+# --- 11. too little memory ---------------------------------------------------------------------------
+
+def limited(args, limit_mb: int, timeout: float) -> subprocess.CompletedProcess:
+    """``python -m core ARGS`` with its address space limited to ``limit_mb`` MB (``ulimit -v``)."""
+    def limit():
+        hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+        resource.setrlimit(resource.RLIMIT_AS, (limit_mb << 20, hard))
+
+    return subprocess.run([sys.executable, "-m", "core", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout, preexec_fn=limit)
+
+
+def works_or_not_enough_memory(proc: subprocess.CompletedProcess, out: Path | None) -> None:
+    """Either the run did what was asked, or it ended in one line naming the memory and
+    left no output."""
+    if proc.returncode == 0:
+        assert "Traceback" not in proc.stderr, proc.stderr
+        return
+    one_line(proc.returncode, proc.stderr, "not enough memory", "ulimit -v")
+    if out is not None:
+        assert not out.exists() and not [p for p in out.parent.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("limit_mb", [200, 300, 500, 1000])
+def test_fabricate_with_a_small_address_space_never_hangs(box_stl, tmp_path, limit_mb):
+    model = ROOT / "examples" / "build" / "hmd.step"        # loads OpenCascade too
+    out = tmp_path / "o"
+    proc = limited(["fabricate", model if model.is_file() else box_stl, "--out", out, "--quiet"],
+                   limit_mb, timeout=300)
+    works_or_not_enough_memory(proc, out)
+    if limit_mb << 20 < ADDRESS_SPACE_NEEDED["fabricate"]:
+        assert proc.returncode == 2 and f"limited to {limit_mb:,} MB" in proc.stderr
+
+
+@pytest.fixture(scope="module")
+def box_layout(tmp_path_factory) -> Path:
+    """The layout.json of a fabricated box."""
+    folder = tmp_path_factory.mktemp("box-layout")
+    trimesh.creation.box(BOX_MM).export(folder / "box.stl")
+    proc = cli("fabricate", folder / "box.stl", "--out", folder / "o", "--quiet", "--no-picture")
+    assert proc.returncode == 0, proc.stderr
+    return folder / "o" / "layout.json"
+
+
+@pytest.mark.parametrize("limit_mb", [200, 300, 500, 1000])
+def test_stability_with_a_small_address_space_never_hangs(box_layout, tmp_path, limit_mb):
+    proc = limited(["stability", box_layout, "--out", tmp_path / "verdict.json"], limit_mb,
+                   timeout=300)
+    works_or_not_enough_memory(proc, None)
+    if limit_mb << 20 < ADDRESS_SPACE_NEEDED["stability"]:
+        assert proc.returncode == 2 and not (tmp_path / "verdict.json").exists()
+    else:
+        assert proc.returncode == 0 and "stands" in proc.stdout
+
+
+def test_memory_running_out_mid_run_is_one_line_and_leaves_nothing(tmp_path):
+    cube = tmp_path / "cube.stl"                         # 2.7 million cells, hollowed
+    trimesh.creation.box((1500.0, 1500.0, 1500.0)).export(cube)
+    proc = limited(["fabricate", cube, "--out", tmp_path / "o", "--quiet"],
+                   (ADDRESS_SPACE_NEEDED["fabricate"] >> 20) + 64, timeout=600)
+    one_line(proc.returncode, proc.stderr, "not enough memory", "ulimit -v")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cube.stl"]
+
+
+def _raised_from(cause: BaseException, outer: BaseException) -> BaseException:
+    try:
+        try:
+            raise cause
+        except BaseException as inner:
+            raise outer from inner
+    except BaseException as err:
+        return err
+
+
+def test_memory_shortage_names_what_the_system_refused():
+    llvm = _raised_from(OSError("/x/libllvmlite.so: failed to map segment from shared object"),
+                        OSError("Could not find/load shared object file"))
+    for exc, words in ((MemoryError("Unable to allocate 155. MiB for an array"), "155. MiB"),
+                       (ImportError("libscipy_openblas.so: failed to map segment from shared "
+                                    "object"), "libscipy_openblas.so"),
+                       (llvm, "libllvmlite.so"),
+                       (RuntimeError("can't start new thread"), "thread could not be started"),
+                       (OSError(errno.ENOMEM, "Cannot allocate memory"), "Cannot allocate")):
+        line = memory_shortage(exc)
+        assert line.startswith("not enough memory: ") and words in line and "\n" not in line
+    for exc in (ValueError("boom"), ImportError("No module named 'x'"), RuntimeError("boom"),
+                OSError(errno.ENOENT, "No such file or directory")):
+        assert memory_shortage(exc) is None
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs /proc/self/status")
+@pytest.mark.parametrize("given, expected", [({}, "1"), ({"OPENBLAS_NUM_THREADS": "3"}, "3"),
+                                             ({"OMP_NUM_THREADS": "2"}, "None")])
+def test_one_openblas_thread_unless_the_user_chose(given, expected):
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")}
+    code = ("import core, os, numpy, scipy.linalg; print(os.environ.get('OPENBLAS_NUM_THREADS'), "
+            "open('/proc/self/status').read().split('Threads:')[1].split()[0])")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env={**env, **given},
+                          capture_output=True, text=True, timeout=120)
+    value, threads = proc.stdout.split()
+    assert value == expected
+    if expected == "1":
+        assert threads == "1"              # neither numpy's nor scipy's OpenBLAS started one
+
+
+# --- 12. a watched file that is no model ---------------------------------------------------------
+
+def _no_models(folder: Path) -> dict[str, bytes]:
+    """Files under a model's name that are none, none of which looks complete."""
+    noise = np.random.default_rng(7).bytes(3000)
+    files = {"picture.stl": b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 8,
+             "noise.obj": noise + b"x", "noise.ply": noise, "noise.3mf": noise}
+    for name, data in files.items():
+        (folder / name).write_bytes(data)
+        assert not watch.is_complete(folder / name)
+    return files
+
+
+def test_watch_skips_a_file_that_is_no_model_once_with_the_line_fabricate_gives(tmp_path, capsys):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    files = _no_models(folder)
+    clock, skipped = [0.0], []
+    watcher = watch.FolderWatcher(folder, include_existing=True, clock=lambda: clock[0],
+                                  on_skip=lambda path, why: skipped.append((path.name, why)))
+    for _ in range(60):                                   # 30 s, polled every 0.5 s
+        assert watcher.poll() == []
+        clock[0] += 0.5
+    assert sorted(name for name, _ in skipped) == sorted(files)
+    for name, why in skipped:
+        assert why.startswith(f"{name}: ") and "not a complete file" not in why
+        status, _, err = in_process(capsys, "fabricate", folder / name, "--out", tmp_path / "o",
+                                    "--quiet")
+        assert one_line(status, err) == f"error: {why}"
+
+
+def test_watch_says_a_readable_file_looks_incomplete(tmp_path):
+    (tmp_path / "part.obj").write_bytes(b"v 0 0 0\nv 10 0 0\nv 0 10 0\nv 0 0 10\n"
+                                        b"f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4")
+    why = watch.skip_reason(tmp_path / "part.obj", 10)
+    assert why.startswith("part.obj: unchanged for 10 s but not a complete file: an OBJ file "
+                          "must end with a line break"), why
+
+
+def test_watch_names_each_file_that_is_no_model_once(tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    files = _no_models(folder)
+    (folder / "ends.obj").write_bytes(np.random.default_rng(8).bytes(3000) + b"\n")
+    proc = cli("watch", folder, "--out", tmp_path / "o", "--existing", "--timeout", "20",
+               "--quiet", timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    for name in files:
+        named = [line for line in lines if name in line]
+        assert len(named) == 1 and named[0].startswith(f"skipped: {name}: "), lines
+        assert named[0].count(name) == 1 and "not a complete file" not in named[0]
+    assert [line for line in lines if "ends.obj" in line] == [
+        "error: ends.obj: not a valid OBJ file (binary content that is not OBJ data)"], lines
+    assert "Traceback" not in proc.stderr
