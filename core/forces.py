@@ -374,7 +374,7 @@ class _Program:
         h = self.highs()
         if seconds is not None:
             h.setOptionValue("time_limit", float(seconds))
-        h.run()
+        _run(h)
         status = h.getModelStatus()
         if status == highspy.HighsModelStatus.kOptimal:
             return "optimal", np.asarray(h.getSolution().col_value)
@@ -386,6 +386,21 @@ class _Program:
                       highspy.HighsModelStatus.kUnboundedOrInfeasible):
             return "unbounded", None
         raise SolverTrouble(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
+
+
+def _run(h) -> None:
+    """Run the HiGHS object ``h`` in a worker thread while this one waits in Python, so that
+    a signal (Ctrl-C, SIGTERM) raises here at once and the solver is told to stop (HiGHS's
+    user interrupt) instead of finishing a program that may run for minutes."""
+    h.HandleUserInterrupt = True
+    worker = h.startSolve()
+    try:
+        while worker.is_alive():
+            worker.join(0.05)
+    except BaseException:
+        h.cancelSolve()
+        worker.join(5.0)
+        raise
 
 
 def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
@@ -499,7 +514,7 @@ class _Warm:
             h.clearSolver()
             h.setOptionValue("solver", "ipm")
             h.setOptionValue("run_crossover", "on")
-        h.run()
+        _run(h)
         if cold:
             h.setOptionValue("solver", "simplex")
             h.setOptionValue("run_crossover", "choose")

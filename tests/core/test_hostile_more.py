@@ -521,3 +521,29 @@ def test_watch_names_each_file_that_is_no_model_once(tmp_path):
     assert [line for line in lines if "ends.obj" in line] == [
         "error: ends.obj: not a valid OBJ file (binary content that is not OBJ data)"], lines
     assert "Traceback" not in proc.stderr
+
+
+# --- a stop signal during a long force program ----------------------------------------
+
+def test_sigterm_during_a_force_program_stops_the_run_at_once(tmp_path):
+    """A force program may run for minutes (HiGHS, in C); a SIGTERM must still end the run
+    in one line at once: the program runs in a worker thread that HiGHS's user interrupt
+    stops.  Before, the run went on to the end of the program (17.8 s here)."""
+    import signal
+    import time
+
+    from tests.core.test_forces import slab_over_box
+
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps(slab_over_box(outer=(64, 64, 66), wall=2, rim=8).to_json()))
+    run = subprocess.Popen([sys.executable, "-m", "core", "stability", str(layout)], cwd=ROOT,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(12)                           # well into its programs (90 s in all)
+    assert run.poll() is None
+    sent = time.perf_counter()
+    run.send_signal(signal.SIGTERM)
+    out, err = run.communicate(timeout=60)
+    assert time.perf_counter() - sent < 3
+    assert run.returncode == 128 + signal.SIGTERM
+    assert err.strip().splitlines() == ["stopped by SIGTERM: nothing half-written was left behind"]
+    assert out == ""
