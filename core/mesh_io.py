@@ -15,11 +15,13 @@ inside-out closed pieces outward.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import os
 import re
 import stat
+import sys
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -341,6 +343,27 @@ def _solids(shape, name: str, what: str):
     return compound
 
 
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Standard output (the file descriptor: OpenCascade's C++ prints there) sent to the null
+    device for the ``with`` block: the STEP parser prints its complaints about a broken
+    file (``**** ERR StepFile ...``), which the one line of the InputError says instead."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.close(null)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def _read_step(file: Path):
     """The solid(s) of a STEP file as an OCP shape in mm."""
     from OCP.IFSelect import IFSelect_RetDone
@@ -348,7 +371,8 @@ def _read_step(file: Path):
 
     try:
         reader = STEPControl_Reader()
-        status = reader.ReadFile(str(file))
+        with _quiet_stdout():
+            status = reader.ReadFile(str(file))
         if status != IFSelect_RetDone:
             raise InputError(f"{file.name}: not a valid STEP file (the STEP reader gave up)")
         reader.TransferRoots()

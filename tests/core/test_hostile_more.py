@@ -547,3 +547,15 @@ def test_sigterm_during_a_force_program_stops_the_run_at_once(tmp_path):
     assert run.returncode == 128 + signal.SIGTERM
     assert err.strip().splitlines() == ["stopped by SIGTERM: nothing half-written was left behind"]
     assert out == ""
+
+
+def test_a_broken_step_file_prints_nothing_but_the_one_line(tmp_path):
+    """OpenCascade's STEP parser prints its complaints (``**** ERR StepFile ...``) on
+    standard output from C++: a broken STEP file still ends in one line, on stderr, and
+    nothing on stdout."""
+    junk = tmp_path / "junk.step"
+    junk.write_text("ISO-10303-21;\nHEADER;\ngarbage (((;\nENDSEC;\nDATA;\n#1=FOO(;\nENDSEC;\n"
+                    "END-ISO-10303-21;\n")
+    run = cli("fabricate", junk, "--out", tmp_path / "out", "--quiet")
+    one_line(run.returncode, run.stderr, "junk.step", "not a valid STEP file")
+    assert run.stdout == "" and not (tmp_path / "out").exists()
