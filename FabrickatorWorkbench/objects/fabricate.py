@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import FreeCAD as App
 
 from core import request as core_request
-from core.errors import InputError
+from core.errors import InputError, memory_shortage
 from core.interfaces import Fit
 from core.model import CELL_MM
 from FabrickatorWorkbench import bridge, deps, log, preferences
@@ -89,9 +89,9 @@ def edits(obj) -> list[dict]:
 def recompute(obj) -> bool:
     """Run the core for Fabrication ``obj`` and update the document; True on success.
 
-    Never raises: for bad input (:class:`core.errors.InputError`) or a
-    cancelled run the Report view and ``obj.Status`` say what failed in one
-    line; any other exception is a bug, and the Report view shows its
+    Never raises: for bad input (:class:`core.errors.InputError`), memory
+    the system refused (:func:`core.errors.memory_shortage`) or a cancelled
+    run the Report view and ``obj.Status`` say what failed in one line; any other exception is a bug, and the Report view shows its
     traceback.  Either way the document keeps the previous result and the
     parameters go back to the last values that worked.
     """
@@ -106,6 +106,12 @@ def recompute(obj) -> bool:
         obj.Status = f"failed, previous result kept: {reason.split('failed: ', 1)[-1]}"
         return False
     except Exception as exc:  # noqa: BLE001 - a bug: shown with its traceback, document kept
+        shortage = memory_shortage(exc)
+        if shortage is not None:                 # the system refused memory: not a bug
+            log.error(f"{obj.Label}: recompute failed: {shortage}")
+            _restore_parameters(obj)
+            obj.Status = f"failed, previous result kept: {shortage}"
+            return False
         log.bug(f"{obj.Label}: recompute", exc)
         _restore_parameters(obj)
         obj.Status = (f"failed by a bug, previous result kept: {type(exc).__name__} "

@@ -450,6 +450,31 @@ class TestFabrication(FabrickatorTestCase):
         self.assertIn("has no solid and no mesh", f.Status)
         self.assertEqual(f.LayoutJson, layout)
 
+    def test_memory_running_out_is_one_line_and_keeps_the_result(self):
+        """Memory the system refuses mid-run is not a bug: one line in the Report view and
+        Status, the previous result and parameters kept (as the command line's exit 2)."""
+        from FabrickatorWorkbench.objects import fabricate as fabricate_object
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body, brick_set="all")
+        self.doc.recompute()
+        layout, seed = f.LayoutJson, f.Seed
+
+        def no_memory(obj):
+            raise MemoryError("Unable to allocate 155. MiB for an array")
+
+        run_core = fabricate_object.run_core
+        fabricate_object.run_core = no_memory
+        try:
+            f.Seed = seed + 1
+            self.doc.recompute()
+        finally:
+            fabricate_object.run_core = run_core
+        self.assertTrue(f.Status.startswith("failed, previous result kept: not enough memory: "
+                                            "MemoryError: Unable to allocate"), f.Status)
+        self.assertNotIn("bug", f.Status)
+        self.assertEqual(f.LayoutJson, layout)
+        self.assertEqual(f.Seed, seed)
+
     def test_brick_set_and_seed_are_used(self):
         body, _, _ = padded_body(self.doc)
         f = fab().make_fabrication(body, brick_set="plates")
