@@ -405,6 +405,22 @@ def test_reinforce_leaves_a_standing_layout_alone():
     assert result.layout is layout and result.attempts == 0
 
 
+def test_reinforce_leaves_a_build_judged_in_height_bands_alone(monkeypatch):
+    """The 19-level staircase works its second brick at 0.93, above LOADED: a site to work
+    around.  Judged in height bands each brick has only its band's worst (and each judgement
+    would be bands again): reinforce leaves it as it is."""
+    from core import reinforce
+    layout = staircase(19)
+    assert reinforce.reinforce(layout, ground="baseplate").attempts > 0
+    monkeypatch.setattr(forces, "MAX_HANGING", 0)
+    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(forces, "MAX_BODIES", 2)
+    monkeypatch.setattr(forces, "BAND_BODIES", 3)
+    result = reinforce.reinforce(layout, ground="baseplate")
+    assert result.forces.bands and result.forces.max_utilisation > reinforce.LOADED
+    assert result.attempts == 0 and result.layout is layout
+
+
 def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monkeypatch):
     monkeypatch.setattr(forces, "MAX_BODIES", 10)
     monkeypatch.setattr(forces, "MAX_BANDED", 10)          # nor in height bands
