@@ -389,9 +389,18 @@ class _Program:
 
 
 def _run(h) -> None:
-    """Run the HiGHS object ``h`` in a worker thread while this one waits in Python, so that
-    a signal (Ctrl-C, SIGTERM) raises here at once and the solver is told to stop (HiGHS's
-    user interrupt) instead of finishing a program that may run for minutes."""
+    """Run the HiGHS object ``h``.  Where a stop signal has a Python handler (the command
+    line's SIGTERM, in its main thread), in a worker thread while this one waits in Python,
+    so that the signal raises here at once and the solver is told to stop (HiGHS's user
+    interrupt) instead of finishing a program that may run for minutes.  Elsewhere (inside
+    FreeCAD, where a Qt event loop owns the main thread, or in a worker) in this thread."""
+    import signal
+    import threading
+
+    if (threading.current_thread() is not threading.main_thread()
+            or not callable(signal.getsignal(signal.SIGTERM))):
+        h.run()
+        return
     h.HandleUserInterrupt = True
     worker = h.startSolve()
     try:
