@@ -78,6 +78,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -394,9 +396,6 @@ def _run(h) -> None:
     so that the signal raises here at once and the solver is told to stop (HiGHS's user
     interrupt) instead of finishing a program that may run for minutes.  Elsewhere (inside
     FreeCAD, where a Qt event loop owns the main thread, or in a worker) in this thread."""
-    import signal
-    import threading
-
     if (threading.current_thread() is not threading.main_thread()
             or not callable(signal.getsignal(signal.SIGTERM))):
         h.run()
@@ -1427,7 +1426,8 @@ class _Model:
             below = np.zeros(self.nbody, dtype=bool)
             below[under[members].indices] = True
             below[members] = False
-            bricks = np.flatnonzero(np.isin(self.body_of, members) | below[self.body_of])
+            own = np.isin(self.body_of, members)             # per brick: of this band
+            bricks = np.flatnonzero(own | below[self.body_of])
             ground = bool((low[members] == 0).any())
             sub = self._model_of(bricks, None if ground else below[self.body_of[bricks]],
                                  holding=below[self.body_of[bricks]], extra=extra, pressed=pressed)
@@ -1452,7 +1452,7 @@ class _Model:
                 done.append((members, f, push, studs))
                 t += 1
                 continue
-            mine = np.flatnonzero(np.isin(self.body_of, members))
+            mine = np.flatnonzero(own)
             lay = self.layout.bricks[int(mine[np.argmin(self.corners[mine, 2])])]
             worst = "infinite" if not math.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
             why = (f"solved in height bands, its band of {len(members)} bricks from layer "
