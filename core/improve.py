@@ -113,6 +113,10 @@ LEAF_COST = 3.0
 COMPACT_LEAF_COST = 1.0
 ISLAND_COST = 6.0
 SEAM_COST = 0.02
+#: While weak points count: how often a window whose re-cover leaves the key as it was is
+#: solved again, and the extra price each time of each of its new bricks that was a weak point.
+WEAK_RETRIES = 2
+WEAK_COST = 1.5
 
 Key = tuple[int, int, int, int]
 
@@ -609,8 +613,11 @@ class _Search:
         """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally; keep it
         if the key improves.  The farthest bricks stay fixed while the window has more than
         ``level.max_columns`` placements, and while its LP relaxation is fractional
-        and it has more than ``level.mip_columns``."""
+        and it has more than ``level.mip_columns``.  While weak points count, a re-cover
+        that does not improve the key is solved again (up to :data:`WEAK_RETRIES` times)
+        with its new bricks that are weak points priced :data:`WEAK_COST` more."""
         limit = level.max_columns
+        penalty: dict[tuple, float] = {}
         while True:
             free = np.zeros(self.grid.shape, dtype=bool)
             for i in ids:
@@ -633,8 +640,29 @@ class _Search:
                 return False
             limit = level.mip_columns
             ids = ids[:max(2, (len(ids) * 4) // 5)]
-        if chosen is None or sorted(chosen) == sorted(current):
-            return False
+        for attempt in range(WEAK_RETRIES + 1):
+            if chosen is None or sorted(chosen) == sorted(current):
+                return False
+            n = len(self.rec)
+            kept, art = self._try(ids, chosen, lo)
+            if kept:
+                return True
+            weak = [box for j, box in enumerate(chosen) if art[n + j]]
+            if not self.weak_on or not weak or attempt == WEAK_RETRIES:
+                return False
+            for box in weak:
+                penalty[box] = penalty.get(box, 0.0) + WEAK_COST
+            chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+                                   None if self.apart is None else self.apart[sl],
+                                   self.shapes, current, self.rng, level, LEAF_COST, penalty)
+            if chosen is TOO_LARGE:
+                return False
+        return False
+
+    def _try(self, ids: list[int], chosen: list[tuple], lo) -> tuple[bool, np.ndarray]:
+        """Replace bricks ``ids`` by the boxes ``chosen`` (window coordinates from ``lo``)
+        if that improves the key: (whether it did, the trial's articulation mask, whose
+        rows from the current number of records on are the boxes of ``chosen``)."""
         lab = self.lab.copy()
         n = len(self.rec)
         self._pending = {}
@@ -649,14 +677,14 @@ class _Search:
         dead = self.dead + len(ids)
         key, deg, art = self._evaluate(lab, n + len(chosen), dead)
         if key >= self.key:
-            return False
+            return False, art
         for i in ids:
             self.alive[i] = False
         for i in sorted(self._pending):
             self._add(self._pending[i], self._pending_part[i], None, False)
         assert np.array_equal(self.lab, lab)
         self.dead, self.key, self.deg, self.art = dead, key, deg, art
-        return True
+        return True, art
 
     def layout(self, next_id: int | None, renumber: bool) -> Layout:
         """The current bricks as a Layout: kept bricks first (in their order), then new ones."""
@@ -822,7 +850,8 @@ def _fixed_leaf_targets(free, filled, lab):
     return np.array(targets, dtype=np.int64).reshape(-1, 5)
 
 
-def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort, leaf_cost: float):
+def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort, leaf_cost: float,
+                  penalty: dict | None = None):
     """The best re-cover of the ``free`` cells of a local box, as a list of boxes, or None.
 
     ``lab`` holds the fixed bricks' indices (-1 on freed and empty cells);
@@ -843,6 +872,8 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     cost = BRICK_COST + SEAM_COST * seams + 1e-4 * rng.random(n)
     cost += ISLAND_COST * ((fixed == 0) & (wb == 0) & (wa == 0))
     cost += leaf_cost * ((fixed == 1) & (wb == 0) & (wa == 0))
+    for box, extra in (penalty or {}).items():
+        cost[np.flatnonzero((boxes == box).all(axis=1))] += extra
     # A placement p with no fixed neighbour that touches freed cells on one side only is
     # a leaf when one placement q covers all of those cells.  All such q cover the same
     # cell, so at most one is chosen: y_p >= x_p + sum_q x_q - 1 is exact (one row per p).
