@@ -269,7 +269,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
 LEAF_FREE_REGION_CELLS = 96
 
 
-def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0) -> dict:
+def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0,
+                    no_weak_points: bool = False) -> dict:
     """A lower bound on the bricks of any layout that the improvement's targets accept: one
     component per region and no weak point but those holding a leaf on a one-cell-thin
     feature (:func:`thin_weak_points`).
@@ -281,7 +282,10 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     least two of them, all under (or over) one other brick (a leaf: that brick would be a
     weak point, and not a thin one).  Both are necessary conditions, so the answer is a
     lower bound, usually above the plain exact cover's, and the gap between them is what
-    connection costs at least.  Returns ``{"bound", "optimal", "objective", "status",
+    connection costs at least.  With ``no_weak_points`` it bounds the layouts with one
+    component per region and no weak point at all (thin ones included): it also forbids
+    every brick whose cells split its region (:func:`separating`), which such a layout
+    cannot have.  Returns ``{"bound", "optimal", "objective", "status",
     "seconds", "variables"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is
     the larger of the relaxation's bound (interior point, certified by weak duality) and
     HiGHS's dual bound, rounded up (0 when neither came in ``time_limit_s``; None past
@@ -310,6 +314,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     _, below, above, bbox, _ = _contacts(boxes, filled, filled, np.full(filled.shape, -1, np.int64))
     region = region_cells[labels[boxes[:, 0], boxes[:, 1], boxes[:, 2]]]
     island = (below == 0) & (above == 0) & (boxes[:, 3] * boxes[:, 4] * boxes[:, 5] < region)
+    if no_weak_points:
+        island |= separating(boxes, labels)
     cand = np.flatnonzero((region > LEAF_FREE_REGION_CELLS) & (bbox[:, 4] >= 0)
                           & (below + above >= 2))
     t, q = _covering(boxes, bbox[cand], cover.indptr.astype(np.int64),
@@ -365,6 +371,24 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     if optimal:
         bound = objective
     return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+
+
+def separating(boxes: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Per placement (``boxes``, (n, 6)): whether its region (``labels``, 6-connected
+    regions numbered from 1) falls apart into two or more 6-connected pieces without the
+    cells it covers.  Bricks join only through faces, so the bricks of one piece touch
+    those of another only through that brick: in a layout with one component per region
+    it is a weak point, whatever the other bricks are."""
+    objects = ndimage.find_objects(labels)
+    out = np.zeros(len(boxes), dtype=bool)
+    for i, (x, y, z, sx, sy, sz) in enumerate(boxes):
+        region = labels[x, y, z]
+        sl = objects[region - 1]
+        rest = labels[sl] == region
+        x0, y0, z0 = (s.start for s in sl)
+        rest[x - x0:x - x0 + sx, y - y0:y - y0 + sy, z - z0:z - z0 + sz] = False
+        out[i] = ndimage.label(rest, structure=_SIX)[1] >= 2
+    return out
 
 
 def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, m: int, upper: np.ndarray) -> float:

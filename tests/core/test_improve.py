@@ -252,6 +252,25 @@ def test_leaf_free_bound_of_a_column_is_the_hand_count():
                 for k in range(3) for side in range(2)]
     assert covers_once(Layout(grid, by_hand))
     assert improve.quality(Layout(grid, by_hand)) == (1, 0, 0, 8)
+    # a 2x4 that fills a middle layer splits the column: without weak points, 8 exactly
+    strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, no_weak_points=True)
+    assert strict["bound"] == 8 and strict["optimal"]
+
+
+def test_separating_bricks_are_those_that_split_their_region():
+    """A bar of five 1x1 plates in a row, and beside it (not touching) a tower of three
+    1x1 plates: a plate inside the bar or the tower's middle one splits its region; an
+    end, the whole tower, or a 1x2 at the bar's end does not."""
+    filled = np.zeros((5, 3, 3), bool)
+    filled[:, 0, 0] = True
+    filled[0, 2, :] = True
+    from scipy import ndimage
+    labels = ndimage.label(filled)[0]
+    boxes = np.array([(2, 0, 0, 1, 1, 1), (1, 0, 0, 1, 1, 1), (0, 0, 0, 1, 1, 1),
+                      (0, 0, 0, 2, 1, 1), (0, 2, 1, 1, 1, 1), (0, 2, 2, 1, 1, 1),
+                      (0, 2, 0, 1, 1, 3)])
+    assert improve.separating(boxes, labels).tolist() == [True, True, False, False, True,
+                                                          False, False]
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -277,3 +296,10 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     assert found["bound"] >= brick_lower_bound(grid, catalog.CATALOG, time_limit_s=10)["bound"]
     if accepted:
         assert found["bound"] <= bricks
+    strict = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, no_weak_points=True)
+    if strict["bound"] is None:
+        assert strict["status"] == "infeasible" and not (comps == regions and weak == 0)
+        return
+    assert strict["bound"] >= found["bound"]
+    if comps == regions and weak == 0:
+        assert strict["bound"] <= bricks
