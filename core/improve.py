@@ -403,9 +403,18 @@ def separating(boxes: np.ndarray, labels: np.ndarray) -> np.ndarray:
     those of another only through that brick: in a layout with one component per region
     it is a weak point, whatever the other bricks are."""
     objects = ndimage.find_objects(labels)
+    shape = np.array(labels.shape)
     out = np.zeros(len(boxes), dtype=bool)
     for i, (x, y, z, sx, sy, sz) in enumerate(boxes):
         region = labels[x, y, z]
+        # the region's cells in a one-cell rim around the box: when they are one piece, a
+        # path through the box can go round it, so the region stays whole
+        lo = np.maximum((x - 1, y - 1, z - 1), 0)
+        hi = np.minimum((x + sx + 1, y + sy + 1, z + sz + 1), shape)
+        rim = labels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] == region
+        rim[x - lo[0]:x + sx - lo[0], y - lo[1]:y + sy - lo[1], z - lo[2]:z + sz - lo[2]] = False
+        if ndimage.label(rim, structure=_SIX)[1] <= 1:
+            continue
         sl = objects[region - 1]
         rest = labels[sl] == region
         x0, y0, z0 = (s.start for s in sl)
