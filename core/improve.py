@@ -205,12 +205,12 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     search = _Search(layout, parts, seed, frozen, apart, failing_joints)
     start = search.key
     search.count_weak(False)
-    search.run(level, int(budget * level.compact_share), report)
+    search.run(level, int(budget * level.compact_share), report, budget)
     search.count_weak(True)
-    search.run(level, budget, report)
+    search.run(level, budget, report, budget)
     if search.key > start:
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
-        search.run(level, budget - int(budget * level.compact_share), report)
+        search.run(level, budget - int(budget * level.compact_share), report, budget)
     return search.layout(next_id, renumber=False)
 
 
@@ -636,10 +636,12 @@ class _Search:
 
     # -- the search ----------------------------------------------------------
 
-    def run(self, level: Effort, budget: int, report: Progress) -> None:
-        """Try up to ``budget`` windows, shape by shape, sites in order of promise."""
+    def run(self, level: Effort, budget: int, report: Progress, total: int) -> None:
+        """Try windows, shape by shape, sites in order of promise, until ``budget`` windows
+        have been tried in all; progress is reported as a share of the ``total`` windows of
+        the whole stage."""
         tried: set[tuple] = set()
-        report(0.0, "improve: windows")
+        report(min(self.windows / total, 1.0), "improve: windows")
         while self.windows < budget:
             progressed = False
             for shape, anchor in ((s, a) for s in level.shapes for a in (1, 2, 0)):
@@ -659,9 +661,9 @@ class _Search:
                     self.windows += 1
                     if self.solve(ids, level):
                         self.accepted += 1
-                    report(self.windows / budget,
-                           f"improve: window {self.windows}/{budget}, {self.key[3]} bricks, "
-                           f"{self.key[2]} weak points")
+                    report(min(self.windows / total, 1.0),
+                           f"improve: window {self.windows}/{total}, {self.key[3]} bricks, "
+                           + (f"{self.key[2]} weak points" if self.weak_on else "compacting"))
             if not progressed:
                 return
 

@@ -194,6 +194,19 @@ def test_progress_may_cancel():
                         "normal", 0, progress=stop)
 
 
+def test_progress_only_rises_and_says_what_it_counts():
+    """The fractions never go back (the compaction and the weak-point search share one
+    count of windows), and while compacting the message does not claim weak points it
+    does not count."""
+    seen = []
+    improve.improve(unit_plates(grid_of(np.ones((4, 8, 6), bool))), catalog.CATALOG, "normal",
+                    0, progress=lambda fraction, message: seen.append((fraction, message)))
+    fractions = [f for f, _ in seen]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    windows = [m for _, m in seen if m.startswith("improve: window ")]
+    assert windows[0].endswith("compacting") and windows[-1].endswith("weak points")
+
+
 def test_failing_joints_counted_before_weak_points():
     grid = grid_of(np.ones((2, 8, 6), bool))
     lay = unit_plates(grid)
