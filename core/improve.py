@@ -27,13 +27,18 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
    branch and bound (up to a size) with the current bricks as the start.
 3. **Keep it** only when the whole layout improves on the key (components,
    failing joints, weak points, bricks), compared lexicographically
-   (:func:`quality`).
+   (:func:`quality`).  While weak points count, a re-cover that is not kept
+   is solved again with its new bricks that were weak points priced higher:
+   the program sees leaves, not articulation points, and this shows it the
+   ones its first answer made.
 
 The search runs in two phases: first a compaction whose key leaves weak
 points out (it finds layouts near the fewest bricks), then the full key,
 which removes weak points again, usually at the cost of some bricks.
 Should the result still be worse than the input on the full key, the full
 key is searched from the input instead, so the result is never worse.
+``best`` runs ``normal``'s search from three seeds and continues from the
+best of them with larger windows.
 
 The work is counted in windows, not seconds, so the result is the same for
 the same layout, parts, effort and seed (HiGHS runs single-threaded; its
