@@ -171,18 +171,18 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     frozen_ids = set(frozen or ())
     if level.max_windows == 0 or not layout.bricks:
         return _copy(layout, renumber=False)
-    names = EFFORTS[1:EFFORTS.index(effort) + 1]
-    runs = [(name, k) for name in names for k in range(_starts(name, effort, layout))]
+    starts = {name: _starts(name, effort, layout) for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
+    total = sum(starts.values())
+    done = 0
     current = layout
-    for name in names:
+    for name, count in starts.items():
         found = []
-        for k in range(_starts(name, effort, layout)):
-            done = runs.index((name, k))
-
+        for k in range(count):
             def share(fraction, message, done=done):
-                report((done + fraction) / len(runs), message)
+                report((done + fraction) / total, message)
             found.append(_stage(current, parts, EFFORT_LEVELS[name], seed + k, share, frozen_ids,
                                 apart, failing_joints, next_id))
+            done += 1
         keys = [quality(f, failing_joints) for f in found]
         current = found[keys.index(min(keys))]
     report(1.0, "improve: done")
@@ -680,7 +680,6 @@ class _Search:
         that does not improve the key is solved again (up to :data:`WEAK_RETRIES` times)
         with its new bricks that are weak points priced :data:`WEAK_COST` more."""
         limit = level.max_columns
-        penalty: dict[tuple, float] = {}
         while True:
             free = np.zeros(self.grid.shape, dtype=bool)
             for i in ids:
@@ -693,16 +692,17 @@ class _Search:
                 ids = ids[:max(2, (len(ids) * 4) // 5)]
                 continue
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
-            chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
-                                   None if self.apart is None else self.apart[sl],
-                                   self.shapes, current, self.rng, level,
-                                   LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
+            window = (free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+                      None if self.apart is None else self.apart[sl], self.shapes, current,
+                      self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
+            chosen = _solve_window(*window)
             if chosen is not TOO_LARGE:
                 break
             if len(ids) <= 2:
                 return False
             limit = level.mip_columns
             ids = ids[:max(2, (len(ids) * 4) // 5)]
+        penalty: dict[tuple, float] = {}
         for attempt in range(WEAK_RETRIES + 1):
             if chosen is None or sorted(chosen) == sorted(current):
                 return False
@@ -715,9 +715,7 @@ class _Search:
                 return False
             for box in weak:
                 penalty[box] = penalty.get(box, 0.0) + WEAK_COST
-            chosen = _solve_window(free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
-                                   None if self.apart is None else self.apart[sl],
-                                   self.shapes, current, self.rng, level, LEAF_COST, penalty)
+            chosen = _solve_window(*window, penalty)
             if chosen is TOO_LARGE:
                 return False
         return False
