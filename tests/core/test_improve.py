@@ -78,9 +78,9 @@ def test_deterministic_for_a_seed(filled, seed):
 
 def test_best_is_no_worse_than_normal_from_any_of_its_seeds():
     """``best`` goes on from the best of ``normal``'s searches from BEST_STARTS seeds.  On
-    this terraced shape (157 cells) seed 3 leaves more weak points than seed 4 does, and
-    ``best`` from seed 3 is no worse than either."""
-    rng = np.random.default_rng(9)
+    this terraced shape (142 cells) seed 5 leaves fewer weak points than seeds 3 and 4 do,
+    and ``best`` from seed 3 is no worse than any of them."""
+    rng = np.random.default_rng(15)
     heights = rng.integers(1, 9, size=(6, 5))
     grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
     start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
