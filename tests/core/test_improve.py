@@ -92,6 +92,23 @@ def test_best_is_no_worse_than_normal_from_any_of_its_seeds():
     assert improve.quality(best) <= min(normal)
 
 
+def test_the_first_window_follows_a_thin_wall():
+    """On a wall one stud thick (40 studs long, 3 plates tall, 1x1 plates), the first window
+    at a site in its middle frees the whole wall 16 studs along it (48 cells), and with a
+    limit of 30 cells the 30 nearest the site.  A 6x6x3 box there frees 18."""
+    grid = grid_of(np.ones((40, 1, 3), dtype=bool))
+    search = improve._Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
+    site = int(search.lab[20, 0, 1])
+    ids = search.window(site, improve.NEAREST, 0, 200)
+    xs = sorted({search.rec[i][0] for i in ids})
+    assert len(ids) == 48 and xs == list(range(xs[0], xs[0] + 16)) and 20 in xs
+    near = search.window(site, improve.NEAREST, 0, 30)
+    assert len(near) == 30
+    assert max(abs(search.rec[i][0] - 20) + abs(search.rec[i][2] - 1) for i in near) <= \
+        min(abs(search.rec[i][0] - 20) + abs(search.rec[i][2] - 1) for i in set(ids) - set(near))
+    assert len(search.window(site, (6, 6, 3), 0, 200)) == 18
+
+
 def test_block_2x8_two_bricks_high_reaches_two_bricks():
     """A 2 x 8 stud block six plates (two bricks) high: two 2x8 bricks 3007 stacked are the
     fewest parts (96 cells, the largest part holds 48), one piece, no weak point (a graph of
