@@ -61,6 +61,8 @@ ENGRAVE_MARGIN_MM = 0.4
 ENGRAVE_FONT_SIZES = (5.0, 4.0, 3.0, 2.5)
 #: How far (mm) the cutting text starts outside the face (no coplanar Boolean faces).
 ENGRAVE_OVERSHOOT_MM = 0.2
+#: Steps (mm) in which the id is moved along a side when its centre is covered or not whole.
+ENGRAVE_STEP_MM = 4.0
 #: Free space (mm) the engraved side must have in front of it (else the side is covered).
 ENGRAVE_CLEAR_MM = 1.0
 #: The font of the id (DejaVu Sans Bold, Debian fonts-dejavu-core).
@@ -717,7 +719,8 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
     first, then those that face other bricks (a face the envelope cut, not
     one the designer drew; hidden once built), then the largest.  For each,
     the biggest of ENGRAVE_FONT_SIZES whose text (plus ENGRAVE_MARGIN_MM)
-    fits the side is placed centred on it, and the side is taken only when
+    fits the side is placed centred on it (else moved along it, then to its
+    top or bottom: :func:`_positions`), and a place is taken only when
     the slab behind the text, ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM deep, lies
     wholly inside the part and the slab ENGRAVE_CLEAR_MM in front of it
     holds nothing of the part: then the part has a flat, uncovered side
@@ -743,13 +746,16 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
     candidates.sort(key=lambda c: c[:5])
     inside = _inside_test(part)
     body = _manifold(part.mesh)
-    for *_, face, font in candidates:
+    for *_, side, font in candidates:
         width, height = sizes[font]
         behind = ENGRAVE_DEPTH_MM + ENGRAVE_KEEP_MM
-        if not inside(_slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, behind)):
-            continue
-        front = _slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, -ENGRAVE_CLEAR_MM)
-        if (body ^ _cube(*front)).volume() > 1e-6 * np.prod(front[1] - front[0]):
+        for face in _positions(side, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM):
+            if not inside(_slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, behind)):
+                continue
+            front = _slab(face, width + 2 * ENGRAVE_MARGIN_MM, height + 2 * ENGRAVE_MARGIN_MM, -ENGRAVE_CLEAR_MM)
+            if (body ^ _cube(*front)).volume() <= 1e-6 * np.prod(front[1] - front[0]):
+                break
+        else:
             continue
         text = _text_solid(part.id, font, face)
         try:
@@ -857,6 +863,21 @@ def _text_solid(text: str, font: float, face: dict) -> TopoDS_Shape:
     shift = face["centre"] - np.array([box.center.x, box.center.y, box.center.z])
     shift -= np.dot(shift, face["normal"]) * face["normal"]
     return shape.translate(cq.Vector(*shift)).wrapped
+
+
+def _positions(face: dict, width: float, height: float):
+    """``face`` with its centre moved to where a ``width`` x ``height`` text box may sit on
+    it: the centre first, then along the side in steps of :data:`ENGRAVE_STEP_MM` (and to
+    the ends), then also to its top and bottom; the box always stays on the side."""
+    along = max((face["width"] - width) / 2, 0.0)
+    up = max((face["height"] - height) / 2, 0.0)
+    shifts = np.unique(np.round(np.concatenate(
+        [np.arange(0.0, along, ENGRAVE_STEP_MM), [along]]), 6))
+    offsets = sorted({(sign * a, v) for a in shifts for sign in (1, -1) for v in (0.0, up, -up)},
+                     key=lambda o: (o[1] != 0.0, abs(o[0]), o[0] < 0, o[1] < 0))
+    right = np.abs(face["right"])
+    for a, v in offsets:
+        yield dict(face, centre=face["centre"] + right * a + np.array([0.0, 0.0, v]))
 
 
 def _slab(face: dict, width: float, height: float, depth: float) -> np.ndarray:

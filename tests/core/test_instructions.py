@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import trimesh
 import pytest
 
 from core import build_order, instructions, layout as layout_stage, ldraw, picture, pipeline
@@ -26,6 +27,25 @@ def hmd(tmp_path_factory, hmd_step):
     out = tmp_path_factory.mktemp("assembly")
     result = instructions.write_assembly(fab.layout, fab.printed, out, title="hmd.step <test>")
     return fab, out, result
+
+
+def test_the_printed_parts_the_steps_name_carry_their_engraved_ids(hmd):
+    """The steps tell the builder to find each printed part's ID engraved on its side: both
+    lens mounts of the demo have it, on a side whose slab in front is free of the part (its
+    middle may be covered by the part's own cells: then the ID moves along the side)."""
+    fab, _, _ = hmd
+    assert [p.id for p in fab.printed] == ["P1", "P2"]
+    for part in fab.printed:
+        assert part.engraved, part.engraving
+        where = part.engraving
+        normal, centre = np.array(where["normal"]), np.array(where["centre_mm"])
+        width, height = where["text_mm"]
+        half = np.abs(np.cross([0.0, 0.0, 1.0], normal)) * width / 2 + np.array([0, 0, height / 2])
+        lo, hi = np.sort(np.stack([centre - half + normal * 0.05, centre + half + normal * 1.0]), axis=0)
+        points = lo + (hi - lo) * np.random.default_rng(1).random((400, 3))
+        assert not part.mesh.contains(points).any()
+        inner = centre - normal * 0.7
+        assert part.mesh.contains(inner[None])[0], "no wall behind the ID"
 
 
 def occlusion(boxes: np.ndarray) -> np.ndarray:
@@ -201,7 +221,6 @@ def _areas(path: str) -> list[float]:
 
 
 def test_outline_of_a_ring_seen_along_its_axis_has_its_hole():
-    import trimesh
 
     ring = trimesh.creation.annulus(r_min=6.0, r_max=10.0, height=3.0, sections=96)
     ring.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], -VIEW / np.linalg.norm(VIEW)))
@@ -234,7 +253,6 @@ def test_inserted_part_is_highlighted_with_its_hole_showing(hmd, tmp_path):
         pytest.skip("chromium and chromedriver are not installed (apt-get install chromium chromium-driver)")
     import io
 
-    import trimesh
     from PIL import Image
     from selenium.webdriver.chrome.service import Service
 
