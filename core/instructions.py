@@ -580,6 +580,7 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
             p = info.get(s.printed_part)
             item["pv"] = None if p is None else round(float(p.volume_mm3) / 1000.0, 1)
             item["pf"] = None if p is None else (p.stl or f"parts/{p.id}.stl")
+            item["pe"] = p is not None and bool(p.engraved)
         out.append(item)
     return out
 
@@ -845,7 +846,8 @@ function show(s, animate){
     const li = document.createElement('li');
     li.className = 'printed';
     li.innerHTML = '<span class="pp-sw"></span><span class="nm"><b>Insert printed part ' + st.p +
-      '</b>find the ID ' + st.p + ' engraved on its side' + (st.pv != null ? ' · ' + st.pv + ' cm³' : '') +
+      '</b>' + (st.pe ? 'find the ID ' + st.p + ' engraved on its side' : 'its ID is not engraved: find it by its shape') +
+      (st.pv != null ? ' · ' + st.pv + ' cm³' : '') +
       (st.pf ? ' · ' + st.pf : '') + (st.e ? ' · goes in before all under it is built' : '') + '</span>';
     ul.appendChild(li);
   }

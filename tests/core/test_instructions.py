@@ -147,6 +147,8 @@ def test_page_draws_every_brick_with_its_step(hmd):
     assert [s["n"] for s in data["steps"]] == list(range(1, result["steps"] + 1))
     assert sum(s["nb"] for s in data["steps"]) == len(fab.layout.bricks)
     assert {s["p"] for s in data["steps"] if s["p"]} == {p.id for p in fab.printed}
+    engraved = {p.id: p.engraved for p in fab.printed}
+    assert all(s["pe"] is engraved[s["p"]] for s in data["steps"] if s["p"])
     for s in data["steps"]:
         assert s["p"] or sum(c[2] for c in s["c"]) == s["nb"]
     for number in {b.part for b in fab.layout.bricks if b.kind == "lego"}:

@@ -119,6 +119,7 @@ def test_highlight_colours_and_printed_part_step(page, assembly):
         "s.dispatchEvent(new Event('input'));", n)
     s = expect_step(page, steps, n)
     assert f"Insert printed part {part.id}" in s["callout"]
+    assert (f"find the ID {part.id} engraved on its side" in s["callout"]) is part.engraved
     fills = page.execute_script("""
         const f = sel => { const e = document.querySelector(sel); return e ? getComputedStyle(e).fill : null; };
         return {now_side: f('#bricks > g.now path.m0'), done_side: f('#bricks > g.done:not(.pp) .l'),
