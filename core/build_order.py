@@ -13,8 +13,14 @@ Order (:func:`plan`):
   cells is in place and it attaches as above; it is then inserted as one
   piece.
 * Among the units that can be placed, the one with the lowest layer goes
-  first, so the model grows bottom-up, layer by layer; within a layer the
-  units follow a serpentine over bands of :data:`BAND_STUDS` studs along y
+  first, so the model grows bottom-up, layer by layer.  Within a layer, a
+  unit over air goes by its *reach* (:func:`reach`): how far, in steps of
+  :data:`REACH_STUDS` studs, it sticks out from the nearest cell of its layer
+  that stands on a full column down to the ground.  An overhang, or a bridge
+  between two supports, so grows out from all its supports in turn, never
+  further out on one side than it must (a bridge built from one end carries
+  twice the length built from both).  Units of equal reach (every unit of a
+  build without overhangs) follow a serpentine over bands of :data:`BAND_STUDS` studs along y
   (x rising in even bands, falling in odd ones), so consecutive units are
   neighbours.  Placing a unit can only make more units placeable, so this is
   one pass with a priority queue over the units.
@@ -31,6 +37,13 @@ a step of at most ``bricks_per_step`` bricks while each new brick lies within
 of its own.  Because a LEGO unit only ever attaches to units of another
 layer, every unit of a step attaches to units of earlier steps.
 
+Standing (:func:`standing`): every partial build is checked with the forces;
+a step is put earlier when that lets the build stand.  On a table, where no
+order does, a *prop* (a stack of 1x1 bricks and plates stood on the table
+under a cell with nothing under it down to the ground, so never where a brick
+goes later) holds the step's furthest-reaching brick up, until the build
+stands without it: as a builder holds up an overhang with a spare brick.
+
 Assembly time (:func:`assembly_seconds`): ``seconds_per_brick`` per LEGO
 brick plus ``seconds_per_part`` per printed part insertion (finding the part
 by its engraved ID, turning it the right way and pressing it onto its studs).
@@ -43,13 +56,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy import sparse
+from scipy import ndimage, sparse
 
 from core import forces
+from core.catalog import BY_NUMBER
 from core.errors import InputError
 from core.model import Layout
 from core.request import DEFAULTS
 
+#: Studs of overhang per step of reach (:func:`reach`): units of a layer within one step
+#: of reach of each other follow the serpentine.
+REACH_STUDS = 4
 #: Width (studs, along y) of the bands the serpentine order runs along.
 BAND_STUDS = 4
 #: A brick joins the current step only within this many studs of its footprint.
@@ -99,7 +116,11 @@ class BuildOrder:
     "utilisation", "bricks", "why"}), ``moved`` how many steps were put
     earlier than planned so that the build stands; ``graph_only_why`` why the steps
     with a NaN utilisation were checked by the brick graph only ("" when told by
-    the number of bodies alone).
+    the number of bodies alone); ``props`` the temporary supports the build needs
+    ({"step", "cell", "plates", "parts", "under", "removed_after"}: a column of
+    ``plates`` plates stood on the table under ``cell`` before step ``step``, under
+    the brick ``under``, taken away after step ``removed_after``, None when the
+    finished build still needs it).
     """
 
     steps: list[Step] = field(default_factory=list)
@@ -109,6 +130,7 @@ class BuildOrder:
     unstable: list[dict] = field(default_factory=list)
     moved: int = 0
     graph_only_why: str = ""
+    props: list[dict] = field(default_factory=list)
 
     def step_of(self) -> dict[int, int]:
         """Brick id -> step number."""
@@ -196,6 +218,30 @@ def _serpentine(box: np.ndarray) -> np.ndarray:
     return np.stack([band, along, cy], axis=1)
 
 
+def reach(layout: Layout, u: _Units | None = None) -> np.ndarray:
+    """Per unit (numbered as :func:`units`), how far it sticks out over air: the distance
+    in studs from its nearest cell to the nearest cell of the same layer that stands on a
+    full column of cells down to the ground (a *pillar* cell), divided by
+    :data:`REACH_STUDS` and rounded down.  0 for a unit with a pillar cell within
+    :data:`REACH_STUDS` studs (every unit of a build without overhangs); a layer without
+    pillar cells counts as one large reach."""
+    u = _units(layout) if u is None else u
+    unit_of, _, _ = units(layout)
+    lab = layout.labels()
+    filled = lab >= 0
+    pillar = np.logical_and.accumulate(filled, axis=2)
+    hanging = filled & ~pillar
+    nearest = np.full(len(u.members), np.iinfo(np.int64).max, dtype=np.int64)
+    for k in np.flatnonzero(hanging.any(axis=(0, 1))).tolist():
+        far = np.full(filled.shape[:2], float(filled.shape[0] + filled.shape[1]))
+        if pillar[:, :, k].any():
+            far = ndimage.distance_transform_edt(~pillar[:, :, k])
+        cells = hanging[:, :, k]
+        np.minimum.at(nearest, unit_of[lab[:, :, k][cells]],
+                      np.floor(far[cells] / REACH_STUDS).astype(np.int64))
+    return np.where(nearest == np.iinfo(np.int64).max, 0, nearest)
+
+
 def _check(layout: Layout, bricks_per_step: int) -> None:
     if not isinstance(layout, Layout):
         raise TypeError(f"build order needs a Layout, got {type(layout).__name__}")
@@ -227,7 +273,8 @@ def plan(layout: Layout, bricks_per_step: int = BRICKS_PER_STEP) -> BuildOrder:
     need_below = np.diff(u.below.indptr)
     keys = _serpentine(u.box)
     rank = np.empty(count, dtype=np.int64)
-    rank[np.lexsort((np.arange(count), keys[:, 2], keys[:, 1], keys[:, 0], u.k0))] = np.arange(count)
+    rank[np.lexsort((np.arange(count), keys[:, 2], keys[:, 1], keys[:, 0], reach(layout, u),
+                     u.k0))] = np.arange(count)
 
     v_order = np.empty(count, np.int64)
     flags = np.empty((count, 2), np.bool_)
@@ -380,7 +427,8 @@ LOOKAHEAD = 8
 FRAGILE = forces.FRAGILE
 
 
-def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD) -> BuildOrder:
+def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD,
+             props: bool = False) -> BuildOrder:
     """``order`` changed so that the partial build after every step stands, where it can.
 
     ``stands(present)`` says whether the bricks ``present`` (a bool per brick
@@ -389,13 +437,21 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     step is taken if the build then stands; else the first of the next
     ``lookahead`` steps (2 right after a step that did not stand) that can be placed (each of its units on the ground or
     touching a placed unit, a printed part only once every unit under it is
-    placed) and leaves a standing build; else the planned step anyway, recorded
+    placed) and leaves a standing build.  Else, with ``props`` (``stands(present,
+    cells)`` then also answers with a prop on the table under each of ``cells``), the
+    planned step with a prop under its brick that reaches furthest from the cells
+    standing on full columns (:class:`_Spots`), then one under each of its bricks
+    that can have one: the props stay until the build stands without them (a finite
+    utilisation), checked before each step that starts a layer higher than any so far; after the last step, until it stands
+    or is checked by the brick graph only (the whole build's verdict is the force
+    check's).  Else the planned step anyway, recorded
     in ``unstable`` with the reason.  Promises: the same steps with the same
-    bricks, renumbered 1..n in their new order; ``utilisation`` per step; the
+    bricks, renumbered 1..n in their new order; ``utilisation`` per step (with the props
+    standing then); ``props`` as :class:`BuildOrder` says; the
     order is ``order``'s wherever every prefix stands.  ``order`` is not changed.
     """
     if not order.steps:
-        return dataclasses.replace(order, utilisation=[], unstable=[], moved=0)
+        return dataclasses.replace(order, utilisation=[], unstable=[], moved=0, props=[])
     index = {b.id: n for n, b in enumerate(layout.bricks)}
     u = _units(layout)
     unit_of, _, _ = units(layout)
@@ -406,6 +462,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     unit_steps = [sorted({int(unit_of[index[b]]) for b in s.bricks}) for s in order.steps]
     early = set(order.early_parts)
     placed_units = np.zeros(len(u.members), dtype=bool)
+    spots = _Spots(layout) if props else None
 
     def placeable(n: int) -> bool:
         for v in unit_steps[n]:
@@ -420,6 +477,14 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     chosen: list[int] = []
     worst: list[float] = []
     unstable: list[dict] = []
+    standing_props: list[dict] = []
+    done_props: list[dict] = []
+    top = 0
+
+    def check(trial: np.ndarray, extra: list[dict] = ()) -> tuple[bool, float]:
+        cells = [p["cell"] for p in standing_props] + [p["cell"] for p in extra]
+        return stands(trial, np.array(cells, dtype=np.int64)) if cells else stands(trial)
+
     moved = 0
     while remaining:
         pick, fallback = None, None
@@ -428,17 +493,24 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
         for n in remaining[:ahead]:
             if n != remaining[0] and not placeable(n):
                 continue
-            trial = present.copy()
-            trial[[index[b] for b in order.steps[n].bricks]] = True
-            ok, value = stands(trial)
+            ok, value = check(_with(present, index, order.steps[n]))
             if ok:
                 pick = (n, value)
                 break
             if fallback is None:
                 fallback = (n, value)
+        if pick is None and spots is not None:
+            step = order.steps[remaining[0]]
+            trial = _with(present, index, step)
+            for extra in spots.props_for(step, present, len(chosen) + 1):
+                ok, value = check(trial, extra)
+                if ok:
+                    pick = (remaining[0], value)
+                    standing_props.extend(extra)
+                    break
         if pick is None:
             pick = (remaining[0], fallback[1] if fallback and fallback[0] == remaining[0]
-                    else stands(_with(present, index, order.steps[remaining[0]]))[1])
+                    else check(_with(present, index, order.steps[remaining[0]]))[1])
             step = order.steps[pick[0]]
             unstable.append({"step": len(chosen) + 1, "utilisation": _finite(pick[1]),
                              "bricks": list(step.bricks), "why": _unstable_why(step, pick[1])})
@@ -449,9 +521,104 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
         worst.append(float(value))
         present[[index[b] for b in order.steps[n].bricks]] = True
         placed_units[unit_steps[n]] = True
+        top = max(top, order.steps[n].layer)
+        if standing_props and (not remaining or order.steps[remaining[0]].layer > top):
+            ok, value = stands(present)
+            if ok and (np.isfinite(value) or not remaining):
+                done_props += [dict(p, removed_after=len(chosen)) for p in standing_props]
+                standing_props = []
+    done_props += [dict(p, removed_after=None) for p in standing_props]
     steps = [dataclasses.replace(order.steps[n], number=k + 1) for k, n in enumerate(chosen)]
     return dataclasses.replace(order, steps=steps, utilisation=worst, unstable=unstable,
-                               moved=moved)
+                               moved=moved, props=sorted(done_props, key=lambda p: p["step"]))
+
+
+class _Spots:
+    """Where a layout can be propped: the cells with nothing under them down to the
+    ground (a prop is a column of 1x1 bricks and plates on the table under such a cell),
+    and how far each is from the nearest cell of its layer on a full column."""
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
+        self.lab = layout.labels()
+        filled = self.lab >= 0
+        under = np.zeros_like(filled)
+        under[:, :, 1:] = np.logical_or.accumulate(filled, axis=2)[:, :, :-1]
+        self.spot = filled & ~under
+        self.spot[:, :, 0] = False
+        self.pillar = np.logical_and.accumulate(filled, axis=2)
+        self.index = {b.id: n for n, b in enumerate(layout.bricks)}
+        self._far: dict[int, np.ndarray] = {}
+
+    def far(self, k: int) -> np.ndarray:
+        """Distance (studs) of each cell of layer ``k`` from its nearest pillar cell."""
+        if k not in self._far:
+            shape = self.pillar.shape[:2]
+            self._far[k] = (ndimage.distance_transform_edt(~self.pillar[:, :, k])
+                            if self.pillar[:, :, k].any() else np.full(shape, float(sum(shape))))
+        return self._far[k]
+
+    def best(self, brick_id: int) -> tuple[int, int, int] | None:
+        """The cell of a brick that a prop can hold, furthest from the pillar cells."""
+        b = self.layout.bricks[self.index[brick_id]]
+        (i0, i1), (j0, j1), (k0, _) = [(c, c + s) for c, s in zip(b.cell, b.size)]
+        spot = self.spot[i0:i1, j0:j1, k0]
+        if not spot.any():
+            return None
+        far = np.where(spot, self.far(k0)[i0:i1, j0:j1], -1.0)
+        i, j = np.unravel_index(int(np.argmax(far)), far.shape)
+        return (i0 + int(i), j0 + int(j), int(k0))
+
+    def touching(self, brick_id: int) -> set[int]:
+        """Ids of the bricks directly under or over brick ``brick_id``."""
+        b = self.layout.bricks[self.index[brick_id]]
+        (i0, i1), (j0, j1), (k0, k1) = [(c, c + s) for c, s in zip(b.cell, b.size)]
+        near = [self.lab[i0:i1, j0:j1, k] for k in (k0 - 1, k1) if 0 <= k < self.lab.shape[2]]
+        found = np.unique(np.concatenate([n.ravel() for n in near])) if near else np.zeros(0, int)
+        return {int(self.layout.bricks[n].id) for n in found if n >= 0}
+
+    def props_for(self, step: Step, present: np.ndarray, number: int):
+        """Prop sets to try, in order, so that ``step`` (to become step ``number``, with the
+        bricks ``present`` in place) stands: one prop under the brick that reaches furthest
+        out, then one under each brick that can have one, among the step's bricks; failing
+        that, among the placed bricks they touch, then the placed bricks those touch."""
+        ring = set(step.bricks)
+        seen = set(ring)
+        for _ in range(3):
+            found = [(b, c) for b in sorted(ring) if (c := self.best(b)) is not None
+                     and self.layout.bricks[self.index[b]].kind != "printed"]
+            if found:
+                far = [self.far(c[2])[c[0], c[1]] for _, c in found]
+                yield [self.prop(number, *found[int(np.argmax(far))])]
+                if len(found) > 1:
+                    yield [self.prop(number, b, c) for b, c in found]
+                return
+            ring = {t for b in ring for t in self.touching(b)
+                    if t not in seen and present[self.index[t]]}
+            seen |= ring
+
+    def prop(self, number: int, brick_id: int, cell: tuple[int, int, int]) -> dict:
+        """A prop under ``cell`` of brick ``brick_id``, stood before step ``number``."""
+        plates = int(cell[2])
+        parts = {k: v for k, v in (("3005", plates // 3), ("3024", plates % 3)) if v}
+        return {"step": number, "cell": [int(c) for c in cell], "plates": plates,
+                "parts": parts, "under": int(brick_id)}
+
+
+def prop_words(layout: Layout, prop: dict) -> str:
+    """A prop of :attr:`BuildOrder.props` in a builder's words: what to stack, where (the
+    brick it holds and the cell's centre in the model's coordinates) and until when."""
+    brick = next(b for b in layout.bricks if b.id == prop["under"])
+    part = BY_NUMBER.get(brick.part)
+    i, j, k = prop["cell"]
+    stack = " on ".join(f"{n} x {BY_NUMBER[p].name} ({p})" for p, n in prop["parts"].items())
+    at = np.asarray(layout.grid.origin, dtype=float)[:2] + (np.array([i, j]) + 0.5) * layout.grid.cell[:2]
+    until = (f"take it away after step {prop['removed_after']}" if prop["removed_after"] is not None
+             else "the finished build still needs it")
+    return (f"before step {prop['step']}, stand a prop {prop['plates']} plate(s) tall ({stack}) on "
+            f"the table under stud {i - brick.cell[0] + 1},{j - brick.cell[1] + 1} of the "
+            f"{part.name if part else brick.part} (brick {brick.id}; x {at[0]:.0f}, y {at[1]:.0f} mm); "
+            f"{until}")
 
 
 def _with(present: np.ndarray, index: dict, step: Step) -> np.ndarray:

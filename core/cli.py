@@ -597,6 +597,14 @@ def _summary(doc: dict, out) -> None:
         elif build.get("graph_only_steps"):
             print(f"{build['graph_only_steps']} build step(s) from step {build['first_graph_only_step']} "
                   f"not force-checked: {build['graph_only_why']}")
+        props = build.get("props", ())
+        if props:
+            print(f"{len(props)} prop(s) hold overhanging bricks while the build grows "
+                  "(instructions.html says at which steps; report.json stability.build.props):")
+            for prop in props[:3]:
+                print(f"  {prop['words']}")
+            if len(props) > 3:
+                print(f"  and {len(props) - 3} more")
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
     hollow = doc.get("hollow")

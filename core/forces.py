@@ -489,14 +489,15 @@ class _Warm:
         self.basis = None
         self._ok = highspy.HighsModelStatus.kOptimal
 
-    def factor_of(self, body_present: np.ndarray) -> float | None:
-        """The largest load factor the bodies ``body_present`` carry; None when neither the
+    def factor_of(self, body_present: np.ndarray, propped: np.ndarray | None = None) -> float | None:
+        """The largest load factor the bodies ``body_present`` carry (with the table points
+        ``propped`` held up by props, :meth:`_Model.resting`); None when neither the
         warm start nor a cold solve found it (a degenerate set: a piece about to tip, seen
         on the Stanford bunny), with the last good basis put back."""
         m, h = self.model, self.highs
         self._apply(body_present)
         if self.table is not None and len(self.table["cols"]):
-            active, _ = m.resting(body_present)
+            active, _ = m.resting(body_present, propped)
             cols = self.table["cols"]
             hi = np.where(active[self.table["index"]] & body_present[m._table_points()[1][self.table["index"]]],
                           np.inf, 0.0)
@@ -632,13 +633,25 @@ class BuildChecker:
         # the last set found joined to the ground (the next is usually it and one step more)
         self._held_last = np.zeros(n, dtype=bool)
 
-    def stands(self, present) -> tuple[bool, float]:
+    @property
+    def can_prop(self) -> bool:
+        """Whether :meth:`stands` takes props: on a table (a prop stands on it)."""
+        return self.model.ground == "table"
+
+    def stands(self, present, props=None) -> tuple[bool, float]:
         """(stands, worst utilisation) of the bricks ``present`` (a bool per brick of the
         layout, in its order): inf when some present brick is joined to nothing on the ground;
         (True, NaN) when it is joined to the ground but would need a program past
-        :data:`MAX_BODIES` bodies (checked by the brick graph only)."""
+        :data:`MAX_BODIES` bodies (checked by the brick graph only).  ``props`` ((n, 3) cells
+        i, j, k, or None; only where :attr:`can_prop`): cells held up by a prop each, a column
+        on the table under the cell that pushes up on its bottom (:meth:`_Model.resting`)."""
         m = self.model
         present = np.asarray(present, dtype=bool)
+        propped = None
+        if props is not None and len(props):
+            if not self.can_prop:
+                raise ValueError("props stand on a table; this build stands on a " + m.ground)
+            propped = m.points_under(props)
         if self._supported(present):
             return True, 0.0                     # every present cell rests on a present cell
         if not self._held(present):
@@ -652,14 +665,15 @@ class BuildChecker:
             return True, math.nan
         start = time.perf_counter()
         try:
-            return self._programs(present)
+            return self._programs(present, propped)
         finally:
             self.seconds += time.perf_counter() - start
 
-    def _programs(self, present: np.ndarray) -> tuple[bool, float]:
-        """:meth:`stands` of a set joined to the ground that needs a program."""
+    def _programs(self, present: np.ndarray, propped: np.ndarray | None) -> tuple[bool, float]:
+        """:meth:`stands` of a set joined to the ground that needs a program (with the table
+        points ``propped`` held up, then always the whole program)."""
         m = self.model
-        if self._part is not None and self._missing_outside == 0:
+        if propped is None and self._part is not None and self._missing_outside == 0:
             if self._sub is None:
                 hanging, support, under = self._part
                 model, members = m._sub_model(np.flatnonzero(hanging), support, under)
@@ -670,7 +684,7 @@ class BuildChecker:
                 return True, worst
         if self._whole is None:
             self._whole = _Warm(m)
-        worst = self._solve(self._whole, present)
+        worst = self._solve(self._whole, present, propped)
         return bool(worst <= FAIL_ABOVE), worst
 
     def _supported(self, present: np.ndarray) -> bool:
@@ -742,15 +756,18 @@ class BuildChecker:
         body_present[m.body_of[present]] = True
         return bool(np.all(comp[:nb][body_present] == comp[nb])) if n else True
 
-    def _solve(self, warm: _Warm, present: np.ndarray) -> float:
-        """The worst utilisation of the bricks ``present`` of ``warm``'s model."""
+    def _solve(self, warm: _Warm, present: np.ndarray, propped: np.ndarray | None = None) -> float:
+        """The worst utilisation of the bricks ``present`` of ``warm``'s model (with the
+        table points ``propped`` held up; inf when that program has no answer)."""
         model = warm.model
         body_present = np.zeros(model.nbody, dtype=bool)
         body_present[model.body_of[present]] = True
         self.solves += 1
-        factor = warm.factor_of(body_present)
+        factor = warm.factor_of(body_present, propped)
         if factor is not None:
             return _worst(factor)
+        if propped is not None:
+            return math.inf
         # answer from a program of its own
         self.fresh += 1
         idx = np.flatnonzero(present)
@@ -1786,11 +1803,28 @@ class _Model:
             self._points = (np.concatenate([xy, z], axis=2).reshape(-1, 3),
                             np.repeat(self.blab[i, j, k], 4))
             self._point_brick = np.repeat(self.lab[i, j, k], 4)
+            self._point_cells = np.ravel_multi_index((i, j, k), self.blab.shape)
         return self._points
 
-    def resting(self, present: np.ndarray) -> tuple[np.ndarray, float]:
+    def points_under(self, cells) -> np.ndarray:
+        """Bool per :meth:`_table_points` point: the bottom corners of ``cells`` ((n, 3) of
+        i, j, k) whose bottom has nothing under it (other cells give none)."""
+        pts, _ = self._table_points()
+        out = np.zeros(len(pts), dtype=bool)
+        cells = np.asarray(cells, dtype=np.int64).reshape(-1, 3)
+        if len(cells):
+            lin = np.ravel_multi_index(tuple(cells.T), self.blab.shape)
+            at = np.searchsorted(self._point_cells, lin)
+            ok = (at < len(self._point_cells)) & (self._point_cells[np.minimum(at, len(self._point_cells) - 1)] == lin)
+            for c in range(4):
+                out[4 * at[ok] + c] = True
+        return out
+
+    def resting(self, present: np.ndarray, propped: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """Which table points carry the bodies ``present`` (bool per body), and the largest
-        tilt (degrees) the build rests at.
+        tilt (degrees) the build rests at.  ``propped`` (bool per table point, or None) are
+        the points a prop holds up from the table: a column standing on the table under the
+        point's cell, so the point rests as if it were on the table itself.
 
         A rigid build put on a table settles on the face of its lower convex hull under its
         centre of mass (each connected structure on its own): on its bottom layer when that
@@ -1800,6 +1834,9 @@ class _Model:
         far it would lean), and none of its points carry."""
         from scipy.spatial import ConvexHull, QhullError
         pts, body = self._table_points()
+        if propped is not None and propped.any():
+            pts = pts.copy()
+            pts[propped, 2] = self.origin[2]
         self.topples = []
         if self.flat_rest:
             return present[body] & (pts[:, 2] <= self.origin[2] + 1e-9), 0.0

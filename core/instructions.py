@@ -566,7 +566,7 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
     info = {p.id: p for p in printed_parts}
     out = []
     lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
-    warnings = step_warnings(order)
+    warnings = step_warnings(order, layout)
     index = {b.id: b for b in layout.bricks}
     for s in order.steps:
         item = {"n": s.number, "k": s.layer, "a": s.attached, "e": s.early,
@@ -585,13 +585,22 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
     return out
 
 
-def step_warnings(order: build_order.BuildOrder) -> dict[int, str]:
+def step_warnings(order: build_order.BuildOrder, layout: Layout) -> dict[int, str]:
     """Step number -> the warning the builder reads at that step: the partial build does
     not stand after it (:func:`core.build_order.standing`'s ``unstable``), or it stands with
     its hardest joint above :data:`core.build_order.FRAGILE` of its clutch; or, at the first
     of a run of steps checked by the brick graph only (a NaN utilisation), that the forces
-    of the partial builds from there on were not checked."""
+    of the partial builds from there on were not checked.  The props of ``order`` (bricks of
+    ``layout``) come first: where to stand one, before its step; that it can go, after the
+    step the build stands without it."""
     out = {u["step"]: "Does not stand on its own: " + u["why"] + "." for u in order.unstable}
+    props: dict[int, list[str]] = {}
+    for p in order.props:
+        props.setdefault(p["step"], []).append("Prop: " + build_order.prop_words(layout, p) + ".")
+        if p["removed_after"] is not None:
+            props.setdefault(p["removed_after"], []).append(
+                f"After this step, take away the prop stood before step {p['step']}: the build "
+                "now stands without it.")
     before = 0.0
     for n, value in enumerate(order.utilisation, start=1):
         if n not in out and build_order.FRAGILE < value:
@@ -602,6 +611,8 @@ def step_warnings(order: build_order.BuildOrder) -> dict[int, str]:
                       "force check of each step, so these steps were only checked to be joined "
                       "to the ground. Support overhanging bricks until what holds them is on.")
         before = value
+    for n, words in props.items():
+        out[n] = " ".join(words + ([out[n]] if n in out else []))
     return out
 
 

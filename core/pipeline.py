@@ -296,7 +296,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     order = timed("build_order", 0.82, build_order.plan, layout)
     if forces_stage.build_unchecked(force) is None:
         checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
-        order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands)
+        order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands,
+                      props=checker.can_prop)
         order = dataclasses.replace(order, graph_only_why=checker.why or "")
     layout = build_order.numbered(layout, order)
     iteration = None
@@ -526,10 +527,11 @@ def stress_title(fab: Fabrication) -> str:
             f"utilisation {worst} (dark 0, red 1, white fails)")
 
 
-def build_stability(order: build_order.BuildOrder, bodies: int) -> dict:
+def build_stability(order: build_order.BuildOrder, bodies: int, layout: Layout | None = None) -> dict:
     """The report's ``stability.build``: does the partial build (of ``bodies`` bricks and
     printed parts) stand after every step; where steps were checked by the brick graph
-    only (a NaN utilisation), how many, from which step, and why."""
+    only (a NaN utilisation), how many, from which step, and why; the props it needs
+    (with their words when ``layout`` is given)."""
     values = np.asarray(order.utilisation, dtype=float)
     graph_only = np.flatnonzero(np.isnan(values))
     worst = float(np.max(values[~np.isnan(values)], initial=0.0))
@@ -543,18 +545,22 @@ def build_stability(order: build_order.BuildOrder, bodies: int) -> dict:
             "fragile_steps": [n + 1 for n, u in enumerate(order.utilisation)
                               if build_order.FRAGILE < u <= forces_stage.FAIL_ABOVE],
             "steps_moved_earlier": order.moved,
+            "props": [dict(p, words=build_order.prop_words(layout, p)) if layout is not None
+                      else dict(p) for p in order.props],
             "explain": "Each step's partial build is checked with the same forces, without what "
                        "the object carries. A step is put earlier than planned when that lets the "
-                       "build stand; an unstable step needs a hand to hold it until the next steps "
-                       "are on; a fragile step stands with its hardest joint above "
-                       f"{build_order.FRAGILE:g} of its clutch."}
+                       "build stand; where no order does, a prop (a stack of 1x1 bricks and "
+                       "plates on the table, cell i,j,k as layout.json) holds the step's brick up "
+                       "until the build stands without it; an unstable step needs a hand to hold "
+                       "it until the next steps are on; a fragile step stands with its hardest "
+                       f"joint above {build_order.FRAGILE:g} of its clutch."}
 
 
 def _build_block(fab: Fabrication) -> dict:
     """``{"build": ...}`` for the report's stability: the step-by-step check, or why there
     is none; empty when the forces were not asked for."""
     if fab.order.utilisation:
-        return {"build": build_stability(fab.order, fab.forces.bodies)}
+        return {"build": build_stability(fab.order, fab.forces.bodies, fab.layout)}
     why = None if fab.forces is None else forces_stage.build_unchecked(fab.forces)
     return {} if why is None else {"build": {"checked": False, "why": why}}
 

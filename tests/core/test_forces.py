@@ -277,6 +277,89 @@ def test_build_order_that_cannot_stand_names_the_step():
     assert order.unstable[0]["utilisation"] is None and "tips over" in order.unstable[0]["why"]
 
 
+def long_bridge(span_plates: int) -> Layout:
+    """Two 2x2 bricks whose outer ends are ``8 * span_plates + 4`` studs apart, joined by two
+    layers of 2x8 plates, the upper one half a plate along (2x4 plates at its ends)."""
+    length = 8 * span_plates + 4
+    part = {8: "3034", 4: "3020"}
+    bricks = [Brick(1, "3003", (2, 2, 3), (0, 0, 0)), Brick(2, "3003", (2, 2, 3), (length - 2, 0, 0))]
+    for k, first in ((3, 8), (4, 4)):
+        x, s = 0, first
+        while x < length:
+            bricks.append(Brick(len(bricks) + 1, part[s], (s, 2, 1), (x, 0, k)))
+            x += s
+            s = min(8, length - x)
+    return layout_of(bricks)
+
+
+def test_a_bridge_is_built_out_from_both_towers(monkeypatch):
+    """An 80 cm bridge of two plate layers between two towers stands (worst 0.11).  Built
+    from one tower across, it carries the whole span as a cantilever and fails half way
+    (known since StableLego's staircase: the clutch holds a limited overhang).  Built out
+    from both towers in turn (each unit by its reach), every step carries at most half the
+    span, and stands."""
+    from core import build_order
+    lay = long_bridge(12)
+    assert forces.analyse(lay, ground="baseplate").stable
+    both = build_order.standing(lay, build_order.plan(lay, bricks_per_step=1),
+                                forces.BuildChecker(lay, ground="baseplate").stands)
+    assert both.unstable == [] and max(both.utilisation) < 0.8
+    # the lower layer's middle plate (x 48..55) is 43 studs from the nearest cell over a tower
+    # (x 1 or 98): reach 43 // 4 = 10; the towers have 0
+    reach = build_order.reach(lay)
+    assert reach.max() == 10 and list(reach[:2]) == [0, 0]
+    monkeypatch.setattr(build_order, "REACH_STUDS", 10 ** 6)
+    one = build_order.standing(lay, build_order.plan(lay, bricks_per_step=1),
+                               forces.BuildChecker(lay, ground="baseplate").stands)
+    assert len(one.unstable) >= 5 and max(one.utilisation) > 2
+
+
+def test_a_prop_under_the_arm_lets_it_stand_and_stays():
+    """The arm that tips the 1x2 brick over (test above) rests, with a 1x1 brick stood on the
+    table under its far stud, on that prop (x 0..1) and on the brick (x 3..5): its centre
+    (x 2) lies between them, so it stands in pure compression (utilisation 0).  The
+    finished build tips without the prop, so the prop stays."""
+    from core import build_order, instructions
+    layout = layout_of(t_layout().bricks[:3])
+    checker = forces.BuildChecker(layout, ground="table")
+    assert checker.stands(np.ones(3, bool), np.array([[0, 0, 3]])) == (True, 0.0)
+    assert checker.stands(np.ones(3, bool)) == (False, math.inf)
+    order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
+                                 checker.stands, props=True)
+    assert order.unstable == [] and order.utilisation == [0.0, 0.0, 0.0]
+    assert order.props == [{"step": 3, "cell": [0, 0, 3], "plates": 3, "parts": {"3005": 1},
+                            "under": 3, "removed_after": None}]
+    words = instructions.step_warnings(order, layout)[3]
+    assert words.startswith("Prop: before step 3, stand a prop 3 plate(s) tall (1 x Brick 1 x 1 "
+                            "(3005)) on the table under stud 1,1 of the Brick 1 x 4")
+    assert "the finished build still needs it" in words
+    with pytest.raises(ValueError, match="table"):
+        forces.BuildChecker(layout, ground="baseplate").stands(np.ones(3, bool), np.array([[0, 0, 3]]))
+
+
+def test_a_bridge_on_a_table_is_built_on_props_taken_away_when_it_is_closed():
+    """On a table, each half-built side of the 80 cm bridge tips its tower over (every step
+    from the fourth does not stand).  With props, every step stands; each prop is one 1x1
+    brick (the 3 plates under the bridge) in a cell that stays empty in the finished build;
+    they all go once the bridge is closed, which then stands on its towers alone."""
+    from core import build_order
+    lay = long_bridge(12)
+    plan = build_order.plan(lay, bricks_per_step=1)
+    bare = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="table").stands)
+    assert len(bare.unstable) >= 20
+    order = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="table").stands,
+                                 props=True)
+    assert order.unstable == [] and max(order.utilisation) < 0.1
+    assert 1 <= len(order.props) <= 12
+    filled = lay.grid.filled
+    for p in order.props:
+        i, j, k = p["cell"]
+        assert k == 3 and p["plates"] == 3 and p["parts"] == {"3005": 1}
+        assert not filled[i, j, :k].any() and filled[i, j, k]
+        assert p["removed_after"] == len(order.steps)
+    assert forces.analyse(lay, ground="table").stable
+
+
 def test_build_checker_agrees_with_the_analysis_on_every_prefix():
     layout = staircase(21)
     checker = forces.BuildChecker(layout, ground="baseplate")
@@ -679,7 +762,7 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     assert "graph_only_steps" not in pipeline.build_stability(full, len(lay.bricks))
     # the builder reads it once, at the first step of each run of such steps
     from core import instructions
-    notes = {n for n, text in instructions.step_warnings(graph).items() if "Not force-checked" in text}
+    notes = {n for n, text in instructions.step_warnings(graph, lay).items() if "Not force-checked" in text}
     runs = {n + 1 for n in range(len(g)) if np.isnan(g[n]) and (n == 0 or not np.isnan(g[n - 1]))}
     assert notes == runs and first in notes
 
