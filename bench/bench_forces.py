@@ -3,7 +3,8 @@
 Per model (no printed parts, on a table, as the CLI runs it): bricks, the
 force verdict and worst utilisation of the laid-out object before and after
 the layout uses the forces (:mod:`core.reinforce`), failing and unsupported
-bricks, whether every build step stands (unstable and moved steps), seconds
+bricks, whether every build step stands (unstable and moved steps, props, steps checked
+by the brick graph only), seconds
 of the force stage and of the build-order check, on a table and on a baseplate.  Then the synthetic rows:
 the force check of a ~3,000-brick layout (and of bigger ones, by their
 hanging parts, beside the whole program where it can be solved) and all build
@@ -61,6 +62,9 @@ def bench_model(path: Path, ground: str) -> dict:
         "unsupported": len(f.unsupported),
         "every step stands": "yes" if not fab.order.unstable else f"no: {len(fab.order.unstable)}",
         "steps moved": fab.order.moved,
+        "props": len(fab.order.props),
+        "props left in": sum(p["removed_after"] is None for p in fab.order.props),
+        "steps by the graph only": int(np.isnan(fab.order.utilisation).sum()),
         "steps": len(fab.order.steps),
         "forces s": round(fab.forces.seconds, 2),
         "build check s": fab.timings_s.get("build_stability"),
@@ -158,7 +162,8 @@ def main() -> int:
     ok = [r for r in rows if "error" not in r]
     refused = [r for r in rows if "error" in r]
     cols = ["model", "ground", "bricks", "before forces (layout)", "after forces (layout)", "verdict",
-            "failing", "unsupported", "every step stands", "steps moved", "steps", "reinforce s",
+            "failing", "unsupported", "every step stands", "steps moved", "props", "props left in",
+            "steps by the graph only", "steps", "reinforce s",
             "forces s", "build check s"]
     scaling = bench_scaling()
     text = ["## Forces per model (verdict: stands/FAILS and the worst utilisation)", "",
