@@ -442,7 +442,8 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     planned step with a prop under its brick that reaches furthest from the cells
     standing on full columns (:class:`_Spots`), then one under each of its bricks
     that can have one: the props stay until the build stands without them (a finite
-    utilisation), checked before each step that starts a layer higher than any so far; after the last step, until it stands
+    utilisation), checked before each step that starts a layer higher than any so far
+    and every ``lookahead`` steps; after the last step, until it stands
     or is checked by the brick graph only (the whole build's verdict is the force
     check's).  Else the planned step anyway, recorded
     in ``unstable`` with the reason.  Promises: the same steps with the same
@@ -479,7 +480,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     unstable: list[dict] = []
     standing_props: list[dict] = []
     done_props: list[dict] = []
-    top = 0
+    top = since = 0
 
     def check(trial: np.ndarray, extra: list[dict] = ()) -> tuple[bool, float]:
         cells = [p["cell"] for p in standing_props] + [p["cell"] for p in extra]
@@ -522,7 +523,10 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
         present[[index[b] for b in order.steps[n].bricks]] = True
         placed_units[unit_steps[n]] = True
         top = max(top, order.steps[n].layer)
-        if standing_props and (not remaining or order.steps[remaining[0]].layer > top):
+        since += 1
+        if standing_props and (not remaining or order.steps[remaining[0]].layer > top
+                               or since >= lookahead):
+            since = 0
             ok, value = stands(present)
             if ok and (np.isfinite(value) or not remaining):
                 done_props += [dict(p, removed_after=len(chosen)) for p in standing_props]

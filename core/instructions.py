@@ -450,6 +450,29 @@ def _icon(number: str, cell) -> str:
             + "".join(studs) + "</symbol>")
 
 
+def _prop_pictures(layout: Layout, order: build_order.BuildOrder, current: int) -> tuple[str, str]:
+    """The props of ``order`` as boxes from the table up to their cell: (faces, drawn
+    under the bricks, which hide them where they are in front; dashed edges, drawn over
+    the bricks, so that a hidden prop still shows).  One ``<g class="pr">`` per prop in
+    each, with ``data-s`` (the step it is stood before) and ``data-e`` (the step after
+    which it goes; past the last step when it stays), shown from the one to the other."""
+    if not order.props:
+        return "", ""
+    cell = np.asarray(layout.grid.cell, dtype=float)
+    lo = np.array([[p["cell"][0], p["cell"][1], 0] for p in order.props], dtype=float) * cell
+    hi = lo + np.array([[cell[0], cell[1], p["plates"] * cell[2]] for p in order.props])
+    last = len(order.steps)
+    faces, edges = [], []
+    for p, (top, left, front) in zip(order.props, _all_face_paths(lo, hi)):
+        end = p["removed_after"] if p["removed_after"] is not None else last + 1
+        shown = "" if p["step"] <= current <= end else ' style="display:none"'
+        head = f'<g class="pr" data-s="{p["step"]}" data-e="{end}"{shown}>'
+        faces.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'
+                     f'<path class="t" d="{top}"/></g>')
+        edges.append(f'{head}<path class="e" d="{left} {front} {top}"/></g>')
+    return "".join(faces), "".join(edges)
+
+
 def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
                 printed_parts=()) -> tuple[str, dict]:
     """The model picture as an ``<svg>`` element, with every brick's group classed for step
@@ -527,14 +550,16 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
         state = "done" if s < current else "now" if s == current else "todo"
         outlines.append(f'<path class="ol {state}" data-s="{s}" data-part="{html.escape(pid)}" '
                         f'd="{path}"/>')
+    props = _prop_pictures(layout, order, current)
     css = "".join(f"#model .done .t.z{k}{{fill:url(#d{k})}}#model .now .t.z{k}{{fill:url(#n{k})}}"
                   for k in tops)
     svg = (f'<svg id="model" xmlns="http://www.w3.org/2000/svg" viewBox="{" ".join(fmt(v) for v in vb)}" '
            f'preserveAspectRatio="xMidYMid meet" role="img" aria-label="model picture">'
            f'<style>{css}</style><defs>{"".join(defs)}</defs>'
            f'<polygon class="ground" points="{ground}"/>'
+           f'<g id="props">{props[0]}</g>'
            f'<g id="bricks">{"".join(groups)}</g><g id="outlines">{"".join(outlines)}</g>'
-           f'<g id="labels">{"".join(labels)}</g></svg>')
+           f'<g id="propedges">{props[1]}</g><g id="labels">{"".join(labels)}</g></svg>')
     return svg, {"pieces": len(groups), "split_bricks": split, "view_box": vb,
                  "meshed_parts": sorted(meshed)}
 
@@ -790,6 +815,9 @@ details td{border-bottom:1px solid #eceff2;padding:.15em .3em;vertical-align:mid
 #model .pp path.e{stroke:#7a3f06;stroke-width:.15}#model .pp.now path.e{stroke:#1d4e9e;stroke-width:.5}
 #model .pp path.me{fill:none;stroke:#6b3604;stroke-width:.25;stroke-linecap:round}
 #model .pp.done path.me{stroke:#9a7a60}
+#model .pr path{stroke:#5b1a8c;stroke-width:.5;stroke-linejoin:round;pointer-events:none}
+#model .pr path.e{fill:none;stroke-dasharray:1.2 .8}
+#model .pr .t{fill:#c79be8}#model .pr .l{fill:#9c5cc9}#model .pr .f{fill:#b37ed9}
 #model .ol{display:none;fill:none;stroke:@io@;stroke-width:.8;stroke-linejoin:round;pointer-events:none}
 #model .ol.now{display:inline}
 #model .lbl{font-weight:700;fill:#5a2a00;stroke:#fff;stroke-width:.8;paint-order:stroke;
@@ -828,6 +856,7 @@ const D = JSON.parse(document.getElementById('data').textContent);
 const N = D.steps.length;
 const groups = Array.from(document.querySelectorAll('#bricks > g, #outlines > path, #labels > text'));
 const stepOf = groups.map(g => +g.getAttribute('data-s'));
+const props = Array.from(document.querySelectorAll('#props > g, #propedges > g'));
 const state = groups.map(g => g.classList.contains('now') ? 1 : g.classList.contains('done') ? 0 : 2);
 const el = id => document.getElementById(id);
 let cur = 1, timer = null;
@@ -845,6 +874,8 @@ function show(s, animate){
     if (want === 1 && animate && forward) c.add('drop');
     state[i] = want;
   }
+  for (const g of props)
+    g.style.display = +g.getAttribute('data-s') <= s && s <= +g.getAttribute('data-e') ? '' : 'none';
   const st = D.steps[s - 1];
   el('stepno').textContent = s;
   el('slider').value = s;
@@ -935,7 +966,7 @@ _TEMPLATE = """<!DOCTYPE html>
 <div id="ltext">Layer <b id="layerno">1</b><br>at <span id="lheight">0.0</span> mm</div></div>
 <details><summary>All parts</summary><table>{bom_rows}</table></details>
 <p class="hint">Keys: → / ← step, space play, Home / End. Swipe on a tablet.
-Grey: built; blue: this step; orange: printed parts.</p>
+Grey: built; blue: this step; orange: printed parts; purple: a prop.</p>
 </aside>
 </main>
 <footer><button id="prev" aria-label="previous step">◀</button>

@@ -174,3 +174,31 @@ def test_no_errors_in_the_console(page):
     press(page, Keys.ARROW_RIGHT)
     errors = [e for e in page.get_log("browser") if e.get("level") == "SEVERE"]
     assert errors == []
+
+
+def test_a_prop_shows_from_the_step_it_is_stood_before_to_the_step_it_goes(browser, tmp_path):
+    """A bridge on a table, with a row of 2x4 bricks on it, is built on props (the tests of
+    the build order say why).  The page draws each prop, says where to stand it at its step
+    and when to take it away, and shows it from the one step to the other."""
+    from test_forces import layout_of, long_bridge
+    from core import build_order, forces
+    from core.model import Brick
+    bridge = long_bridge(3)
+    lay = layout_of(bridge.bricks + [Brick(len(bridge.bricks) + 1 + n, "3001", (4, 2, 3), (4 * n, 0, 5))
+                                     for n in range(7)])
+    order = build_order.standing(lay, build_order.plan(lay, bricks_per_step=1),
+                                 forces.BuildChecker(lay, ground="table").stands, lookahead=4, props=True)
+    props = order.props
+    assert len(props) >= 1 and order.unstable == []
+    assert all(p["removed_after"] is not None and p["removed_after"] < len(order.steps) for p in props)
+    instructions.write_assembly(lay, [], tmp_path, order=order)
+    browser.get((tmp_path / "instructions.html").as_uri())
+    WebDriverWait(browser, 10).until(lambda d: d.execute_script("return !!window.fabrickator"))
+    for n in range(1, len(order.steps) + 1):
+        browser.execute_script("window.fabrickator.show(arguments[0])", n)
+        shown = browser.execute_script("""return Array.from(document.querySelectorAll('#props > g'))
+            .map(g => getComputedStyle(g).display !== 'none');""")
+        assert shown == [p["step"] <= n <= p["removed_after"] for p in props], n
+        said = browser.find_element(By.ID, "attach").text
+        assert ("Prop: before step" in said) == any(p["step"] == n for p in props), n
+        assert ("take away the prop" in said) == any(p["removed_after"] == n for p in props), n
