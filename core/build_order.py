@@ -132,6 +132,23 @@ class BuildOrder:
     graph_only_why: str = ""
     props: list[dict] = field(default_factory=list)
 
+    def to_json(self) -> dict:
+        """The order as plain data (:meth:`from_json` reads it back; NaN and inf
+        utilisations stay as JSON's NaN and Infinity)."""
+        return {"steps": [s.to_json() for s in self.steps], "unattached": list(self.unattached),
+                "early_parts": list(self.early_parts),
+                "utilisation": [float(u) for u in self.utilisation],
+                "unstable": list(self.unstable), "moved": int(self.moved),
+                "graph_only_why": self.graph_only_why, "props": list(self.props)}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "BuildOrder":
+        """The order :meth:`to_json` wrote."""
+        return cls([Step(**s) for s in doc["steps"]], list(doc.get("unattached", ())),
+                   list(doc.get("early_parts", ())), [float(u) for u in doc.get("utilisation", ())],
+                   list(doc.get("unstable", ())), int(doc.get("moved", 0)),
+                   str(doc.get("graph_only_why", "")), list(doc.get("props", ())))
+
     def step_of(self) -> dict[int, int]:
         """Brick id -> step number."""
         return {b: s.number for s in self.steps for b in s.bricks}

@@ -708,7 +708,8 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     """The Fabrication of a stored result: the iteration snapshot in ``folder`` (an output
     folder, or what the workbench keeps of one) and its report ``doc``.
 
-    It holds what :func:`write_outputs` writes (layout with its steps,
+    It holds what :func:`write_outputs` writes (layout with its steps, the build
+    order the run checked (planned afresh for a snapshot older than that),
     printed parts, model, regions, settings); the report is ``doc`` itself,
     so :func:`write_outputs` called with ``report=doc`` writes the same
     files a run writes.  Raises InputError when the snapshot cannot be read.
@@ -733,8 +734,10 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
                                      list(st.get("unconnectable", ())))
     chosen = tuple(catalog.BY_NUMBER[n] for n in state["brick_set"] if n in catalog.BY_NUMBER)
     printed = [before.parts[p["id"]] for p in doc.get("printed_parts", ()) if p["id"] in before.parts]
+    order = (build_order.BuildOrder.from_json(state["order"]) if "order" in state
+             else build_order.plan(before.layout))
     return Fabrication(req, model, chosen, before.grid, before.layout, stab,
-                       build_order.plan(before.layout), dict(doc.get("timings_s", {})), printed,
+                       order, dict(doc.get("timings_s", {})), printed,
                        regions=before.regions or high_res_stage.Regions(),
                        marks=dict(doc.get("high_res", {})))
 

@@ -41,8 +41,9 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
     ``parts/<id>.ply`` (and ``.brep``) per printed part, ``regions/<n>.ply``
     per high-res region solid, and ``state.json`` with the layout, its
     stability, the brick set, seed, units and scale, the stud and socket fit,
-    the high-res region boxes and every printed part's record (bricks,
-    studs, tubes, clamp cells, engraving).  Reads ``fab`` only.
+    the high-res region boxes, every printed part's record (bricks,
+    studs, tubes, clamp cells, engraving) and the build order with its checks
+    (:meth:`core.build_order.BuildOrder.to_json`).  Reads ``fab`` only.
     """
     out = Path(folder) / SNAPSHOT_DIR
     (out / "parts").mkdir(parents=True, exist_ok=True)
@@ -76,6 +77,7 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
                     "solids_closed": [bool(c) for _, c in fab.regions.solids]},
         "printed": records,
         "hollow_studs": fab.hollowing.studs if fab.hollowing is not None else 0,
+        "order": fab.order.to_json(),
     }
     (out / "state.json").write_text(json.dumps(state))
     return out
