@@ -323,6 +323,14 @@ def steps(fab) -> list[dict]:
     return json.loads(fab.StepsJson)["steps"] if fab.StepsJson else []
 
 
+def step_notes(fab) -> tuple[dict[str, str], list[dict]]:
+    """What the instructions say at each step (step number as text -> words) and the props
+    (:attr:`core.build_order.BuildOrder.props`) of ``fab``'s last result; empty for a
+    result stored before they were kept."""
+    doc = json.loads(fab.StepsJson) if fab.StepsJson else {}
+    return dict(doc.get("warnings", {})), list(doc.get("props", []))
+
+
 def layout(fab):
     """The stored layout as a :class:`core.model.Layout` (steps included); ValueError when
     ``fab`` has none yet."""

@@ -117,10 +117,11 @@ class BuildOrder:
     earlier than planned so that the build stands; ``graph_only_why`` why the steps
     with a NaN utilisation were checked by the brick graph only ("" when told by
     the number of bodies alone); ``props`` the temporary supports the build needs
-    ({"step", "cell", "plates", "parts", "under", "removed_after"}: a column of
-    ``plates`` plates stood on the table under ``cell`` before step ``step``, under
-    the brick ``under``, taken away after step ``removed_after``, None when the
-    finished build still needs it).
+    ({"step", "cell", "plates", "parts", "under", "box_mm", "removed_after"}: a
+    column of ``plates`` plates (``parts``: design number -> count) stood on the
+    table under ``cell`` before step ``step``, under the brick ``under``, filling
+    ``box_mm`` (min and max corner in the model's coordinates), taken away after
+    step ``removed_after``, None when the finished build still needs it).
     """
 
     steps: list[Step] = field(default_factory=list)
@@ -619,11 +620,16 @@ class _Spots:
             seen |= ring
 
     def prop(self, number: int, brick_id: int, cell: tuple[int, int, int]) -> dict:
-        """A prop under ``cell`` of brick ``brick_id``, stood before step ``number``."""
+        """A prop under ``cell`` of brick ``brick_id``, stood before step ``number``; its
+        box in the model's coordinates (mm), from the table to the cell."""
         plates = int(cell[2])
         parts = {k: v for k, v in (("3005", plates // 3), ("3024", plates % 3)) if v}
+        size = np.asarray(self.layout.grid.cell, dtype=float)
+        lo = np.asarray(self.layout.grid.origin, dtype=float) + np.array([cell[0], cell[1], 0]) * size
+        hi = lo + np.array([size[0], size[1], plates * size[2]])
         return {"step": number, "cell": [int(c) for c in cell], "plates": plates,
-                "parts": parts, "under": int(brick_id)}
+                "parts": parts, "under": int(brick_id),
+                "box_mm": [[round(float(v), 3) for v in lo], [round(float(v), 3) for v in hi]]}
 
 
 def prop_words(layout: Layout, prop: dict) -> str:
@@ -631,9 +637,9 @@ def prop_words(layout: Layout, prop: dict) -> str:
     brick it holds and the cell's centre in the model's coordinates) and until when."""
     brick = next(b for b in layout.bricks if b.id == prop["under"])
     part = BY_NUMBER.get(brick.part)
-    i, j, k = prop["cell"]
+    i, j, _ = prop["cell"]
     stack = " on ".join(f"{n} x {BY_NUMBER[p].name} ({p})" for p, n in prop["parts"].items())
-    at = np.asarray(layout.grid.origin, dtype=float)[:2] + (np.array([i, j]) + 0.5) * layout.grid.cell[:2]
+    at = (np.asarray(prop["box_mm"][0]) + np.asarray(prop["box_mm"][1]))[:2] / 2
     until = (f"take it away after step {prop['removed_after']}" if prop["removed_after"] is not None
              else "the finished build still needs it")
     return (f"before step {prop['step']}, stand a prop {prop['plates']} plate(s) tall ({stack}) on "

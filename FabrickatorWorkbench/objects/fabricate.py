@@ -450,9 +450,14 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     layout = fab.layout
     obj.LayoutJson = json.dumps(layout.to_json())
     obj.ReportJson = json.dumps(report)
+    from core import instructions
+
     obj.StepsJson = json.dumps({"steps": [s.to_json() for s in result.order.steps],
                                 "unattached": list(result.order.unattached),
-                                "early_parts": list(result.order.early_parts)})
+                                "early_parts": list(result.order.early_parts),
+                                "warnings": {str(n): text for n, text in
+                                             instructions.step_warnings(result.order, layout).items()},
+                                "props": list(result.order.props)})
     obj.Plates = int(report["plates"])
     obj.Bricks = int(report["bricks"]["total"])
     obj.LegoBricks = int(report["bricks"]["lego"])

@@ -4,7 +4,10 @@ Step n shows every brick of steps 1..n; the bricks of step n (the ones to
 place now) are highlighted in blue, later ones are hidden.  A printed part
 appears at the step that inserts it, highlighted, with its ID above it in
 the 3D view: white on a dark frame (FreeCAD's ``SoFrameLabel``), drawn over
-everything else and sized for the view.  Next / Previous / the slider / Play
+everything else and sized for the view.  A prop (a stack of 1x1 bricks that
+holds an overhang up while it is built) shows as a purple column from the step
+it is stood before to the step after which it goes, and the step's words say
+where to stand it or that it can go, as the instructions do.  Next / Previous / the slider / Play
 move through the steps (step 0 is the empty base).  The high-res regions are
 hidden meanwhile.  Closing the panel shows the whole model again exactly as
 it was shown before.
@@ -29,6 +32,9 @@ LABEL_SIZE_RANGE = (16, 32)
 #: Text and frame colour of the ID labels.
 LABEL_TEXT = (1.0, 1.0, 1.0)
 LABEL_BACKGROUND = (0.08, 0.08, 0.12)
+#: Colour and transparency of the props.
+PROP_COLOUR = (0.55, 0.3, 0.8)
+PROP_TRANSPARENCY = 0.2
 #: Milliseconds between steps while playing.
 PLAY_INTERVAL_MS = 700
 
@@ -43,6 +49,8 @@ class AssemblyPanel:
         self.fab = fab
         self.doc = fab.Document
         self.steps = make.steps(fab)
+        self.warnings, self.props = make.step_notes(fab)
+        self.prop_node = None
         self.bricks = [b for b in make.bricks(fab) if b.Kind == "lego"]
         self.parts = make.printed_parts(fab)
         self.by_step: dict[int, list] = {}
@@ -83,6 +91,7 @@ class AssemblyPanel:
                 if bool(obj.Visibility) != visible:
                     obj.Visibility = visible
         self._highlight(step)
+        self._show_props(step)
         if self.form.slider.value() != step:
             self.form.slider.blockSignals(True)
             self.form.slider.setValue(step)
@@ -95,13 +104,44 @@ class AssemblyPanel:
         if step == 0:
             return "Start with an empty base plate."
         s = self.steps[step - 1]
+        note = self.warnings.get(str(step))
+        note = f"\n{note}" if note else ""
         if s.get("printed_part"):
-            return f"Layer {s['layer'] + 1}: insert printed part {s['printed_part']}."
+            return f"Layer {s['layer'] + 1}: insert printed part {s['printed_part']}.{note}"
         counts: dict[str, int] = {}
         for obj in self.by_step.get(step, []):
             counts[obj.PartNumber] = counts.get(obj.PartNumber, 0) + 1
         items = ", ".join(f"{n} x {part}" for part, n in sorted(counts.items()))
-        return f"Layer {s['layer'] + 1}: place {items} (blue)."
+        return f"Layer {s['layer'] + 1}: place {items} (blue).{note}"
+
+    def _show_props(self, step: int) -> None:
+        """Purple columns for the props standing at ``step`` (replacing earlier ones)."""
+        graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
+        if self.prop_node is not None:
+            graph.removeChild(self.prop_node)
+            self.prop_node = None
+        last = len(self.steps)
+        standing = [p for p in self.props if p["step"] <= step <= (
+            p["removed_after"] if p["removed_after"] is not None else last)]
+        if not standing:
+            return
+        self.prop_node = coin.SoSeparator()
+        self.prop_node.setName("FabrickatorAssemblyProps")
+        material = coin.SoMaterial()
+        material.diffuseColor = PROP_COLOUR
+        material.transparency = PROP_TRANSPARENCY
+        self.prop_node.addChild(material)
+        for prop in standing:
+            (x0, y0, z0), (x1, y1, z1) = prop["box_mm"]
+            node = coin.SoSeparator()
+            move = coin.SoTranslation()
+            move.translation = ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2)
+            cube = coin.SoCube()
+            cube.width, cube.height, cube.depth = x1 - x0, y1 - y0, z1 - z0
+            node.addChild(move)
+            node.addChild(cube)
+            self.prop_node.addChild(node)
+        graph.addChild(self.prop_node)
 
     def _highlight(self, step: int) -> None:
         """Blue for the current step's bricks, the printed part's ID next to it."""
@@ -180,6 +220,7 @@ class AssemblyPanel:
             self._plain(obj)
         self.highlighted = []
         self._label([])
+        self._show_props(-1)
         for obj in self.bricks + self.parts:
             if self.doc.getObject(obj.Name) is not None and bool(obj.Visibility) != self.shown[obj.Name]:
                 obj.Visibility = self.shown[obj.Name]

@@ -236,3 +236,36 @@ class TestForceParity(FabrickatorTestCase):
         self.assertFalse(cli["stable"])
         for key in ("stable", "ground", "max_utilisation", "failing_bricks", "mass_g", "loads"):
             self.assertEqual(mine[key], cli[key], key)
+
+    def test_the_arm_on_a_table_is_built_on_the_same_prop_as_on_the_command_line(self):
+        """On a table the L tips over (its centre of mass is past the block's edge): its arm
+        is built on a prop, which the finished part still needs.  The Fabrication keeps the
+        props and the steps' words (the assembly panel shows them), as the command line's
+        report has them."""
+        from FabrickatorWorkbench import bridge
+
+        source = l_shape(self.doc)
+        f = fab.make_fabrication(source, slice_print_times=False)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertFalse(f.Stands)
+        words, props = fab.step_notes(f)
+        self.assertTrue(props)
+        for prop in props:
+            (x0, y0, z0), (x1, y1, z1) = prop["box_mm"]
+            self.assertGreaterEqual(x0, 16.0 - 1e-6)          # under the arm, past the block
+            self.assertAlmostEqual(z0, 0.0)
+            self.assertAlmostEqual(z1, 9.6)                  # up to the arm's bottom
+            self.assertIsNone(prop["removed_after"])
+            self.assertIn("Prop: before step", words[str(prop["step"])])
+        folder = self.path("model")
+        os.makedirs(folder)
+        model = bridge.write_source(source, folder)
+        out = self.path("cli")
+        run = subprocess.run([str(PYTHON), "-m", "core", "fabricate", model, "--out", out,
+                              "--no-picture", "--quiet"],
+                             cwd=str(ROOT), env=dict(os.environ, FABRICKATOR_SLICER="none"),
+                             capture_output=True, text=True, timeout=600)
+        self.assertEqual(run.returncode, 0, run.stderr)
+        cli = json.loads(Path(out, "report.json").read_text())["stability"]["build"]["props"]
+        self.assertEqual([{k: v for k, v in p.items() if k != "words"} for p in cli], props)

@@ -328,7 +328,7 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
                                  checker.stands, props=True)
     assert order.unstable == [] and order.utilisation == [0.0, 0.0, 0.0]
     assert order.props == [{"step": 3, "cell": [0, 0, 3], "plates": 3, "parts": {"3005": 1},
-                            "under": 3, "removed_after": None}]
+                            "under": 3, "box_mm": [[0, 0, 0], [8, 8, 9.6]], "removed_after": None}]
     words = instructions.step_warnings(order, layout)[3]
     assert words.startswith("Prop: before step 3, stand a prop 3 plate(s) tall (1 x Brick 1 x 1 "
                             "(3005)) on the table under stud 1,1 of the Brick 1 x 4")

@@ -625,6 +625,43 @@ class TestAssembly(GuiTestCase):
         self.assertFalse(any(b.ViewObject.OverrideMaterial for b in lego))
 
 
+    def test_a_prop_shows_in_the_steps_it_stands(self):
+        """The L on a table is built on a prop under its arm (the app tests say why): the
+        panel draws it from its step on, and says where to stand it."""
+        from TestFabrickatorForces import l_shape
+
+        source = l_shape(self.doc)
+        f = fab().make_fabrication(source, slice_print_times=False)
+        self.doc.recompute()
+        settle()
+        source.ViewObject.Visibility = False
+        fit()
+        _, props = fab().step_notes(f)
+        self.assertTrue(props)
+        Gui.Selection.clearSelection()
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_Assembly")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
+
+        def drawn() -> bool:
+            return any(graph.getChild(n).getName() == "FabrickatorAssemblyProps"
+                       for n in range(graph.getNumChildren()))
+
+        step = props[0]["step"]
+        panel.go(step - 1)
+        self.assertFalse(drawn())
+        self.assertNotIn("Prop:", panel.form.info.text())
+        panel.go(step)
+        self.assertTrue(drawn())
+        self.assertIn("Prop: before step", panel.form.info.text())
+        screenshot("assembly_prop_step")
+        panel.reject()
+        settle()
+        self.assertFalse(drawn())
+
+
 class TestIteration(GuiTestCase):
     def test_pad_edit_highlights_changed_bricks_and_ghosts_removed_ones(self):
         f = self.fabrication()
