@@ -38,11 +38,12 @@ of its own.  Because a LEGO unit only ever attaches to units of another
 layer, every unit of a step attaches to units of earlier steps.
 
 Standing (:func:`standing`): every partial build is checked with the forces;
-a step is put earlier when that lets the build stand.  On a table, where no
-order does, a *prop* (a stack of 1x1 bricks and plates stood on the table
+a step is put earlier when that lets the build stand.  Where no order does,
+a *prop* (a stack of 1x1 bricks and plates stood on the table or baseplate
 under a cell with nothing under it down to the ground, so never where a brick
-goes later) holds the step's furthest-reaching brick up, until the build
-stands without it: as a builder holds up an overhang with a spare brick.
+goes later; it only presses) holds the step's furthest-reaching brick up,
+until the build stands without it: as a builder holds up an overhang with a
+spare brick.
 
 Assembly time (:func:`assembly_seconds`): ``seconds_per_brick`` per LEGO
 brick plus ``seconds_per_part`` per printed part insertion (finding the part
@@ -456,7 +457,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     ``lookahead`` steps (2 right after a step that did not stand) that can be placed (each of its units on the ground or
     touching a placed unit, a printed part only once every unit under it is
     placed) and leaves a standing build.  Else, with ``props`` (``stands(present,
-    cells)`` then also answers with a prop on the table under each of ``cells``), the
+    cells)`` then also answers with a prop on the ground under each of ``cells``), the
     planned step with a prop under its brick that reaches furthest from the cells
     standing on full columns (:class:`_Spots`), then one under each of its bricks
     that can have one: the props stay until the build stands without them (a finite

@@ -497,7 +497,11 @@ class _Warm:
         m, h = self.model, self.highs
         self._apply(body_present)
         if self.table is not None and len(self.table["cols"]):
-            active, _ = m.resting(body_present, propped)
+            if m.ground == "table":
+                active, _ = m.resting(body_present, propped)
+            else:                                 # on a baseplate only props press up
+                active = np.zeros(len(m._table_points()[0]), dtype=bool) if propped is None \
+                    else propped
             cols = self.table["cols"]
             hi = np.where(active[self.table["index"]] & body_present[m._table_points()[1][self.table["index"]]],
                           np.inf, 0.0)
@@ -583,6 +587,7 @@ class BuildChecker:
                  budget_s: float | None = None):
         self.layout = layout
         self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
+        self.model.propping = True
         self.budget_s = BUILD_BUDGET_S if budget_s is None else budget_s
         self.seconds = 0.0
         #: why sets that need a program are checked by the graph only (None: they are not)
@@ -633,24 +638,17 @@ class BuildChecker:
         # the last set found joined to the ground (the next is usually it and one step more)
         self._held_last = np.zeros(n, dtype=bool)
 
-    @property
-    def can_prop(self) -> bool:
-        """Whether :meth:`stands` takes props: on a table (a prop stands on it)."""
-        return self.model.ground == "table"
-
     def stands(self, present, props=None) -> tuple[bool, float]:
         """(stands, worst utilisation) of the bricks ``present`` (a bool per brick of the
         layout, in its order): inf when some present brick is joined to nothing on the ground;
         (True, NaN) when it is joined to the ground but would need a program past
         :data:`MAX_BODIES` bodies (checked by the brick graph only).  ``props`` ((n, 3) cells
-        i, j, k, or None; only where :attr:`can_prop`): cells held up by a prop each, a column
-        on the table under the cell that pushes up on its bottom (:meth:`_Model.resting`)."""
+        i, j, k, or None): cells held up by a prop each, a column on the table (or the
+        baseplate) under the cell that pushes up on its bottom (:meth:`_Model.resting`)."""
         m = self.model
         present = np.asarray(present, dtype=bool)
         propped = None
         if props is not None and len(props):
-            if not self.can_prop:
-                raise ValueError("props stand on a table; this build stands on a " + m.ground)
             propped = m.points_under(props)
         if self._supported(present):
             return True, 0.0                     # every present cell rests on a present cell
@@ -1007,6 +1005,9 @@ class _Model:
         self.flat_rest = False
         self.parent_bodies = self.parent_bricks = None       # set by :meth:`_model_of`
         self.band = None                     # a band's own bodies (:meth:`_by_bands`)
+        # on a baseplate, whether the programs hold the points props may press up
+        # (:class:`BuildChecker` sets it; on a table every point is there anyway)
+        self.propping = False
 
     # -- masses ------------------------------------------------------------------------------
     def _masses(self, printed, profile) -> None:
@@ -1696,6 +1697,8 @@ class _Model:
             parts["base"] = self._vertical(prog, eq, gpts, gvalid, gb, None,
                                            np.ones(len(gi), bool), detail, zcap)
             self._shear(prog, eq, np.stack([gi, gj], 1), np.zeros(len(gi), np.int64), gb, None)
+            # the points props may hold up (none until a BuildChecker says which)
+            parts["table"] = self._table(prog, eq, held, rest=False) if self.propping else None
         else:
             parts["base"] = None
             parts["table"] = self._table(prog, eq, held)
@@ -1892,14 +1895,18 @@ class _Model:
                         f"{beyond * self.unit:.1f} mm beyond the outline of its bottom layer. Build "
                         "it on a baseplate, weigh down or widen its base, or lay it on another side")}
 
-    def _table(self, prog, eq, present: np.ndarray):
+    def _table(self, prog, eq, present: np.ndarray, rest: bool = True):
         """Bodies on a table press down where the build rests (:meth:`resting`; the other
         points are columns held at zero, for :class:`BuildChecker`) and slide only against
-        friction: |horizontal force| <= mu * press, per body."""
+        friction: |horizontal force| <= mu * press, per body.  Without ``rest`` (props on
+        a baseplate) every point starts held at zero."""
         pts, body = self._table_points()
         use = present[body]
         pts, body = pts[use], body[use]
-        active, self.tilt = self.resting(present)
+        if rest:
+            active, self.tilt = self.resting(present)
+        else:
+            active = np.zeros(len(use), dtype=bool)
         active = active[use]
         if not len(pts):
             return {"cols": np.zeros(0, np.int64), "index": np.flatnonzero(use)}

@@ -333,8 +333,25 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
     assert words.startswith("Prop: before step 3, stand a prop 3 plate(s) tall (1 x Brick 1 x 1 "
                             "(3005)) on the table under stud 1,1 of the Brick 1 x 4")
     assert "the finished build still needs it" in words
-    with pytest.raises(ValueError, match="table"):
-        forces.BuildChecker(layout, ground="baseplate").stands(np.ones(3, bool), np.array([[0, 0, 3]]))
+
+
+def test_a_bridge_too_long_for_its_halves_is_closed_on_a_baseplate_over_a_prop():
+    """A 1.3 m bridge on a baseplate: built out from both towers, its halves still fail
+    just before they meet (three steps do not stand).  A prop under the middle holds it
+    until it is closed, by the last step, then goes."""
+    from core import build_order
+    lay = long_bridge(16)
+    plan = build_order.plan(lay, bricks_per_step=1)
+    bare = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="baseplate").stands)
+    assert len(bare.unstable) >= 1
+    order = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="baseplate").stands,
+                                 props=True)
+    assert order.unstable == [] and max(order.utilisation) <= 1
+    assert len(order.props) == 1
+    prop = order.props[0]
+    assert prop["step"] == bare.unstable[0]["step"]
+    assert prop["removed_after"] == len(order.steps)                    # once it is closed
+    assert abs(prop["cell"][0] - lay.grid.shape[0] / 2) <= 8             # near the middle
 
 
 def test_a_bridge_on_a_table_is_built_on_props_taken_away_when_it_is_closed():
