@@ -335,17 +335,21 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
     assert "the finished build still needs it" in words
 
 
+def built_without_and_with_props(lay: Layout, ground: str):
+    """The checked build orders of ``lay`` (one brick a step) without props and with them."""
+    from core import build_order
+    plan = build_order.plan(lay, bricks_per_step=1)
+    return tuple(build_order.standing(lay, plan, forces.BuildChecker(lay, ground=ground).stands,
+                                      props=props) for props in (False, True))
+
+
 def test_a_bridge_too_long_for_its_halves_is_closed_on_a_baseplate_over_a_prop():
     """A 1.3 m bridge on a baseplate: built out from both towers, its halves still fail
     just before they meet (three steps do not stand).  A prop under the middle holds it
     until it is closed, by the last step, then goes."""
-    from core import build_order
     lay = long_bridge(16)
-    plan = build_order.plan(lay, bricks_per_step=1)
-    bare = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="baseplate").stands)
+    bare, order = built_without_and_with_props(lay, "baseplate")
     assert len(bare.unstable) >= 1
-    order = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="baseplate").stands,
-                                 props=True)
     assert order.unstable == [] and max(order.utilisation) <= 1
     assert len(order.props) == 1
     prop = order.props[0]
@@ -359,13 +363,9 @@ def test_a_bridge_on_a_table_is_built_on_props_taken_away_when_it_is_closed():
     from the fourth does not stand).  With props, every step stands; each prop is one 1x1
     brick (the 3 plates under the bridge) in a cell that stays empty in the finished build;
     they all go once the bridge is closed, which then stands on its towers alone."""
-    from core import build_order
     lay = long_bridge(12)
-    plan = build_order.plan(lay, bricks_per_step=1)
-    bare = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="table").stands)
+    bare, order = built_without_and_with_props(lay, "table")
     assert len(bare.unstable) >= 20
-    order = build_order.standing(lay, plan, forces.BuildChecker(lay, ground="table").stands,
-                                 props=True)
     assert order.unstable == [] and max(order.utilisation) < 0.1
     assert 1 <= len(order.props) <= 12
     filled = lay.grid.filled
