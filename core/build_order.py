@@ -122,7 +122,8 @@ class BuildOrder:
     column of ``plates`` plates (``parts``: design number -> count) stood on the
     table under ``cell`` before step ``step``, under the brick ``under``, filling
     ``box_mm`` (min and max corner in the model's coordinates), taken away after
-    step ``removed_after``, None when the finished build still needs it).
+    step ``removed_after``, None when the finished build still needs it or,
+    ``closed_in``, when the build closes it in before it can go).
     """
 
     steps: list[Step] = field(default_factory=list)
@@ -548,9 +549,12 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
             since = 0
             ok, value = stands(present)
             if ok and (np.isfinite(value) or not remaining):
-                done_props += [dict(p, removed_after=len(chosen)) for p in standing_props]
+                open_ = spots.open_air(present)
+                done_props += [dict(p, removed_after=len(chosen) if open_[tuple(p["cell"][:2])] else None,
+                                    closed_in=not open_[tuple(p["cell"][:2])])
+                               for p in standing_props]
                 standing_props = []
-    done_props += [dict(p, removed_after=None) for p in standing_props]
+    done_props += [dict(p, removed_after=None, closed_in=False) for p in standing_props]
     steps = [dataclasses.replace(order.steps[n], number=k + 1) for k, n in enumerate(chosen)]
     return dataclasses.replace(order, steps=steps, utilisation=worst, unstable=unstable,
                                moved=moved, props=sorted(done_props, key=lambda p: p["step"]))
@@ -591,6 +595,17 @@ class _Spots:
         far = np.where(spot, self.far(k0)[i0:i1, j0:j1], -1.0)
         i, j = np.unravel_index(int(np.argmax(far)), far.shape)
         return (i0 + int(i), j0 + int(j), int(k0))
+
+    def open_air(self, present: np.ndarray) -> np.ndarray:
+        """Per column (i, j): whether the air on the table there (layer 0, no brick of
+        ``present`` in it) joins the air around the build, through cells no brick of
+        ``present`` fills: a prop standing there can be taken out."""
+        air = np.ones(self.lab.shape, dtype=bool)
+        air[self.lab >= 0] = ~present[self.lab[self.lab >= 0]]
+        around = np.pad(air, 1, constant_values=True)
+        around[:, :, 0] = False                           # the table is no way out
+        labels, _ = ndimage.label(around)
+        return labels[1:-1, 1:-1, 1] == labels[0, 0, -1]
 
     def touching(self, brick_id: int) -> set[int]:
         """Ids of the bricks directly under or over brick ``brick_id``."""
@@ -642,6 +657,7 @@ def prop_words(layout: Layout, prop: dict) -> str:
     stack = " on ".join(f"{n} x {BY_NUMBER[p].name} ({p})" for p, n in prop["parts"].items())
     at = (np.asarray(prop["box_mm"][0]) + np.asarray(prop["box_mm"][1]))[:2] / 2
     until = (f"take it away after step {prop['removed_after']}" if prop["removed_after"] is not None
+             else "the build closes it in before it can go: it stays inside" if prop.get("closed_in")
              else "the finished build still needs it")
     return (f"before step {prop['step']}, stand a prop {prop['plates']} plate(s) tall ({stack}) on "
             f"the table under stud {i - brick.cell[0] + 1},{j - brick.cell[1] + 1} of the "

@@ -3,6 +3,7 @@ hand calculations of a cantilever, and PrusaSlicer's own filament weights."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -328,7 +329,8 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
                                  checker.stands, props=True)
     assert order.unstable == [] and order.utilisation == [0.0, 0.0, 0.0]
     assert order.props == [{"step": 3, "cell": [0, 0, 3], "plates": 3, "parts": {"3005": 1},
-                            "under": 3, "box_mm": [[0, 0, 0], [8, 8, 9.6]], "removed_after": None}]
+                            "under": 3, "box_mm": [[0, 0, 0], [8, 8, 9.6]], "removed_after": None,
+                            "closed_in": False}]
     words = instructions.step_warnings(order, layout)[3]
     assert words.startswith("Prop: before step 3, stand a prop 3 plate(s) tall (1 x Brick 1 x 1 "
                             "(3005)) on the table under stud 1,1 of the Brick 1 x 4")
@@ -375,6 +377,29 @@ def test_a_bridge_on_a_table_is_built_on_props_taken_away_when_it_is_closed():
         assert not filled[i, j, :k].any() and filled[i, j, k]
         assert p["removed_after"] == len(order.steps)
     assert forces.analyse(lay, ground="table").stable
+
+
+def test_props_in_a_channel_the_bridge_closes_stay_inside():
+    """The 80 cm bridge on a table between two walls a brick high, one stud beside it on
+    either side: the air under the bridge is closed in by the walls, the towers and the
+    bridge itself.  Its props stand in that air; when the bridge is closed, and stands
+    without them, nothing can take them out: they stay, and the words say so."""
+    from core import build_order, instructions
+    bridge = long_bridge(12)
+    length = bridge.grid.shape[0]
+    bricks = [dataclasses.replace(b, cell=(b.cell[0], b.cell[1] + 1, b.cell[2])) for b in bridge.bricks]
+    for y in (0, 3):
+        x = 0
+        while x < length:
+            s = min(8, length - x)
+            bricks.append(Brick(len(bricks) + 1, {8: "3008", 4: "3010"}[s], (s, 1, 3), (x, y, 0)))
+            x += s
+    lay = layout_of(bricks)
+    _, order = built_without_and_with_props(lay, "table")
+    assert order.unstable == [] and order.props
+    assert all(p["closed_in"] and p["removed_after"] is None for p in order.props)
+    words = instructions.step_warnings(order, lay)
+    assert all("it stays inside" in words[p["step"]] for p in order.props)
 
 
 def test_build_checker_agrees_with_the_analysis_on_every_prefix():
