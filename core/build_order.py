@@ -619,12 +619,15 @@ class _Spots:
         """Prop sets to try, in order, so that ``step`` (to become step ``number``, with the
         bricks ``present`` in place) stands: one prop under the brick that reaches furthest
         out, then one under each brick that can have one, among the step's bricks; failing
-        that, among the placed bricks they touch, then the placed bricks those touch."""
+        that, among the placed bricks they touch, then the placed bricks those touch.  A
+        prop goes only where the air at its foot joins the air around the build (a hand
+        can put it there)."""
         ring = set(step.bricks)
         seen = set(ring)
+        reach = self.open_air(present)
         for _ in range(3):
             found = [(b, c) for b in sorted(ring) if (c := self.best(b)) is not None
-                     and self.layout.bricks[self.index[b]].kind != "printed"]
+                     and reach[c[0], c[1]] and self.layout.bricks[self.index[b]].kind != "printed"]
             if found:
                 far = [self.far(c[2])[c[0], c[1]] for _, c in found]
                 yield [self.prop(number, *found[int(np.argmax(far))])]
