@@ -103,6 +103,10 @@ def _stability_parser(sub) -> None:
     sta.add_argument("--out", metavar="REPORT", default=None,
                      help="write the verdict as JSON (the stability.force block of report.json)")
     request.add_options(sta, ("ground", "loads", "clutch_n"))
+    sta.add_argument("--seconds", metavar="S", type=float, default=None,
+                     help="let the force check take up to S seconds: a build of more than 2,500 "
+                          "bricks that its hanging parts and height bands do not settle is then "
+                          "solved as one program (minutes for 4,000 bricks)")
 
 
 def _calibration_parser(sub) -> None:
@@ -335,7 +339,7 @@ def _stability(args) -> int:
         raise InputError(f"{path}: printed part {unread[0]}: parts/{unread[0]}.stl beside the "
                          f"layout cannot be read as a mesh (or has no triangles)")
     result = forces.analyse(layout, ground=args.ground, loads=args.loads, printed=printed,
-                            clutch_n=args.clutch_n)
+                            clutch_n=args.clutch_n, seconds=args.seconds)
     doc = result.to_json()
     if out is not None:
         _write_report(out, json.dumps(doc, indent=2))

@@ -413,7 +413,7 @@ def _run(h) -> None:
 
 def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
             clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None,
-            detail: bool = True) -> Forces:
+            detail: bool = True, seconds: float | None = None) -> Forces:
     """The force verdict of ``layout`` standing on ``ground`` ("table" or "baseplate").
 
     ``loads`` are :class:`Load` (or "X0,Y0,Z0,X1,Y1,Z1:GRAMS" strings),
@@ -424,14 +424,21 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     point in N, ``profile`` the slicer settings printed masses follow.
     ``detail`` False gives the verdict and the worst utilisation only (one
     small program), with ``utilisation`` and ``failures`` left empty.
+    ``seconds`` (None: :data:`PROGRAM_SECONDS`, and past :data:`MAX_BODIES`
+    bodies no whole program) is what the whole build's programs may take; given,
+    a build past :data:`MAX_BODIES` that its parts and bands do not settle is
+    solved as one program too (minutes for 4,000 bricks).
 
     Promises: ``stable`` is True exactly when every body is held and the
     worst utilisation is at most 1; with ``detail`` every brick has a
     utilisation and ``failing_bricks`` are those above 1; ``layout`` is
     not changed.  Raises :class:`InputError` for an unknown ground, a
-    clutch not > 0, or a load that touches no brick.
+    clutch not > 0, a load that touches no brick, or ``seconds`` not > 0.
     """
     start = time.perf_counter()
+    if seconds is not None and not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool)
+                                    and math.isfinite(seconds) and seconds > 0):
+        raise InputError(f"--seconds {seconds!r} must be a number of seconds above 0")
     if ground not in GROUNDS:
         raise InputError(f"--ground {ground!r}: choose table or baseplate")
     if isinstance(clutch_n, bool) or not (isinstance(clutch_n, (int, float))
@@ -442,6 +449,7 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
         return Forces(True, ground, 0.0, clutch_n=float(clutch_n),
                       loads=[x.to_json() for x in loads], seconds=time.perf_counter() - start)
     model = _Model(layout, ground, loads, printed, clamp, float(clutch_n), profile)
+    model.whole_seconds = seconds
     forces = model.verdict(detail)
     forces.seconds = time.perf_counter() - start
     return forces
@@ -1008,6 +1016,9 @@ class _Model:
         # on a baseplate, whether the programs hold the points props may press up
         # (:class:`BuildChecker` sets it; on a table every point is there anyway)
         self.propping = False
+        # seconds the whole build's programs may take (None: PROGRAM_SECONDS, and no whole
+        # program past MAX_BODIES bodies); :func:`analyse` sets it
+        self.whole_seconds = None
 
     # -- masses ------------------------------------------------------------------------------
     def _masses(self, printed, profile) -> None:
@@ -1111,19 +1122,21 @@ class _Model:
             if banded is not None:
                 return banded
             where = f"{where}; {why}" if where else why
-        if self.nbody > MAX_BODIES and not self.on_supports:
+        if self.nbody > MAX_BODIES and not self.on_supports and self.whole_seconds is None:
             out = self._forces(False, math.nan, {}, [], [], [])
             out.unchecked = (f"{self.nbody} bricks and printed parts, some of them overhanging: more "
                              f"than the {MAX_BODIES} the force check solves in one program (it would "
                              "take minutes)" + (f", and {where}" if where else "")
-                             + "; the brick graph's verdict stands alone")
+                             + "; the brick graph's verdict stands alone (python -m core stability "
+                             "layout.json --seconds 900 solves it as one program)")
             return out
+        limit = PROGRAM_SECONDS if self.whole_seconds is None else self.whole_seconds
         prog, parts = self._program(detail=False)
-        status, x = prog.solve(PROGRAM_SECONDS)
+        status, x = prog.solve(limit)
         if status == "time":
             out = self._forces(False, math.nan, {}, [], [], [])
             out.unchecked = (f"{self.nbody} bricks and printed parts: the force program of the "
-                             f"whole build ran past the {PROGRAM_SECONDS:.0f} s it is given"
+                             f"whole build ran past the {limit:.0f} s it is given"
                              "; the brick graph's verdict stands alone")
             return out
         factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
@@ -1141,9 +1154,9 @@ class _Model:
             # of a 2,151-brick connecting rod standing at 0.009
             return each_worst()
         prog, parts = self._program(detail=True, cap=worst)
-        status, x = prog.solve(PROGRAM_SECONDS if stable else None)
+        status, x = prog.solve(limit if stable or self.nbody > MAX_BODIES else None)
         if status == "time":
-            return each_worst()                  # standing: the worst bounds every brick's
+            return each_worst()                  # the worst bounds every brick's
         residual = np.zeros(self.nbody)
         if status != "optimal":
             slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e3)

@@ -557,6 +557,21 @@ def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monk
     assert forces.analyse(tower).to_json()["checked"] is True
 
 
+def test_given_seconds_a_build_beyond_the_bodies_is_solved_whole_as_the_hand_calculation(monkeypatch):
+    """Past MAX_BODIES, with neither parts nor bands, the staircase is unchecked; given seconds,
+    one program solves it, and finds StableLego's answer: 12 levels stand at 0.3386 (the
+    hand calculation above), 20 fall."""
+    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(forces, "MAX_BANDED", 10)
+    assert forces.analyse(staircase(12), ground="baseplate").unchecked
+    twelve = forces.analyse(staircase(12), ground="baseplate", seconds=60)
+    assert twelve.stable and twelve.max_utilisation == pytest.approx(0.3386, abs=1e-4)
+    assert not forces.analyse(staircase(20), ground="baseplate", seconds=60, detail=False).stable
+    for bad in (0, -1.0, math.nan, math.inf, True, "9"):
+        with pytest.raises(InputError, match="--seconds"):
+            forces.analyse(staircase(2), seconds=bad)
+
+
 def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
     """The checker keeps 'every present cell rests on a present cell' up to date brick by
     brick; asked in any order (prefixes, trials taken back, random sets), its answer is the

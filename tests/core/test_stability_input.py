@@ -298,3 +298,13 @@ def test_a_failed_write_leaves_no_half_report(tmp_path, capsys, monkeypatch):
              os.strerror(errno.ENOSPC))
     assert report.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["layout.json", "report.json"]
+
+
+def test_seconds_that_are_not_a_time_above_zero_are_refused(tmp_path, capsys):
+    path = write(tmp_path, LAYOUT)
+    for bad in ("abc", "0", "-3", "nan", "inf"):
+        status, out, err = run(capsys, "stability", path, "--seconds", bad)
+        assert out == "", (bad, out)
+        one_line(status, err, "--seconds")
+    status, out, err = run(capsys, "stability", path, "--seconds", "30")
+    assert status == 0 and "stand" in out, err
