@@ -549,10 +549,11 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
             since = 0
             ok, value = stands(present)
             if ok and (np.isfinite(value) or not remaining):
-                open_ = spots.open_air(present)
-                done_props += [dict(p, removed_after=len(chosen) if open_[tuple(p["cell"][:2])] else None,
-                                    closed_in=not open_[tuple(p["cell"][:2])])
-                               for p in standing_props]
+                outside = spots.open_air(present)
+                for p in standing_props:
+                    out = bool(outside[p["cell"][0], p["cell"][1]])
+                    done_props.append(dict(p, removed_after=len(chosen) if out else None,
+                                           closed_in=not out))
                 standing_props = []
     done_props += [dict(p, removed_after=None, closed_in=False) for p in standing_props]
     steps = [dataclasses.replace(order.steps[n], number=k + 1) for k, n in enumerate(chosen)]
@@ -624,10 +625,10 @@ class _Spots:
         can put it there)."""
         ring = set(step.bricks)
         seen = set(ring)
-        reach = self.open_air(present)
+        outside = self.open_air(present)
         for _ in range(3):
             found = [(b, c) for b in sorted(ring) if (c := self.best(b)) is not None
-                     and reach[c[0], c[1]] and self.layout.bricks[self.index[b]].kind != "printed"]
+                     and outside[c[0], c[1]] and self.layout.bricks[self.index[b]].kind != "printed"]
             if found:
                 far = [self.far(c[2])[c[0], c[1]] for _, c in found]
                 yield [self.prop(number, *found[int(np.argmax(far))])]
