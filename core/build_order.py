@@ -483,7 +483,12 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     unit_steps = [sorted({int(unit_of[index[b]]) for b in s.bricks}) for s in order.steps]
     early = set(order.early_parts)
     placed_units = np.zeros(len(u.members), dtype=bool)
-    spots = _Spots(layout) if props else None
+    spots: list[_Spots] = []              # made when a step first needs a prop
+
+    def spotted() -> _Spots:
+        if not spots:
+            spots.append(_Spots(layout))
+        return spots[0]
 
     def placeable(n: int) -> bool:
         for v in unit_steps[n]:
@@ -520,10 +525,10 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
                 break
             if fallback is None:
                 fallback = (n, value)
-        if pick is None and spots is not None:
+        if pick is None and props:
             step = order.steps[remaining[0]]
             trial = _with(present, index, step)
-            for extra in spots.props_for(step, present, len(chosen) + 1):
+            for extra in spotted().props_for(step, present, len(chosen) + 1):
                 ok, value = check(trial, extra)
                 if ok:
                     pick = (remaining[0], value)
@@ -549,7 +554,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
             since = 0
             ok, value = stands(present)
             if ok and (np.isfinite(value) or not remaining):
-                outside = spots.open_air(present)
+                outside = spotted().open_air(present)
                 for p in standing_props:
                     out = bool(outside[p["cell"][0], p["cell"][1]])
                     done_props.append(dict(p, removed_after=len(chosen) if out else None,
