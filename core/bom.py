@@ -2,7 +2,9 @@
 
 ``bom.csv`` has one row per LEGO design number and colour (kind ``lego``:
 design number, name, colour, count; the colour each brick is ordered in is
-:func:`core.colours.ordered_code`'s, the same in every display palette) and one row per printed part (kind
+:func:`core.colours.ordered_code`'s, the same in every display palette), one
+row per part the build's props are stacked from (kind ``prop``: the most of it
+standing at once, :func:`prop_counts`) and one row per printed part (kind
 ``printed``: its ID, bricks replaced, volume, print time and STL file).
 A printed part's print time is the slicer's share when the pipeline sliced
 (``PrintedPart.print_s``), else the calibrated estimate of
@@ -13,7 +15,7 @@ A printed part's print time is the slicer's share when the pipeline sliced
 XML format: no XML declaration, ``INVENTORY`` of ``ITEM`` s with
 ``ITEMTYPE`` P, ``ITEMID`` the design number, ``COLOR`` the BrickLink colour
 id and ``MINQTY``) of the LEGO bricks still missing after what the user
-``owned``.
+``owned`` (the props' parts included).
 """
 
 from __future__ import annotations
@@ -80,17 +82,33 @@ def lego_colour_counts(layout: Layout) -> dict[tuple[str, int], int]:
     return counts
 
 
+def prop_counts(props) -> dict[str, int]:
+    """Design number -> how many the props (:attr:`core.build_order.BuildOrder.props`) use
+    at most at one time: a prop taken away frees its parts for a later one."""
+    events = sorted([(p["step"], 1, p) for p in props]
+                    + [(p["removed_after"] + 0.5, -1, p) for p in props if p["removed_after"] is not None],
+                    key=lambda e: (e[0], e[1]))
+    now: dict[str, int] = {}
+    most: dict[str, int] = {}
+    for _, sign, p in events:
+        for number, count in p["parts"].items():
+            now[number] = now.get(number, 0) + sign * count
+            most[number] = max(most.get(number, 0), now[number])
+    return most
+
+
 def _part_name(number: str) -> str:
     part = BY_NUMBER.get(number)
     return part.name if part is not None else f"Part {number}"
 
 
-def lines(layout: Layout, printed_parts=()) -> list[BomLine]:
-    """The bill of materials of ``layout`` and its printed parts.
+def lines(layout: Layout, printed_parts=(), props=()) -> list[BomLine]:
+    """The bill of materials of ``layout``, its props and its printed parts.
 
-    LEGO rows come in catalog order (plates before bricks of each size);
-    printed rows in part order.  Promises: the LEGO counts add up to the
-    layout's LEGO bricks, and there is one printed row per printed part.
+    LEGO rows come in catalog order (plates before bricks of each size), then
+    the props' parts (:func:`prop_counts`); printed rows in part order.  Promises:
+    the LEGO counts add up to the layout's LEGO bricks, and there is one printed
+    row per printed part.
     """
     from core.print_time import ESTIMATE_METHOD, estimate_seconds
 
@@ -100,6 +118,11 @@ def lines(layout: Layout, printed_parts=()) -> list[BomLine]:
                    colours.bricklink_id(code), count)
            for (number, code), count in sorted(counts.items(),
                                                key=lambda kv: (order.get(kv[0][0], 1e9), kv[0]))]
+    code = colours.BOM_COLOR
+    out += [BomLine("prop", number, f"{_part_name(number)} (for props while building)",
+                    colours.name(code), code, colours.bricklink_id(code), count)
+            for number, count in sorted(prop_counts(props).items(),
+                                        key=lambda kv: (order.get(kv[0], 1e9), kv[0]))]
     printed_name = colours.name(colours.PRINTED_COLOR)
     for p in printed_parts:
         if p.print_s is not None:
@@ -123,12 +146,15 @@ def write_csv(rows: list[BomLine], path: str | os.PathLike) -> Path:
     return path
 
 
-def wanted(layout: Layout, owned: dict[str, int] | None = None) -> dict[str, int]:
-    """Design number -> count still to get: the layout's LEGO bricks minus ``owned``.
+def wanted(layout: Layout, owned: dict[str, int] | None = None, props=()) -> dict[str, int]:
+    """Design number -> count still to get: the layout's LEGO bricks and the parts of its
+    ``props`` (:func:`prop_counts`) minus ``owned``.
 
     Raises InputError for an owned count that is not a whole number >= 0.
     """
     need = lego_counts(layout)
+    for number, count in prop_counts(props).items():
+        need[number] = need.get(number, 0) + count
     for number, have in (owned or {}).items():
         if not (isinstance(have, int) and have >= 0):
             raise InputError(f"owned count of part {number} must be a whole number >= 0, got {have!r}")
@@ -138,14 +164,15 @@ def wanted(layout: Layout, owned: dict[str, int] | None = None) -> dict[str, int
 
 
 def write_wanted_list(layout: Layout, path: str | os.PathLike, owned: dict[str, int] | None = None,
-                      remarks: str = "") -> Path:
-    """Write the BrickLink wanted list of the missing LEGO bricks at ``path``; returns it.
+                      remarks: str = "", props=()) -> Path:
+    """Write the BrickLink wanted list of the missing LEGO bricks (and the parts of the
+    ``props``) at ``path``; returns it.
 
     ``remarks`` (e.g. the model name) goes into each item's ``REMARKS``.
     """
     color = colours.bricklink_id(colours.BOM_COLOR)
     order = {n: i for i, n in enumerate(BY_NUMBER)}
-    items = sorted(wanted(layout, owned).items(), key=lambda kv: (order.get(kv[0], 1e9), kv[0]))
+    items = sorted(wanted(layout, owned, props).items(), key=lambda kv: (order.get(kv[0], 1e9), kv[0]))
     parts = ["<INVENTORY>"]
     for number, count in items:
         parts.append("  <ITEM>")

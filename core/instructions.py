@@ -657,13 +657,13 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
     if missing:
         raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
     svg, facts = svg_picture(layout, order, current=1, printed_parts=printed_parts)
-    used = sorted({b.part for b in layout.bricks if b.kind != "printed" and b.part in BY_NUMBER})
+    rows = bom.lines(layout, printed_parts, order.props)
+    used = sorted({r.part for r in rows if r.kind != "printed" and r.part in BY_NUMBER})
     icons = "".join(_icon(n, layout.grid.cell) for n in used)
-    rows = bom.lines(layout, printed_parts)
     bom_rows = "".join(
         f"<tr><td><svg class='ic'><use href='#i{html.escape(r.part)}'/></svg></td>"
         f"<td>{r.count}</td><td>{html.escape(r.part)}</td><td>{html.escape(r.name)}</td>"
-        f"<td>{html.escape(r.color)}</td></tr>" if r.kind == "lego" else
+        f"<td>{html.escape(r.color)}</td></tr>" if r.kind != "printed" else
         f"<tr><td><span class='pp-sw'></span></td><td>1</td><td>{html.escape(r.part)}</td>"
         f"<td>Printed part ({r.bricks_replaced} bricks' place, {r.volume_mm3 / 1000:.1f} cm³, "
         f"print ≈ {_minutes(r.print_s or 0)})</td><td>{html.escape(r.file)}</td></tr>"
@@ -745,8 +745,8 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title)
     timings["ldraw"] = time.perf_counter() - t
     t = time.perf_counter()
-    bom.write_csv(bom.lines(layout, printed_parts), folder / FILES["bom"])
-    bom.write_wanted_list(layout, folder / FILES["bricklink"], remarks=title)
+    bom.write_csv(bom.lines(layout, printed_parts, order.props), folder / FILES["bom"])
+    bom.write_wanted_list(layout, folder / FILES["bricklink"], remarks=title, props=order.props)
     timings["bom"] = time.perf_counter() - t
     return {
         "steps": len(order.steps),

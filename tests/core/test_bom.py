@@ -97,3 +97,15 @@ def test_a_shared_model_without_printed_parts(tmp_path):
     rows = read_csv(bom.write_csv(bom.lines(fab.layout, fab.printed), tmp_path / "bom.csv"))
     assert all(r["kind"] == "lego" for r in rows)
     assert sum(int(r["count"]) for r in rows) == len(fab.layout.bricks)
+
+
+def test_props_need_the_most_of_each_part_standing_at_once():
+    """A stands from step 3 until after step 10, B from 5 until after 8, C from 11 for
+    good, D from 10 until after 12: at steps 5..8 A and B stand (3 bricks, 1 plate), at
+    step 10 A and D (2 bricks); A's bricks serve C again.  By hand: 3 bricks, 1 plate."""
+    props = [{"step": 3, "removed_after": 10, "parts": {"3005": 1}},
+             {"step": 5, "removed_after": 8, "parts": {"3005": 2, "3024": 1}},
+             {"step": 11, "removed_after": None, "parts": {"3005": 1}},
+             {"step": 10, "removed_after": 12, "parts": {"3005": 1}}]
+    assert bom.prop_counts(props) == {"3005": 3, "3024": 1}
+    assert bom.prop_counts([]) == {}

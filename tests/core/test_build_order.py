@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -288,6 +289,16 @@ def test_the_phone_charger_stand_is_built_on_a_prop_and_an_export_keeps_it(tmp_p
     assert [p["cell"] for p in props] == [p["cell"] for p in order.props]
     assert all("the finished build still needs it" in p["words"] for p in props
                if p["removed_after"] is None)
+    needed: dict[str, int] = {}
+    for p in order.props:
+        for number, count in p["parts"].items():
+            needed[number] = needed.get(number, 0) + count
+    with (tmp_path / "run" / "bom.csv").open(newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["kind"] == "prop"]
+    assert {r["part"]: int(r["count"]) for r in rows} == needed     # none is taken away
+    wanted = (tmp_path / "run" / "bricklink.xml").read_text()
+    lego = sum(1 for b in fab.layout.bricks if b.kind != "printed" and b.part == "3005")
+    assert f"<ITEMID>3005</ITEMID>" in wanted and f"<MINQTY>{lego + needed['3005']}</MINQTY>" in wanted
     again = pipeline.stored(tmp_path / "run", doc)
     assert again.order.to_json() == order.to_json()
     pipeline.write_outputs(again, tmp_path / "export", report_doc=doc)
