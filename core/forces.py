@@ -1104,7 +1104,8 @@ class _Model:
         it) the joints carry with their clutch; the worst utilisation is its inverse.  Phase
         2 (``detail``): at the real loads, each joint's utilisation, the sum of them least,
         none above phase 1's worst; past :data:`EXACT_BODIES` a build standing below
-        :data:`DETAIL_ABOVE` gives each brick that worst instead."""
+        :data:`DETAIL_ABOVE`, or standing past :data:`MAX_BODIES` (solved whole only when
+        given ``whole_seconds``), gives each brick that worst instead."""
         if not self.on_supports and _supported_below(self.blab >= 0):
             # every cell rests on a cell (or the ground): it all stands in pure compression
             util = {b.id: 0.0 for b in self.layout.bricks} if detail else {}
@@ -1149,9 +1150,10 @@ class _Model:
         def each_worst() -> Forces:
             return self._forces(stable, worst, {b.id: worst for b in self.layout.bricks}, [], [], [])
 
-        if stable and worst < DETAIL_ABOVE and self.nbody > EXACT_BODIES:
+        if stable and self.nbody > EXACT_BODIES and (worst < DETAIL_ABOVE or self.nbody > MAX_BODIES):
             # each brick gets the worst (as a hanging part's do): phase 2 took 78 of the 125 s
-            # of a 2,151-brick connecting rod standing at 0.009
+            # of a 2,151-brick connecting rod standing at 0.009, and as long as phase 1 on a
+            # 3,834-brick HMD shell
             return each_worst()
         prog, parts = self._program(detail=True, cap=worst)
         status, x = prog.solve(limit if stable or self.nbody > MAX_BODIES else None)
