@@ -657,6 +657,12 @@ class _Spots:
                 "box_mm": [[round(float(v), 3) for v in lo], [round(float(v), 3) for v in hi]]}
 
 
+def prop_last_step(prop: dict, steps: int) -> int:
+    """The last step (of ``steps``) during which ``prop`` of :attr:`BuildOrder.props`
+    stands: the one after which it is taken away, else the last."""
+    return prop["removed_after"] if prop["removed_after"] is not None else steps
+
+
 def prop_words(layout: Layout, prop: dict) -> str:
     """A prop of :attr:`BuildOrder.props` in a builder's words: what to stack, where (the
     brick it holds and the cell's centre in the model's coordinates) and until when."""

@@ -454,17 +454,16 @@ def _prop_pictures(layout: Layout, order: build_order.BuildOrder, current: int) 
     """The props of ``order`` as boxes from the table up to their cell: (faces, drawn
     under the bricks, which hide them where they are in front; dashed edges, drawn over
     the bricks, so that a hidden prop still shows).  One ``<g class="pr">`` per prop in
-    each, with ``data-s`` (the step it is stood before) and ``data-e`` (the step after
-    which it goes; past the last step when it stays), shown from the one to the other."""
+    each, with ``data-s`` (the step it is stood before) and ``data-e`` (the last step it
+    stands, :func:`core.build_order.prop_last_step`), shown from the one to the other."""
     if not order.props:
         return "", ""
     cell = np.asarray(layout.grid.cell, dtype=float)
     lo = np.array([[p["cell"][0], p["cell"][1], 0] for p in order.props], dtype=float) * cell
     hi = lo + np.array([[cell[0], cell[1], p["plates"] * cell[2]] for p in order.props])
-    last = len(order.steps)
     faces, edges = [], []
     for p, (top, left, front) in zip(order.props, _all_face_paths(lo, hi)):
-        end = p["removed_after"] if p["removed_after"] is not None else last + 1
+        end = build_order.prop_last_step(p, len(order.steps))
         shown = "" if p["step"] <= current <= end else ' style="display:none"'
         head = f'<g class="pr" data-s="{p["step"]}" data-e="{end}"{shown}>'
         faces.append(f'{head}<path class="l" d="{left}"/><path class="f" d="{front}"/>'

@@ -116,13 +116,14 @@ class AssemblyPanel:
 
     def _show_props(self, step: int) -> None:
         """Purple columns for the props standing at ``step`` (replacing earlier ones)."""
+        from core import build_order
+
         graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
         if self.prop_node is not None:
             graph.removeChild(self.prop_node)
             self.prop_node = None
-        last = len(self.steps)
-        standing = [p for p in self.props if p["step"] <= step <= (
-            p["removed_after"] if p["removed_after"] is not None else last)]
+        standing = [p for p in self.props
+                    if p["step"] <= step <= build_order.prop_last_step(p, len(self.steps))]
         if not standing:
             return
         self.prop_node = coin.SoSeparator()
