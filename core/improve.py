@@ -35,6 +35,13 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
    the program sees leaves, not articulation points, and this shows it the
    ones its first answer made.
 
+4. **Sweep the layers** at the end (:meth:`_Search.sweep_layers`): each
+   layer of bricks of one height, a few hundred studs at a time, re-covered
+   by parts of that height only, kept on the same key.  A window frees a few
+   hundred cells of a thick slab in all three directions, too few studs of
+   one layer for long bricks to fit again; a layer window's program is
+   two-dimensional, so it can be wide.
+
 The search runs in two phases: first a compaction whose key leaves weak
 points out (it finds layouts near the fewest bricks), then the full key,
 which removes weak points again, usually at the cost of some bricks.
@@ -84,7 +91,9 @@ class Effort:
     ``mip_columns``: the most placements of a window whose LP relaxation is
     fractional that still goes to branch and bound (larger ones are shrunk);
     ``node_limit``: branch-and-bound nodes per window; ``time_limit_s``: the
-    safety limit per window.
+    safety limit per window; ``layer_cells``: the most studs of one layer window of the
+    closing sweep (:meth:`_Search.sweep_layers`; 0: no sweep), ``layer_sweeps``: how many
+    times it sweeps the layers, each time grouping their bricks from another corner.
     """
 
     windows_per_cell: float
@@ -97,6 +106,8 @@ class Effort:
     mip_columns: int
     node_limit: int
     time_limit_s: float
+    layer_cells: int
+    layer_sweeps: int
 
 
 #: The first window box tried at every site: so large that the bricks nearest the site fill
@@ -111,11 +122,11 @@ NEAREST = (16, 16, 9)
 #: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
 #: ``normal``'s result with larger windows (so it is never worse on the key).
 EFFORT_LEVELS = {
-    "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0),
+    "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.08, 120, 1000, 200, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)),
-                     0.4, 1500, 500, 200, 10.0),
+                     0.4, 1500, 500, 200, 10.0, 300, 4),
     "best": Effort(0.15, 150, 600, 300, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4),
-                                         (8, 8, 4), (6, 6, 6)), 0.4, 2500, 700, 200, 20.0),
+                                         (8, 8, 4), (6, 6, 6)), 0.4, 2500, 700, 200, 20.0, 300, 4),
 }
 
 #: ``best`` runs ``normal``'s search from this many seeds (the seed, then the next ones) on
@@ -228,6 +239,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     if search.key > start:
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report, budget)
+    search.sweep_layers(level, report)
     return search.layout(next_id, renumber=False)
 
 
@@ -684,13 +696,15 @@ class _Search:
             if not progressed:
                 return
 
-    def solve(self, ids: list[int], level: Effort) -> bool:
-        """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally; keep it
+    def solve(self, ids: list[int], level: Effort, shapes=None) -> bool:
+        """Re-cover the cells of bricks ``ids`` (nearest the site first) optimally with
+        ``shapes`` (default: every allowed part); keep it
         if the key improves.  The farthest bricks stay fixed while the window has more than
         ``level.max_columns`` placements, and while its LP relaxation is fractional
         and it has more than ``level.mip_columns``.  While weak points count, a re-cover
         that does not improve the key is solved again (up to :data:`WEAK_RETRIES` times)
         with its new bricks that are weak points priced :data:`WEAK_COST` more."""
+        shapes = self.shapes if shapes is None else shapes
         limit = level.max_columns
         while True:
             free = np.zeros(self.grid.shape, dtype=bool)
@@ -700,12 +714,12 @@ class _Search:
             lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
             hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
             sl = tuple(slice(a, b) for a, b in zip(lo, hi))
-            if len(ids) > 2 and len(_placements(free[sl], None, self.shapes)) > limit:
+            if len(ids) > 2 and len(_placements(free[sl], None, shapes)) > limit:
                 ids = ids[:max(2, (len(ids) * 4) // 5)]
                 continue
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
             window = (free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
-                      None if self.apart is None else self.apart[sl], self.shapes, current,
+                      None if self.apart is None else self.apart[sl], shapes, current,
                       self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
             chosen = _solve_window(*window)
             if chosen is not TOO_LARGE:
@@ -731,6 +745,40 @@ class _Search:
             if chosen is TOO_LARGE:
                 return False
         return False
+
+    def sweep_layers(self, level: Effort, report: Progress) -> None:
+        """Re-cover each layer of bricks in turn, a few hundred studs at a time.
+
+        A layer is the movable bricks of one height that start on one plate layer.  Its
+        bricks are grouped nearest first, from the one nearest a corner of the grid, up to
+        ``level.layer_cells`` studs a group; each group is re-covered by parts of the same
+        height only, which makes the program two-dimensional and so large groups cheap.
+        The search's windows free a few hundred cells of a thick slab in all three
+        directions; a layer window frees one layer across hundreds of studs, where long
+        bricks fit again.  The layers are swept ``level.layer_sweeps`` times, grouping
+        from another corner each time, so a seam between two groups is inside a group
+        the next time.  A re-cover is kept only when the key improves.
+        """
+        if level.layer_cells <= 0:
+            return
+        wide = dataclasses.replace(level, max_columns=MAX_VARIABLES, mip_columns=MAX_VARIABLES)
+        corners = ((1, 1), (-1, -1), (1, -1), (-1, 1))
+        done = 0
+        for sweep in range(level.layer_sweeps):
+            sign = np.array(corners[sweep % len(corners)])
+            layers = sorted({(r[2], r[5]) for r, a, f in zip(self.rec, self.alive, self.fixed)
+                             if a and not f})
+            for z, height in layers:
+                ids = [i for i, (r, a, f) in enumerate(zip(self.rec, self.alive, self.fixed))
+                       if a and not f and r[2] == z and r[5] == height]
+                shapes = [s for s in self.shapes if s[0][2] == height]
+                for group in _nearest_groups(np.array([self.rec[i] for i in ids]), sign,
+                                             level.layer_cells):
+                    if len(group) < 2:
+                        continue
+                    self.solve([ids[g] for g in group], wide, shapes)
+                    done += 1
+                    report(1.0, f"improve: layer window {done}, {self.key[3]} bricks")
 
     def _try(self, ids: list[int], chosen: list[tuple], lo) -> tuple[bool, np.ndarray]:
         """Replace bricks ``ids`` by the boxes ``chosen`` (window coordinates from ``lo``)
@@ -776,6 +824,27 @@ class _Search:
         if renumber:
             bricks = [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)]
         return Layout(self.grid, bricks)
+
+
+def _nearest_groups(rec: np.ndarray, sign: np.ndarray, cells: int) -> list[list[int]]:
+    """Rows of ``rec`` (bricks ``(x, y, z, sx, sy, sz)`` of one layer) in groups of at most
+    ``cells`` studs (a brick larger than that alone): each group starts at the brick
+    first toward the corner ``sign`` (its x and y times sign, summed, least) and takes the
+    bricks nearest it (centres, city-block distance) while they fit."""
+    left = np.arange(len(rec))
+    centre = rec[:, :2] + rec[:, 3:5] / 2.0
+    area = rec[:, 3] * rec[:, 4]
+    groups = []
+    while left.size:
+        first = left[int(np.argmin(rec[left, :2] @ sign))]
+        dist = np.abs(centre[left] - centre[first]).sum(axis=1)
+        order = left[np.argsort(dist, kind="stable")]
+        fits = np.cumsum(area[order]) <= cells
+        fits[0] = True
+        taken = order[:int(np.argmin(fits)) if not fits.all() else len(order)]
+        groups.append(taken.tolist())
+        left = np.setdiff1d(left, taken)
+    return groups
 
 
 # -- the window program ------------------------------------------------------

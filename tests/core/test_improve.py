@@ -109,6 +109,36 @@ def test_the_first_window_follows_a_thin_wall():
     assert len(search.window(site, (6, 6, 3), 0, 200)) == 18
 
 
+def test_layer_sweep_re_covers_a_whole_layer_across_the_plates():
+    """An 8 x 8 stud slab of a brick and a plate layer: on top, four 2x8 plates along x;
+    under them, 64 1x1 bricks.  Every column needs a brick and a plate or four plates, and
+    no part covers more than 16 studs, so 2 x 64 / 16 = 8 parts are the fewest.  One sweep
+    of the layers re-covers the brick layer with four 2x8 bricks along y, each across the
+    four plates (a brick along x would hang from one plate: a leaf): 8 parts, one piece,
+    no weak point.  The plates stay (no better cover of their layer)."""
+    grid = grid_of(np.ones((8, 8, 4), bool))
+    plates = [Brick(n, "3034", (8, 2, 1), (0, 2 * n, 3)) for n in range(4)]
+    bricks = [Brick(4 + n, "3005", (1, 1, 3), (n // 8, n % 8, 0)) for n in range(64)]
+    search = improve._Search(Layout(grid, plates + bricks), catalog.CATALOG, 0, set(), None,
+                             None)
+    search.sweep_layers(improve.EFFORT_LEVELS["normal"], lambda fraction, message: None)
+    swept = search.layout(None, renumber=True)
+    assert covers_once(swept) and improve.quality(swept) == (1, 0, 0, 8)
+    assert sorted((b.part, tuple(b.size)) for b in swept.bricks) == \
+        [("3007", (2, 8, 3))] * 4 + [("3034", (8, 2, 1))] * 4
+
+
+def test_layer_groups_are_the_nearest_bricks_from_a_corner():
+    """Ten 2x2 bricks in a row along x, groups of at most 12 studs: three bricks a group
+    from the corner asked for, the last one alone; from the other corner the other way."""
+    rec = np.array([(2 * n, 0, 0, 2, 2, 3) for n in range(10)])
+    assert improve._nearest_groups(rec, np.array([1, 1]), 12) == [[0, 1, 2], [3, 4, 5],
+                                                                   [6, 7, 8], [9]]
+    assert improve._nearest_groups(rec, np.array([-1, -1]), 12) == [[9, 8, 7], [6, 5, 4],
+                                                                    [3, 2, 1], [0]]
+    assert improve._nearest_groups(rec, np.array([1, 1]), 3) == [[n] for n in range(10)]
+
+
 def test_block_2x8_two_bricks_high_reaches_two_bricks():
     """A 2 x 8 stud block six plates (two bricks) high: two 2x8 bricks 3007 stacked are the
     fewest parts (96 cells, the largest part holds 48), one piece, no weak point (a graph of
