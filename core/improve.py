@@ -761,7 +761,7 @@ class _Search:
         """
         if level.layer_cells <= 0:
             return
-        wide = dataclasses.replace(level, max_columns=MAX_VARIABLES, mip_columns=MAX_VARIABLES)
+        wide = dataclasses.replace(level, max_columns=MAX_VARIABLES)
         corners = ((1, 1), (-1, -1), (1, -1), (-1, 1))
         done = 0
         for sweep in range(level.layer_sweeps):
