@@ -35,7 +35,7 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
    the program sees leaves, not articulation points, and this shows it the
    ones its first answer made.
 
-4. **Sweep the layers** at the end (:meth:`_Search.sweep_layers`): each
+4. **Sweep the layers** at the end of the search (:meth:`_Search.sweep_layers`): each
    layer of bricks of one height, a few hundred studs at a time, re-covered
    by parts of that height only, kept on the same key.  A window frees a few
    hundred cells of a thick slab in all three directions, too few studs of
@@ -138,6 +138,11 @@ BEST_STARTS_CELLS = 5_000
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
 
+#: Layer windows times bricks the sweep of the layers may spend: it starts another sweep
+#: only while the sweeps so far, one more time, stay within it (the 100 mm sphere's
+#: 1,700 bricks: two sweeps of about 90 layer windows each).
+MAX_LAYER_WORK = 300_000
+
 #: Objective weights of the window program: per brick, per leaf (a brick
 #: hanging from one neighbour), per island (a brick touching nothing above
 #: or below), per brick side cell on a seam of a fixed brick below or above.
@@ -204,7 +209,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
             def share(fraction, message, done=done):
                 report((done + fraction) / total, message)
             found.append(_stage(current, parts, EFFORT_LEVELS[name], seed + k, share, frozen_ids,
-                                apart, failing_joints, next_id))
+                                apart, failing_joints, next_id, sweep=name == effort))
             done += 1
         keys = [quality(f, failing_joints) for f in found]
         current = found[keys.index(min(keys))]
@@ -222,9 +227,10 @@ def _starts(name: str, effort: str, layout: Layout) -> int:
 
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
-           apart, failing_joints, next_id) -> Layout:
+           apart, failing_joints, next_id, sweep: bool) -> Layout:
     """One effort level's search from ``layout``: compaction, then the full key; from
-    ``layout`` again on the full key should that end worse than ``layout``."""
+    ``layout`` again on the full key should that end worse than ``layout``; then, if
+    ``sweep`` (the last level of the effort asked for), the sweep of the layers."""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
@@ -239,7 +245,8 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     if search.key > start:
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report, budget)
-    search.sweep_layers(level, report)
+    if sweep:
+        search.sweep_layers(level, report)
     return search.layout(next_id, renumber=False)
 
 
@@ -757,7 +764,8 @@ class _Search:
         directions; a layer window frees one layer across hundreds of studs, where long
         bricks fit again.  The layers are swept ``level.layer_sweeps`` times, grouping
         from another corner each time, so a seam between two groups is inside a group
-        the next time.  A re-cover is kept only when the key improves.
+        the next time (while the work stays within :data:`MAX_LAYER_WORK`).  A re-cover is
+        kept only when the key improves.
         """
         if level.layer_cells <= 0:
             return
@@ -765,6 +773,8 @@ class _Search:
         corners = ((1, 1), (-1, -1), (1, -1), (-1, 1))
         done = 0
         for sweep in range(level.layer_sweeps):
+            if sweep and done * (sweep + 1) / sweep * (len(self.rec) - self.dead) > MAX_LAYER_WORK:
+                return
             sign = np.array(corners[sweep % len(corners)])
             layers = sorted({(r[2], r[5]) for r, a, f in zip(self.rec, self.alive, self.fixed)
                              if a and not f})
