@@ -35,7 +35,7 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
    the program sees leaves, not articulation points, and this shows it the
    ones its first answer made.
 
-4. **Sweep the layers** at the end of the search (:meth:`_Search.sweep_layers`): each
+4. **Sweep the layers** at the end of each search (:meth:`_Search.sweep_layers`): each
    layer of bricks of one height, a few hundred studs at a time, re-covered
    by parts of that height only, kept on the same key.  A window frees a few
    hundred cells of a thick slab in all three directions, too few studs of
@@ -138,10 +138,11 @@ BEST_STARTS_CELLS = 5_000
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
 
-#: Layer windows times bricks the sweep of the layers may spend: it starts another sweep
-#: only while the sweeps so far, one more time, stay within it (the 100 mm sphere's
-#: 1,700 bricks: two sweeps of about 90 layer windows each).
-MAX_LAYER_WORK = 300_000
+#: Layer windows times bricks that sweeping the layers may spend at the end of a search: it
+#: starts another round only while the rounds so far, one more time, stay within it (the
+#: 100 mm sphere's 1,700 bricks: one round of about 90 layer windows, 5 s; the bunny's
+#: 500 bricks: all four rounds).
+MAX_LAYER_WORK = 150_000
 
 #: Objective weights of the window program: per brick, per leaf (a brick
 #: hanging from one neighbour), per island (a brick touching nothing above
@@ -209,7 +210,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
             def share(fraction, message, done=done):
                 report((done + fraction) / total, message)
             found.append(_stage(current, parts, EFFORT_LEVELS[name], seed + k, share, frozen_ids,
-                                apart, failing_joints, next_id, sweep=name == effort))
+                                apart, failing_joints, next_id))
             done += 1
         keys = [quality(f, failing_joints) for f in found]
         current = found[keys.index(min(keys))]
@@ -227,10 +228,11 @@ def _starts(name: str, effort: str, layout: Layout) -> int:
 
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
-           apart, failing_joints, next_id, sweep: bool) -> Layout:
+           apart, failing_joints, next_id) -> Layout:
     """One effort level's search from ``layout``: compaction, then the full key; from
-    ``layout`` again on the full key should that end worse than ``layout``; then, if
-    ``sweep`` (the last level of the effort asked for), the sweep of the layers."""
+    ``layout`` again on the full key should that end worse than ``layout``; then the sweep
+    of the layers.  (So ``best``'s ``normal`` stages are ``normal`` itself, and ``best`` is
+    never worse than ``normal``.)"""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
@@ -245,8 +247,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     if search.key > start:
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report, budget)
-    if sweep:
-        search.sweep_layers(level, report)
+    search.sweep_layers(level, report)
     return search.layout(next_id, renumber=False)
 
 
