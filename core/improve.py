@@ -777,11 +777,13 @@ class _Search:
             if sweep and done * (sweep + 1) / sweep * (len(self.rec) - self.dead) > MAX_LAYER_WORK:
                 return
             sign = np.array(corners[sweep % len(corners)])
-            layers = sorted({(r[2], r[5]) for r, a, f in zip(self.rec, self.alive, self.fixed)
-                             if a and not f})
-            for z, height in layers:
-                ids = [i for i, (r, a, f) in enumerate(zip(self.rec, self.alive, self.fixed))
-                       if a and not f and r[2] == z and r[5] == height]
+            # a layer's re-cover only replaces bricks of that layer by bricks of that layer,
+            # so the layers can be listed once a round
+            layers: dict[tuple[int, int], list[int]] = {}
+            for i, (r, a, f) in enumerate(zip(self.rec, self.alive, self.fixed)):
+                if a and not f:
+                    layers.setdefault((r[2], r[5]), []).append(i)
+            for (_, height), ids in sorted(layers.items()):
                 shapes = [s for s in self.shapes if s[0][2] == height]
                 for group in _nearest_groups(np.array([self.rec[i] for i in ids]), sign,
                                              level.layer_cells):
