@@ -47,8 +47,10 @@ class UserFolder:
         self.home = base / name
         self.home.mkdir(parents=True)
         self.cfg = self.home / "user.cfg"
+        # FreeCAD 0.20 runs $VIRTUAL_ENV/bin/activate_this.py at start-up when VIRTUAL_ENV is set
+        # (a shell with a venv activated), which venv-made folders lack: a fresh user has none
         self.env = {key: value for key, value in os.environ.items()
-                    if key not in ("FABRICKATOR_VENV", "PYTHONPATH")}
+                    if key not in ("FABRICKATOR_VENV", "PYTHONPATH", "VIRTUAL_ENV")}
         self.env.update(FREECAD_USER_HOME=str(self.home), FREECAD_USER_DATA=str(self.home),
                         FABRICKATOR_SLICER="none", PYTHONUNBUFFERED="1")
         self.data = Path(self.ask("FreeCAD.getUserAppDataDir()"))

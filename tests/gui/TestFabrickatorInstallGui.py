@@ -30,6 +30,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 from pathlib import Path
 
@@ -240,6 +241,7 @@ class TestInstallInTheGui(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
+        cls.started = time.monotonic()
         cls.base = Path(tempfile.mkdtemp(prefix="fabrickator-gui-install-"))
         installing, declining = GuiUser(cls.base, "install"), GuiUser(cls.base, "decline")
         cls.clones = {"install": installing.mod, "decline": declining.mod}
@@ -265,6 +267,9 @@ class TestInstallInTheGui(unittest.TestCase):
             process.kill()
             cls.outputs[plan], _ = process.communicate()
         cls.reports[plan] = json.loads(report.read_text()) if report.exists() else None
+        sys.__stderr__.write(f"(the {plan} FreeCAD ended {time.monotonic() - cls.started:.0f} s into the install "
+                             f"tests, exit {process.returncode})\n")
+        sys.__stderr__.flush()
 
     @classmethod
     def tearDownClass(cls):
@@ -285,6 +290,9 @@ class TestInstallInTheGui(unittest.TestCase):
         self.assertEqual(report["dialogs"][0][0], "FabrickatorInstallOffer")
         self.assertIn("Install them now?", report["dialogs"][0][1])
         self.assertTrue(report["installer"])
+        # the install's own result first: when it failed, its message and pip's last lines say why
+        self.assertEqual(report["result"], [True, "Fabrickator's Python packages are installed and in use: "
+                                                  "the workbench is ready."], report["labels"][-8:])
         self.assertFalse(report["progress_modal"], "the progress dialog must leave FreeCAD usable")
         # pip's lines as they came (sampled): the bar grows with them, then is busy while pip unpacks
         values = [v for v in report["values"] if v is not None]
@@ -295,8 +303,6 @@ class TestInstallInTheGui(unittest.TestCase):
                             for label in report["labels"]), report["labels"][:10])
         installing = [v for label, v in zip(report["labels"], report["values"]) if label.startswith("Installing ")]
         self.assertTrue(installing and installing[0] is None, report["labels"][-5:])
-        self.assertEqual(report["result"], [True, "Fabrickator's Python packages are installed and in use: "
-                                                  "the workbench is ready."])
         self.assertEqual([d[0] for d in report["dialogs"]], ["FabrickatorInstallOffer", "FabrickatorInstallDone"])
         self.assertIn("Fabrickator_Legofy", report["toolbar"])
         self.assertTrue(report["numpy"].startswith(str(self.clones["install"] / ".venv")), report["numpy"])

@@ -14,10 +14,42 @@ tests.
 
 import os
 import sys
+import time
 import traceback
 import unittest
 
 from PySide import QtCore
+
+
+class _ReportAtOnce(unittest.TextTestResult):
+    """A result that prints each failure's traceback when it happens and remembers the running test.
+
+    The watchdog may end FreeCAD before unittest's summary, so a failure must not wait for it.
+    """
+
+    running = None
+    started = time.monotonic()
+
+    def startTest(self, test):
+        type(self).running = (test.id(), time.monotonic())
+        super().startTest(test)
+
+    def _at_once(self, kind, test, err):
+        self.stream.write(f"\n{kind}: {test.id()}\n{self._exc_info_to_string(err, test)}\n")
+        self.stream.flush()
+
+    def addFailure(self, test, err):
+        super().addFailure(test, err)
+        self._at_once("FAIL", test, err)
+
+    def addError(self, test, err):
+        super().addError(test, err)
+        self._at_once("ERROR", test, err)
+
+    def printErrors(self):
+        if self.failures or self.errors:
+            self.stream.write(f"\n{len(self.failures)} failure(s), {len(self.errors)} error(s): "
+                              "their tracebacks are printed above, where they happened\n")
 
 
 def _run():
@@ -33,7 +65,7 @@ def _run():
         wanted = os.environ.get("FABRICKATOR_GUI_TESTS")
         if wanted:
             suite = unittest.TestSuite(t for s in suite for t in s if wanted in t.id())
-        result = unittest.TextTestRunner(stream=sys.stderr, verbosity=2).run(suite)
+        result = unittest.TextTestRunner(stream=sys.stderr, verbosity=2, resultclass=_ReportAtOnce).run(suite)
         status = 0 if result.wasSuccessful() else 1
     except BaseException:
         traceback.print_exc()
@@ -44,7 +76,10 @@ def _run():
 
 
 def _watchdog():
-    sys.stderr.write("GUI tests took too long: stopped\n")
+    now = time.monotonic()
+    running = _ReportAtOnce.running
+    where = f"in {running[0]}, running for {now - running[1]:.0f} s" if running else "before the first test"
+    sys.stderr.write(f"GUI tests took too long ({now - _ReportAtOnce.started:.0f} s): stopped {where}\n")
     sys.stderr.flush()
     os._exit(1)
 
