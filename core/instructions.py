@@ -741,7 +741,7 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
                                title, seconds)
     timings["html"] = time.perf_counter() - t
     t = time.perf_counter()
-    ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title)
+    ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title, props=order.props)
     timings["ldraw"] = time.perf_counter() - t
     t = time.perf_counter()
     bom.write_csv(bom.lines(layout, printed_parts, order.props), folder / FILES["bom"])

@@ -23,6 +23,13 @@ embedded subfile per printed part (``0 FILE printed_P1.ldr``) holding the
 part's triangles (line type 3, colour 16), referenced once, in its step, with
 the identity transform (its coordinates are already in place).
 
+The build's props (:attr:`core.build_order.BuildOrder.props`: stacks of 1x1 plates and
+bricks stood on the table under an overhang while it is built) are in the step they are
+stood in, in the colour the bill of materials orders them, each after a comment that says
+what it holds.  A prop that is taken away later carries LeoCAD's ``0 !LEOCAD PIECE
+STEP_HIDE <step>`` (the first step it is gone in): LeoCAD hides it from there on; other
+programs show it to the end, as they show every part.
+
 :func:`parse` reads such a file back (any LDraw/MPD text with line types
 0-5), and :func:`placed_bricks` turns the references back into grid cells,
 so the writer is checked by a round trip.
@@ -50,6 +57,8 @@ PLATE_LDU = 8
 #: the colours the bill of materials orders), and the inherit colour.
 LEGO_COLOR = colours.BOM_COLOR
 PRINTED_COLOR = colours.PRINTED_COLOR
+#: LDraw colour of the props' parts: the one the bill of materials orders them in.
+PROP_COLOR = colours.BOM_COLOR
 MAIN_COLOR = 16
 #: LDraw colour code -> (LDraw name, BrickLink colour id, BrickLink name, RGB hex).
 COLORS = colours.COLORS
@@ -121,7 +130,27 @@ def _triangles(mesh, origin_mm, shift_ldu) -> list[str]:
     return ["3 16 " + " ".join(row) for row in text.tolist()]
 
 
-def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: str = "") -> Path:
+def _prop_lines(prop: dict, shift_ldu) -> list[str]:
+    """The lines of one prop: a comment, then its parts from the table up (plates first),
+    each after LeoCAD's STEP_HIDE when the prop is taken away after a step."""
+    i, j, _ = (int(c) for c in prop["cell"])
+    after = prop.get("removed_after")
+    lines = [f"0 // prop under brick {prop['under']}: stand it before this step; "
+             + (f"take it away after step {after}" if after is not None else "it stays")]
+    z = 0
+    for number in sorted(prop["parts"], key=lambda n: BY_NUMBER[n].layers):
+        layers = BY_NUMBER[number].layers
+        for _ in range(int(prop["parts"][number])):
+            pos, rot = brick_placement((i, j, z), (1, 1, layers), shift_ldu)
+            if after is not None:
+                lines.append(f"0 !LEOCAD PIECE STEP_HIDE {int(after) + 1}")
+            lines.append(_ref(PROP_COLOR, pos, rot, f"{number}.dat"))
+            z += layers
+    return lines
+
+
+def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: str = "",
+          props=()) -> Path:
     """Write ``layout`` as an MPD file at ``path``; returns the path.
 
     ``steps`` is a list of brick-id lists (or :class:`core.build_order.Step`
@@ -130,6 +159,8 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
     in model mm).  Each step's LEGO bricks become type-1 references to
     ``<design number>.dat`` in :data:`LEGO_COLOR`; a printed part becomes one
     reference to its embedded subfile, in the step of its first brick.
+    ``props`` (:attr:`core.build_order.BuildOrder.props`) go into the step each is stood
+    before (see the module's text).
     Raises ValueError when a brick is in no step or in two, a step names a
     brick that is not in the layout, or a printed brick has no printed part
     (the caller's steps and parts do not match the layout).
@@ -151,6 +182,9 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
     for n, bricks in enumerate(step_lists):
         if n:
             lines.append("0 STEP")
+        for prop in props:
+            if prop["step"] == n + 1:
+                lines += _prop_lines(prop, shift)
         for bid in bricks:
             b = index.get(bid)
             if b is None or bid in seen:
@@ -193,6 +227,8 @@ class Reference:
     position: np.ndarray
     rotation: np.ndarray
     name: str
+    #: LeoCAD's ``0 !LEOCAD PIECE STEP_HIDE``: the first step the part is gone in (None: never)
+    step_hide: int | None = None
 
 
 @dataclass
@@ -231,8 +267,9 @@ _COUNTS = {1: 15, 2: 8, 3: 11, 4: 14, 5: 14}
 def parse(text_or_path) -> LDrawDocument:
     """Parse LDraw / MPD text (or a file path) into its files, steps and geometry.
 
-    Line types: 0 (``FILE``, ``NOFILE``, ``STEP``, ``BFC CERTIFY CCW``; other
-    meta lines and comments are skipped), 1 (references), 2-5 (geometry;
+    Line types: 0 (``FILE``, ``NOFILE``, ``STEP``, ``BFC CERTIFY CCW``, LeoCAD's
+    ``!LEOCAD PIECE STEP_HIDE`` for the next reference; other meta lines and
+    comments are skipped), 1 (references), 2-5 (geometry;
     triangles are kept, quads counted).  A trailing empty step is dropped.
     LDraw text is a file the user may give (from LeoCAD, Studio, ...), so it
     raises InputError naming the line for an unknown line type, a wrong
@@ -247,6 +284,7 @@ def parse(text_or_path) -> LDrawDocument:
     files: dict[str, LDrawFile] = {}
     current: LDrawFile | None = None
     tris: dict[str, list] = {}
+    step_hide = None
     for number, raw in enumerate(text.splitlines(), start=1):
         tokens = raw.split()
         if not tokens:
@@ -264,6 +302,11 @@ def parse(text_or_path) -> LDrawDocument:
                 current.steps.append([])
             elif word == "BFC" and current is not None and "CCW" in (t.upper() for t in tokens[2:]):
                 current.bfc_ccw = True
+            elif [t.upper() for t in tokens[1:4]] == ["!LEOCAD", "PIECE", "STEP_HIDE"] and len(tokens) > 4:
+                try:
+                    step_hide = int(tokens[4])
+                except ValueError:
+                    raise InputError(f"LDraw line {number}: STEP_HIDE needs a step number: {raw.strip()!r}")
             continue
         if kind not in ("1", "2", "3", "4", "5"):
             raise InputError(f"LDraw line {number}: unknown line type {kind!r}")
@@ -289,7 +332,8 @@ def parse(text_or_path) -> LDrawDocument:
             if abs(np.linalg.det(rot)) < 1e-9:
                 raise InputError(f"LDraw line {number}: the rotation matrix is singular")
             name = raw.split(None, 14)[14].strip()
-            current.steps[-1].append(Reference(color, np.array(values[:3]), rot, name))
+            current.steps[-1].append(Reference(color, np.array(values[:3]), rot, name, step_hide))
+            step_hide = None
         elif t == 3:
             tris[current.name].append(values)
         elif t == 4:
@@ -308,7 +352,8 @@ def placed_bricks(doc: LDrawDocument, shape) -> list[dict]:
     """The catalog bricks the main model references, back in grid cells.
 
     One dict per ``<number>.dat`` reference: ``part``, ``cell`` (i, j, k),
-    ``size`` (x, y, z) in cells, ``color`` and ``step`` (1-based).  Raises
+    ``size`` (x, y, z) in cells, ``color``, ``step`` (1-based) and ``step_hide`` (LeoCAD's
+    first step without it, None: never).  Raises
     InputError for a part that is not in the catalog, a rotation that is not
     one of the two a layout uses, or a position off the grid.
     """
@@ -337,5 +382,5 @@ def placed_bricks(doc: LDrawDocument, shape) -> list[dict]:
             if not np.allclose(cell, np.round(cell), atol=1e-6):
                 raise InputError(f"LDraw reference to {r.name} is not on the stud grid")
             out.append({"part": part.number, "cell": tuple(int(v) for v in np.round(cell)),
-                        "size": (sx, sy, sz), "color": r.color, "step": n})
+                        "size": (sx, sy, sz), "color": r.color, "step": n, "step_hide": r.step_hide})
     return out

@@ -237,3 +237,80 @@ def test_leocad_reads_steps_and_embedded_printed_parts(hmd, tmp_path):
     hi = np.array([20 * (idx[:, 0].max() + 1) - shift[0], 20 * (idx[:, 1].max() + 1) - shift[1],
                    8 * (idx[:, 2].max() + 1)])
     assert np.allclose(v.min(axis=0), lo) and np.allclose(v.max(axis=0), hi)
+
+
+def test_a_prop_is_in_its_step_stacked_from_the_table_and_leocad_hides_it_when_it_goes(tmp_path):
+    """A 2x4 brick on a tower of a 2x2 brick and two 2x2 plates, over air by two studs: a
+    prop 5 plates tall (a 1x1 brick on two 1x1 plates) under its stud (3, 0), stood before
+    step 4 and taken away after it.  Its three parts are in step 4, plates at the bottom
+    (plate layers 0 and 1, the brick 2..4), each after LeoCAD's ``STEP_HIDE 5``; the
+    bricks round-trip as before."""
+    bricks = [Brick(0, "3003", (2, 2, 3), (0, 0, 0), step=1), Brick(1, "3022", (2, 2, 1), (0, 0, 3), step=2),
+              Brick(2, "3022", (2, 2, 1), (0, 0, 4), step=3), Brick(3, "3001", (4, 2, 3), (0, 0, 5), step=4)]
+    filled = np.zeros((4, 2, 8), dtype=bool)
+    for b in bricks:
+        filled[b.slices()] = True
+    lay = Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), bricks)
+    prop = {"step": 4, "cell": [3, 0, 5], "plates": 5, "parts": {"3005": 1, "3024": 2}, "under": 3,
+            "removed_after": 4, "closed_in": False}
+    text = ldraw.write(lay, [], [[0], [1], [2], [3]], tmp_path / "a.mpd", props=[prop]).read_text()
+    assert "0 // prop under brick 3: stand it before this step; take it away after step 4" in text
+    assert text.count("0 !LEOCAD PIECE STEP_HIDE 5") == 3
+    back = ldraw.placed_bricks(ldraw.parse(text), filled.shape)
+    props = [d for d in back if d["step_hide"] is not None]
+    assert [(d["part"], d["cell"], d["size"], d["step"], d["color"]) for d in props] == [
+        ("3024", (3, 0, 0), (1, 1, 1), 4, ldraw.PROP_COLOR), ("3024", (3, 0, 1), (1, 1, 1), 4, ldraw.PROP_COLOR),
+        ("3005", (3, 0, 2), (1, 1, 3), 4, ldraw.PROP_COLOR)]
+    assert all(d["step_hide"] == 5 for d in props)
+    assert sorted((d["part"], d["cell"], d["step"]) for d in back if d["step_hide"] is None) == \
+        sorted((b.part, b.cell, b.step) for b in bricks)
+    assert not any(filled[3, 0, :5])                   # the prop stands in air, under the brick
+
+
+def test_the_bridge_built_on_props_has_them_in_the_mpd_until_it_is_closed(tmp_path):
+    """The 80 cm bridge on a table (test_forces): each prop the build order stands is a 1x1
+    brick on the table under its cell, in the step it is stood before, hidden in LeoCAD from
+    the step after the bridge is closed (the last); the MPD lists the layout's bricks too."""
+    from test_forces import built_without_and_with_props, long_bridge
+    lay = long_bridge(12)
+    _, order = built_without_and_with_props(lay, "table")
+    assert order.props
+    lay = build_order.numbered(lay, order)
+    path = ldraw.write(lay, [], order.steps, tmp_path / "bridge.mpd", props=order.props)
+    back = ldraw.placed_bricks(ldraw.parse(path), lay.grid.shape)
+    props = sorted((d["cell"], d["step"], d["step_hide"]) for d in back if d["part"] == "3005")
+    assert props == sorted(((p["cell"][0], p["cell"][1], 0), p["step"], len(order.steps) + 1)
+                           for p in order.props)
+    assert sorted((d["part"], d["cell"], d["step"]) for d in back if d["part"] != "3005") == \
+        sorted((b.part, tuple(b.cell), b.step) for b in lay.bricks)
+
+
+def test_leocad_shows_a_prop_in_its_step_and_hides_it_once_it_is_taken_away(tmp_path):
+    """LeoCAD renders the tower of the prop test with one more brick on top (step 5): seen
+    from the front, the corner under the arm's far end is the prop in step 4 and air in
+    step 5, after the prop is taken away."""
+    leocad, xvfb = shutil.which("leocad"), shutil.which("xvfb-run")
+    if leocad is None or xvfb is None:
+        pytest.skip("leocad or xvfb-run not installed (apt-get install leocad xvfb)")
+    from PIL import Image
+    bricks = [Brick(0, "3003", (2, 2, 3), (0, 0, 0), step=1), Brick(1, "3022", (2, 2, 1), (0, 0, 3), step=2),
+              Brick(2, "3022", (2, 2, 1), (0, 0, 4), step=3), Brick(3, "3001", (4, 2, 3), (0, 0, 5), step=4),
+              Brick(4, "3003", (2, 2, 3), (0, 0, 8), step=5)]
+    filled = np.zeros((4, 2, 11), dtype=bool)
+    for b in bricks:
+        filled[b.slices()] = True
+    lay = Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), bricks)
+    prop = {"step": 4, "cell": [3, 0, 5], "plates": 5, "parts": {"3005": 1, "3024": 2}, "under": 3,
+            "removed_after": 4, "closed_in": False}
+    path = ldraw.write(lay, [], [[b.id] for b in bricks], tmp_path / "a.mpd", props=[prop])
+    run = subprocess.run([xvfb, "-a", leocad, "-l", str(box_library(tmp_path / "ldraw")), "-i",
+                          str(tmp_path / "s.png"), "-w", "320", "-h", "240", "-f", "4", "-t", "5",
+                          "--viewpoint", "front", str(path)], capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    corner = []
+    for step in (4, 5):
+        alpha = np.asarray(Image.open(tmp_path / f"s{step:02d}.png").convert("RGBA"))[..., 3]
+        h, w = alpha.shape
+        corner.append(float((alpha[int(h * 0.85):, int(w * 0.72):int(w * 0.82)] > 0).mean()))
+    assert corner == [1.0, 0.0]
