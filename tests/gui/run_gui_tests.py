@@ -6,8 +6,9 @@
 FreeCAD runs this file as a macro once its window is up; the tests start
 from the event loop, and the process exits with 0 when all pass, 1
 otherwise (also when they take longer than $FABRICKATOR_GUI_TIMEOUT
-seconds, default 1500: a dialog nobody answers must not hang CI; the 48 tests take
-about 540-600 s on a 2-core machine).  A test
+seconds, default 2400: a dialog nobody answers must not hang CI; the 49 tests take
+about 540-600 s on a 2-core machine, and the install tests' pip may take minutes more where
+the package index is slow).  A test
 name (or part of one) in $FABRICKATOR_GUI_TESTS runs only the matching
 tests.
 """
@@ -107,5 +108,5 @@ _stuck.start(500)
 _timer = QtCore.QTimer()
 _timer.setSingleShot(True)
 _timer.timeout.connect(_watchdog)
-_timer.start(int(float(os.environ.get("FABRICKATOR_GUI_TIMEOUT", "1500")) * 1000))
+_timer.start(int(float(os.environ.get("FABRICKATOR_GUI_TIMEOUT", "2400")) * 1000))
 QtCore.QTimer.singleShot(1000, _run)
