@@ -27,6 +27,7 @@ drawn.
 from __future__ import annotations
 
 import os
+import textwrap
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -198,6 +199,20 @@ def _drawable(title: str) -> str:
     return "".join(c if c.isspace() or ord(c) in have else "?" for c in str(title))
 
 
+def _fitted(fig: Figure, title: str, fontsize: float, width_px: float) -> tuple[str, int]:
+    """``title`` broken at spaces into the fewest lines (up to 4) that are each at most
+    ``width_px`` wide at ``fontsize`` on ``fig``, and how many lines that is."""
+    renderer = fig.canvas.get_renderer()
+    for lines in range(1, 5):
+        text = textwrap.fill(title, width=-(-len(title) // lines), break_long_words=False) if lines > 1 else title
+        probe = fig.text(0, 0, text, fontsize=fontsize, parse_math=False)
+        wide = probe.get_window_extent(renderer).width
+        probe.remove()
+        if wide <= width_px:
+            break
+    return text, text.count("\n") + 1
+
+
 def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
                   title: str | None = None, palette: str = "bom",
                   colours: np.ndarray | None = None) -> None:
@@ -226,12 +241,16 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     dpi = 100
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=BACKGROUND_RGB)
     FigureCanvasAgg(fig)
-    top_margin = 0.93 if title else 0.99
+    top_margin = 0.99
+    if title:
+        fontsize = min(16.0, max(7.0, 0.03 * height))
+        text, lines = _fitted(fig, _drawable(title), fontsize, 0.98 * width)
+        line_px = fontsize * 1.25 * dpi / 72
+        top_margin = 1.0 - (lines * line_px + 0.03 * height) / height
+        fig.text(0.5, 1.0 - (lines * line_px / 2 + 0.015 * height) / height, text, ha="center",
+                 va="center", parse_math=False, fontsize=fontsize, multialignment="center")
     ax = fig.add_axes((0.01, 0.01, 0.98, top_margin - 0.01))
     ax.set_axis_off()
-    if title:
-        fig.text(0.5, 0.965, _drawable(title), ha="center", va="center", parse_math=False,
-                 fontsize=min(16.0, max(7.0, 0.03 * height)))
 
     if not layout.bricks:
         ax.text(0.5, 0.5, "no bricks", ha="center", va="center", fontsize=14,

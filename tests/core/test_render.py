@@ -105,3 +105,18 @@ def test_bad_arguments(tmp_path):
         render_layout(staircase(), tmp_path / "a.png", size_px="big")
     with pytest.raises(FileNotFoundError):
         render_layout(staircase(), tmp_path / "missing" / "a.png")
+
+
+@pytest.mark.parametrize("size", [(1200, 900), (400, 300)])
+def test_a_long_title_is_broken_into_lines_that_stay_inside_the_picture(tmp_path, size):
+    """The stress picture's title of a failing bunny (119 characters) is wider than the
+    picture on one line: it goes on more lines, each inside the picture.  Drawn over no
+    bricks (the words "no bricks" are grey), every dark pixel is the title's."""
+    title = ("stanford_bunny_open.obj on a baseplate, 554 g: 21 brick(s) fail, worst utilisation 2.41 "
+             "(dark 0, red 1, white failing)")
+    render_layout(layout_of([], (2, 2, 2)), tmp_path / "a.png", size_px=size, title=title)
+    dark = pixels(tmp_path / "a.png").sum(axis=-1) < 300
+    rows, cols = np.flatnonzero(dark.any(axis=1)), np.flatnonzero(dark.any(axis=0))
+    assert cols.min() > 2 and cols.max() < size[0] - 3   # not cut at either side
+    assert rows.max() < 0.2 * size[1]                    # above the picture
+    assert (np.diff(rows) > 1).sum() >= 1                # more than one line of text
