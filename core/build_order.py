@@ -118,9 +118,9 @@ class BuildOrder:
     earlier than planned so that the build stands; ``graph_only_why`` why the steps
     with a NaN utilisation were checked by the brick graph only ("" when told by
     the number of bodies alone); ``props`` the temporary supports the build needs
-    ({"step", "cell", "plates", "parts", "under", "box_mm", "removed_after"}: a
+    ({"step", "cell", "plates", "parts", "under", "on", "box_mm", "removed_after"}: a
     column of ``plates`` plates (``parts``: design number -> count) stood on the
-    table under ``cell`` before step ``step``, under the brick ``under``, filling
+    ``on`` (table or baseplate) under ``cell`` before step ``step``, under the brick ``under``, filling
     ``box_mm`` (min and max corner in the model's coordinates), taken away after
     step ``removed_after``, None when the finished build still needs it or,
     ``closed_in``, when the build closes it in before it can go).
@@ -448,7 +448,7 @@ FRAGILE = forces.FRAGILE
 
 
 def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD,
-             props: bool = False) -> BuildOrder:
+             props: bool = False, ground: str = "table") -> BuildOrder:
     """``order`` changed so that the partial build after every step stands, where it can.
 
     ``stands(present)`` says whether the bricks ``present`` (a bool per brick
@@ -468,7 +468,8 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     check's).  Else the planned step anyway, recorded
     in ``unstable`` with the reason.  Promises: the same steps with the same
     bricks, renumbered 1..n in their new order; ``utilisation`` per step (with the props
-    standing then); ``props`` as :class:`BuildOrder` says; the
+    standing then); ``props`` as :class:`BuildOrder` says, each ``on`` the ``ground`` that
+    ``stands`` checks on (``table`` or ``baseplate``); the
     order is ``order``'s wherever every prefix stands.  ``order`` is not changed.
     """
     if not order.steps:
@@ -487,7 +488,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
 
     def spotted() -> _Spots:
         if not spots:
-            spots.append(_Spots(layout))
+            spots.append(_Spots(layout, ground))
         return spots[0]
 
     def placeable(n: int) -> bool:
@@ -568,11 +569,12 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
 
 class _Spots:
     """Where a layout can be propped: the cells with nothing under them down to the
-    ground (a prop is a column of 1x1 bricks and plates on the table under such a cell),
+    ground (a prop is a column of 1x1 bricks and plates on the table or baseplate under such a cell),
     and how far each is from the nearest cell of its layer on a full column."""
 
-    def __init__(self, layout: Layout):
+    def __init__(self, layout: Layout, ground: str = "table"):
         self.layout = layout
+        self.ground = ground
         self.lab = layout.labels()
         filled = self.lab >= 0
         under = np.zeros_like(filled)
@@ -653,7 +655,7 @@ class _Spots:
         lo = np.asarray(self.layout.grid.origin, dtype=float) + np.array([cell[0], cell[1], 0]) * size
         hi = lo + np.array([size[0], size[1], plates * size[2]])
         return {"step": number, "cell": [int(c) for c in cell], "plates": plates,
-                "parts": parts, "under": int(brick_id),
+                "parts": parts, "under": int(brick_id), "on": self.ground,
                 "box_mm": [[round(float(v), 3) for v in lo], [round(float(v), 3) for v in hi]]}
 
 
@@ -675,7 +677,7 @@ def prop_words(layout: Layout, prop: dict) -> str:
              else "the build closes it in before it can go: it stays inside" if prop.get("closed_in")
              else "the finished build still needs it")
     return (f"before step {prop['step']}, stand a prop {prop['plates']} plate(s) tall ({stack}) on "
-            f"the table under stud {i - brick.cell[0] + 1},{j - brick.cell[1] + 1} of the "
+            f"the {prop.get('on', 'table')} under stud {i - brick.cell[0] + 1},{j - brick.cell[1] + 1} of the "
             f"{part.name if part else brick.part} (brick {brick.id}; x {at[0]:.0f}, y {at[1]:.0f} mm); "
             f"{until}")
 

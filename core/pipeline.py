@@ -297,7 +297,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     if forces_stage.build_unchecked(force) is None:
         checker = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings)
         order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands,
-                      props=True)
+                      props=True, ground=req.ground)
         order = dataclasses.replace(order, graph_only_why=checker.why or "")
     layout = build_order.numbered(layout, order)
     iteration = None

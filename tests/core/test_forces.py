@@ -329,7 +329,7 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
                                  checker.stands, props=True)
     assert order.unstable == [] and order.utilisation == [0.0, 0.0, 0.0]
     assert order.props == [{"step": 3, "cell": [0, 0, 3], "plates": 3, "parts": {"3005": 1},
-                            "under": 3, "box_mm": [[0, 0, 0], [8, 8, 9.6]], "removed_after": None,
+                            "under": 3, "on": "table", "box_mm": [[0, 0, 0], [8, 8, 9.6]], "removed_after": None,
                             "closed_in": False}]
     words = instructions.step_warnings(order, layout)[3]
     assert words.startswith("Prop: before step 3, stand a prop 3 plate(s) tall (1 x Brick 1 x 1 "
@@ -342,7 +342,7 @@ def built_without_and_with_props(lay: Layout, ground: str):
     from core import build_order
     plan = build_order.plan(lay, bricks_per_step=1)
     return tuple(build_order.standing(lay, plan, forces.BuildChecker(lay, ground=ground).stands,
-                                      props=props) for props in (False, True))
+                                      props=props, ground=ground) for props in (False, True))
 
 
 def test_a_bridge_too_long_for_its_halves_is_closed_on_a_baseplate_over_a_prop():
@@ -358,6 +358,9 @@ def test_a_bridge_too_long_for_its_halves_is_closed_on_a_baseplate_over_a_prop()
     assert prop["step"] == bare.unstable[0]["step"]
     assert prop["removed_after"] == len(order.steps)                    # once it is closed
     assert abs(prop["cell"][0] - lay.grid.shape[0] / 2) <= 8             # near the middle
+    from core import build_order
+    assert prop["on"] == "baseplate"
+    assert " on the baseplate under stud " in build_order.prop_words(build_order.numbered(lay, order), prop)
 
 
 def test_a_bridge_on_a_table_is_built_on_props_taken_away_when_it_is_closed():
