@@ -135,7 +135,7 @@ def _calibration_parser(sub) -> None:
 
 def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
-    request.add_options(p, ("units", "scale", "seed", "parts", "effort", "lower_bound", "high_res",
+    request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
                             "clutch_n", "hollow"),
                         units=request.UNITS)

@@ -1908,7 +1908,8 @@ class _Model:
                 "would_lean_deg": None if lean is None else round(lean, 1),
                 "why": (f"The build ({bricks} bricks) {fall} on a table: its centre of mass lies "
                         f"{beyond * self.unit:.1f} mm beyond the outline of its bottom layer. Build "
-                        "it on a baseplate, weigh down or widen its base, or lay it on another side")}
+                        "it on a baseplate, weigh down or widen its base, or lay it on another side "
+                        "(--up, or the object's Placement in FreeCAD)")}
 
     def _table(self, prog, eq, present: np.ndarray, rest: bool = True):
         """Bodies on a table press down where the build rests (:meth:`resting`; the other

@@ -87,13 +87,13 @@ def box_cells(grid: Grid, box) -> np.ndarray:
     return out
 
 
-def load_region(region, units: str = "mm", scale: float = 1.0) -> mesh_io.LoadedModel:
+def load_region(region, units: str = "mm", scale: float = 1.0, up: str = "z") -> mesh_io.LoadedModel:
     """A region solid: ``region`` itself when already loaded, else the file loaded like a
-    model (:func:`core.mesh_io.load_model`, where it stands: the driver moves it with its
-    model); InputError for a file that cannot be loaded."""
+    model (:func:`core.mesh_io.load_model`, turned as its model, where it stands: the driver
+    moves it with its model); InputError for a file that cannot be loaded."""
     if isinstance(region, mesh_io.LoadedModel):
         return region
-    return mesh_io.load_model(region, units=units, scale=scale, recentre=False)
+    return mesh_io.load_model(region, units=units, scale=scale, recentre=False, up=up)
 
 
 def solid_cells(grid: Grid, path, units: str = "mm",

@@ -117,16 +117,17 @@ class Iteration:
     rings: int
 
 
-def reusable(previous: Previous, units: str, scale: float, seed: int) -> str | None:
-    """Why the run (``units``, ``scale``, ``seed``) cannot be an iteration on
+def reusable(previous: Previous, units: str, scale: float, seed: int, up: str = "z") -> str | None:
+    """Why the run (``units``, ``scale``, ``seed``, ``up``) cannot be an iteration on
     ``previous``, or None when it can.
 
     A different seed asks for a different layout, different units or scale
-    for a different object; a snapshot that does not record them (an older
-    version) can always be iterated on.
+    for a different object, a different up axis for the object built on another
+    side; a snapshot that does not record them (an older version) can always be
+    iterated on.
     """
     settings = previous.state.get("settings") or {}
-    for name, value in (("units", units), ("scale", float(scale)), ("seed", int(seed))):
+    for name, value in (("units", units), ("scale", float(scale)), ("seed", int(seed)), ("up", up)):
         if name in settings and settings[name] != value:
             return f"the {name} changed from {settings[name]!r} to {value!r}"
     return None

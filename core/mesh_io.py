@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import connected_components
 from core import output_dir
 from core.errors import InputError, shown_path
 from core.model import CELL_MM
-from core.request import UNITS
+from core.request import UNITS, UP_AXES
 
 #: Length of one file unit in mm, for ``load_model(units=...)``.
 
@@ -98,10 +98,11 @@ class LoadedModel:
 
 
 def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
-               tolerance_mm: float = 0.05, recentre: bool = True) -> LoadedModel:
+               tolerance_mm: float = 0.05, recentre: bool = True, up: str = "z") -> LoadedModel:
     """Load the model at ``path`` and repair it.
 
-    Coordinates are multiplied by ``UNITS[units] * scale``.  B-rep input
+    Coordinates are multiplied by ``UNITS[units] * scale`` and turned about the
+    origin by ``UP_AXES[up]``, so that the file's axis ``up`` points along +z.  B-rep input
     (STEP, BREP, FCStd) is tessellated at linear deflection ``tolerance_mm`` (in
     mm, after scaling).  Raises :class:`InputError` with a one-line message
     for a missing, empty, unreadable or unsupported file, bad units or
@@ -119,6 +120,9 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     it and moved with their model).
     """
     factor = _unit_factor(units, scale)
+    if up not in UP_AXES:
+        raise InputError(f"unknown up axis {up!r}: use one of {', '.join(UP_AXES)}")
+    turn = np.array(UP_AXES[up], dtype=float)
     if not (isinstance(tolerance_mm, (int, float)) and math.isfinite(tolerance_mm)
             and tolerance_mm > 0):
         raise ValueError(f"tolerance_mm must be a positive number of mm, not {tolerance_mm!r}")
@@ -130,12 +134,12 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     if fmt in ("step", "brep", "fcstd"):
         readers = {"step": _read_step, "brep": _read_brep}
         shape = readers[fmt](file) if fmt in readers else _read_fcstd(file, warnings)
-        brep = _scaled_shape(shape, factor, file.name)
+        brep = _scaled_shape(shape, factor, file.name, turn)
         vertices, faces = _tessellate(brep, tolerance_mm, file.name)
     else:
         vertices, faces = _read_mesh(file, fmt, read)
         with np.errstate(over="ignore", invalid="ignore"):    # non-finite: _check_arrays says so
-            vertices = vertices * factor
+            vertices = (vertices * factor) @ turn.T
     _check_arrays(vertices, faces, file.name)
     triangles = len(faces)
     mesh, repaired = repair(vertices, faces, file.name, report_merges=fmt in ("obj", "ply", "3mf"))
@@ -402,15 +406,18 @@ def _read_brep(file: Path):
     return _solids(shape, file.name, "the BREP file")
 
 
-def _scaled_shape(shape, factor: float, name: str):
-    """``shape`` scaled by ``factor`` about the origin (the shape itself if 1)."""
-    if factor == 1.0:
+def _scaled_shape(shape, factor: float, name: str, turn: np.ndarray | None = None):
+    """``shape`` scaled by ``factor`` and turned by the rotation ``turn`` (3 x 3) about the
+    origin (the shape itself if neither changes it)."""
+    turn = np.eye(3) if turn is None else np.asarray(turn, dtype=float)
+    if factor == 1.0 and np.array_equal(turn, np.eye(3)):
         return shape
     from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-    from OCP.gp import gp_Pnt, gp_Trsf
+    from OCP.gp import gp_Trsf
 
     trsf = gp_Trsf()
-    trsf.SetScale(gp_Pnt(0.0, 0.0, 0.0), factor)
+    m = factor * turn
+    trsf.SetValues(*m[0], 0.0, *m[1], 0.0, *m[2], 0.0)
     try:
         return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
     except Exception as exc:

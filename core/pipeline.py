@@ -177,8 +177,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         return value
 
     chosen = catalog.select(req.parts)
-    model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale)
-    loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale)
+    model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale,
+                  up=req.up)
+    loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale, up=req.up)
               for p in req.high_res_solids]
     regions = high_res_stage.Regions.of(req.high_res, loaded)
     if any(model.offset_mm):
@@ -190,7 +191,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     before = alignment = None
     if req.previous is not None:
         before = timed("previous", 0.03, result.load_previous, req.previous)
-        why = iterate_stage.reusable(before, req.units, req.scale, req.seed)
+        why = iterate_stage.reusable(before, req.units, req.scale, req.seed, req.up)
         if why is None:
             alignment, aligned = timed("align", 0.05, iterate_stage.align_to, before, model)
             if iterate_moved_out(req, alignment):
@@ -582,6 +583,9 @@ def report(fab: Fabrication) -> dict:
         "model": {
             "path": str(m.path),
             "format": m.format,
+            "units": fab.request.units,
+            "scale": float(fab.request.scale),
+            "up": fab.request.up,
             "triangles": int(m.triangles),
             "watertight": bool(m.watertight),
             "repaired": list(m.repaired),
@@ -719,7 +723,8 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     settings = state.get("settings") or {}
     fit = state.get("fit") or {}
     req = Request(model=str(doc["model"]["path"]), units=settings.get("units", "mm"),
-                  scale=float(settings.get("scale", 1.0)), seed=int(state.get("seed", 0)),
+                  scale=float(settings.get("scale", 1.0)), up=settings.get("up", "z"),
+                  seed=int(state.get("seed", 0)),
                   stud_fit=float(fit.get("stud_fit", Fit.stud_fit)),
                   socket_fit=float(fit.get("socket_fit", Fit.socket_fit)),
                   seconds_per_brick=float(doc.get("seconds_per_brick", Request.seconds_per_brick)),

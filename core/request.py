@@ -27,6 +27,12 @@ EFFORTS = ("fast", "normal", "best")
 
 #: Unit names a model file's coordinates may be in, and their size in mm.
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+#: The model axis that points up -> the rotation (rows: the turned x, y, z) that turns it to
+#: +z: a quarter turn about x for y and -y, about y for x and -x, a half turn for -z.
+#: Meshes are often y-up (OBJ scans such as the Stanford bunny); a build stands on z = 0.
+UP_AXES = {"z": ((1, 0, 0), (0, 1, 0), (0, 0, 1)), "y": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
+           "-y": ((1, 0, 0), (0, 0, 1), (0, -1, 0)), "x": ((0, 0, -1), (0, 1, 0), (1, 0, 0)),
+           "-x": ((0, 0, 1), (0, 1, 0), (-1, 0, 0)), "-z": ((1, 0, 0), (0, -1, 0), (0, 0, -1))}
 #: The --scale factors accepted: beyond them a model is nanometres or light years across.
 SCALE_RANGE = (1e-6, 1e6)
 #: A --load box is clipped to this reach (mm) on every side: a box of 1e308 mm means the
@@ -63,6 +69,10 @@ class Request:
     model: str = _setting("", "the model file")
     units: str = _setting("mm", "unit of the file's coordinates", "--units")
     scale: float = _setting(1.0, "extra scale factor applied after --units", "--scale", "S")
+    up: str = _setting("z", "the model's axis that points up (z, y, x, -z, -y, -x): the model is "
+                            "turned so that it points along +z before anything else; --high-res and "
+                            "--load boxes are in the turned model's coordinates, as layout.json is",
+                       "--up", "AXIS")
     seed: int = _setting(0, "seed of the layout (same seed, same layout)", "--seed", "N")
     parts: str | None = _setting(None, "brick set: all, plates, bricks, design numbers (3001,3024) "
                                        "or plate2x4-style names, comma-separated; must contain 3024",
@@ -145,7 +155,7 @@ class Request:
         """This request with its values normalised (tuples, floats, str paths).
 
         Raises :class:`InputError` with one line naming the first setting
-        out of range: units not in :data:`UNITS`, a hollow setting not in -1..64, scale not a positive finite
+        out of range: units not in :data:`UNITS`, an up axis not in :data:`UP_AXES`, a hollow setting not in -1..64, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
         palette :func:`core.colours.check_palette` refuses, an effort not in
         :data:`EFFORTS`, a
@@ -156,6 +166,8 @@ class Request:
             raise InputError("no model file given")
         if self.units not in UNITS:
             raise InputError(f"--units {self.units!r} is not a unit: use one of {', '.join(UNITS)}")
+        if self.up not in UP_AXES:
+            raise InputError(f"--up {self.up!r} is not an axis: use one of {', '.join(UP_AXES)}")
         if not _number(self.scale) or not (math.isfinite(self.scale) and self.scale > 0):
             raise InputError(f"--scale {self.scale!r} must be a positive number")
         if not SCALE_RANGE[0] <= self.scale <= SCALE_RANGE[1]:

@@ -71,7 +71,7 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
                       "weak_points": list(st.weak_points)},
         "brick_set": [p.number for p in fab.parts],
         "seed": fab.seed,
-        "settings": {"units": req.units, "scale": float(req.scale), "seed": int(req.seed)},
+        "settings": {"units": req.units, "scale": float(req.scale), "up": req.up, "seed": int(req.seed)},
         "fit": dataclasses.asdict(req.fit),
         "regions": {"boxes": [np.asarray(b, dtype=float).tolist() for b in fab.regions.boxes],
                     "solids_closed": [bool(c) for _, c in fab.regions.solids]},

@@ -115,6 +115,22 @@ def test_bad_parts_and_units(box_stl, tmp_path):
                    "3024")
     assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--units", "ft"))
     assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--scale", "-1"))
+    assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--up", "w"),
+                   "--up 'w' is not an axis: use one of z, y, -y, x, -x, -z")
+
+
+def test_up_turns_the_model_before_the_layout(tmp_path):
+    """A 16 x 16 x 48 mm column lying along y in the file: with --up y it stands 48 mm tall
+    (15 plate layers of 3.2 mm) on a 2 x 2 stud footprint, and report.json records the axis."""
+    column = tmp_path / "column.stl"
+    trimesh.creation.box((16.0, 48.0, 16.0)).export(column)
+    out = tmp_path / "o"
+    proc = fabricate(str(column), "--out", str(out), "--no-picture", "--up", "y")
+    assert proc.returncode == 0, proc.stderr
+    layout = json.loads((out / "layout.json").read_text())
+    assert layout["shape"] == [2, 2, 15]
+    model = json.loads((out / "report.json").read_text())["model"]
+    assert (model["units"], model["scale"], model["up"], model["bbox_mm"]) == ("mm", 1.0, "y", [16.0, 16.0, 48.0])
 
 
 def test_out_folder_with_foreign_files_is_kept(box_stl, tmp_path):

@@ -593,3 +593,64 @@ def test_bad_brep_files_are_refused_in_one_line(tmp_path):
     face.write_bytes(sketch_brep())
     with pytest.raises(InputError, match="face.brep: the BREP file contains no solid"):
         load_model(face)
+
+
+# --- which axis is up ------------------------------------------------------------
+
+#: Each up axis and trimesh's own rotation that takes it to +z (angle, axis).
+TURNS = {"z": (0.0, (1, 0, 0)), "y": (np.pi / 2, (1, 0, 0)), "-y": (-np.pi / 2, (1, 0, 0)),
+         "x": (-np.pi / 2, (0, 1, 0)), "-x": (np.pi / 2, (0, 1, 0)), "-z": (np.pi, (1, 0, 0))}
+
+
+@pytest.mark.parametrize("up", list(TURNS))
+def test_up_turns_a_mesh_so_that_its_axis_points_up(tmp_path, up):
+    """A 10 x 20 x 30 mm box centred at (100, 0, 0) in cm: loaded with ``up``, its vertices
+    are those trimesh's rotation about the origin gives (after the x10 of cm), its volume
+    is kept, and the file's ``up`` direction (the box's (100, 0, 0) offset for x) is +z."""
+    box = trimesh.creation.box((1.0, 2.0, 3.0))
+    box.apply_translation((10.0, 0.0, 0.0))
+    box.export(tmp_path / "box.stl")
+    model = load_model(tmp_path / "box.stl", units="cm", up=up)
+    want = box.copy()
+    want.apply_scale(10.0)
+    want.apply_transform(trimesh.transformations.rotation_matrix(TURNS[up][0], TURNS[up][1]))
+    assert np.allclose(model.mesh.bounds, want.bounds, atol=1e-4)
+    assert model.mesh.volume == pytest.approx(6000.0, rel=1e-6)
+    axis = {"x": 0, "y": 1, "z": 2}[up.lstrip("-")]
+    sign = -1.0 if up.startswith("-") else 1.0
+    direction = np.zeros(3)
+    direction[axis] = sign
+    turned = trimesh.transformations.rotation_matrix(TURNS[up][0], TURNS[up][1])[:3, :3] @ direction
+    assert np.allclose(turned, (0, 0, 1), atol=1e-12)
+
+
+def test_up_turns_a_solid_and_its_mesh_alike(tmp_path):
+    """A STEP box 10 x 20 x 30 mm with up y: the B-rep and its tessellation are 10 x 30 x 20,
+    and the solid keeps its 6000 mm³ (OCC's own volume)."""
+    import cadquery as cq
+    path = tmp_path / "box.step"
+    cq.exporters.export(cq.Workplane().box(10, 20, 30), str(path))
+    model = load_model(path, up="y")
+    assert np.allclose(model.mesh.extents, (10.0, 30.0, 20.0), atol=1e-6)
+    assert cq.Shape.cast(model.brep).Volume() == pytest.approx(6000.0, rel=1e-9)
+    bb = cq.Shape.cast(model.brep).BoundingBox()
+    assert (bb.xlen, bb.ylen, bb.zlen) == pytest.approx((10.0, 30.0, 20.0), abs=1e-3)
+
+
+def test_an_unknown_up_axis_is_refused():
+    with pytest.raises(InputError, match="unknown up axis 'w': use one of z, y, -y, x, -x, -z"):
+        load_model(Path(__file__), up="w")
+
+
+def test_the_bunny_stands_upright_on_a_table_with_up_y():
+    """The Stanford bunny's file is y-up: as given (z up) it lies on its side on a 2 x 3 stud
+    foot and tips over on a table; turned with up y it sits on its base and stands (the
+    force check of the greedy layout, on a table)."""
+    from core import forces, layout as layout_stage, voxelize
+    path = models_or_skip() / "stanford_bunny_open.obj"
+    verdicts = {}
+    for up in ("z", "y"):
+        model = load_model(path, units="m", up=up)
+        grid = voxelize.legofy(model.mesh, closed=model.watertight)
+        verdicts[up] = forces.analyse(layout_stage.lay_out(grid), ground="table").stable
+    assert verdicts == {"z": False, "y": True}
