@@ -429,6 +429,22 @@ class TestFabrication(FabrickatorTestCase):
         self.assertTrue(parts[0].Shape.isClosed())
         self.assertGreater(parts[0].Shape.Volume, 0.0)
 
+    def test_a_mesh_turned_upright_by_its_placement_is_built_as_the_cli_builds_it_with_up(self):
+        """A 16 x 48 x 16 mm mesh box lying along y, turned upright by its Placement (a quarter
+        turn about x): the Fabrication stands it 15 plate layers tall on 2 x 2 studs, as
+        ``fabricate --up y`` builds the same box lying in a file (tests/core/test_cli.py)."""
+        import Mesh
+
+        mesh = self.doc.addObject("Mesh::Feature", "Lying")
+        mesh.Mesh = Mesh.createBox(16.0, 48.0, 16.0)
+        mesh.Placement = App.Placement(App.Vector(0, 0, 0), App.Rotation(App.Vector(1, 0, 0), 90))
+        self.doc.recompute()
+        f = fab().make_fabrication(mesh)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(json.loads(f.LayoutJson)["shape"], [2, 2, 15])
+        self.assertEqual(f.Plates, 2 * 2 * 15)
+
     def test_failed_recompute_keeps_the_result_and_the_parameters(self):
         body, _, _ = padded_body(self.doc)
         f = fab().make_fabrication(body, brick_set="all")
