@@ -239,20 +239,30 @@ def test_leocad_reads_steps_and_embedded_printed_parts(hmd, tmp_path):
     assert np.allclose(v.min(axis=0), lo) and np.allclose(v.max(axis=0), hi)
 
 
+def propped_tower(capped: bool) -> tuple[Layout, dict]:
+    """A 2x4 brick (step 4) on a tower of a 2x2 brick and two 2x2 plates (steps 1-3), over
+    air by two studs, with (``capped``) a 2x2 brick on top in step 5; and a prop 5 plates
+    tall (a 1x1 brick on two 1x1 plates) under its stud (3, 0), stood before step 4 and
+    taken away after it."""
+    bricks = [Brick(0, "3003", (2, 2, 3), (0, 0, 0), step=1), Brick(1, "3022", (2, 2, 1), (0, 0, 3), step=2),
+              Brick(2, "3022", (2, 2, 1), (0, 0, 4), step=3), Brick(3, "3001", (4, 2, 3), (0, 0, 5), step=4)]
+    bricks += [Brick(4, "3003", (2, 2, 3), (0, 0, 8), step=5)] if capped else []
+    filled = np.zeros((4, 2, 11 if capped else 8), dtype=bool)
+    for b in bricks:
+        filled[b.slices()] = True
+    prop = {"step": 4, "cell": [3, 0, 5], "plates": 5, "parts": {"3005": 1, "3024": 2}, "under": 3,
+            "removed_after": 4, "closed_in": False}
+    return Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), bricks), prop
+
+
 def test_a_prop_is_in_its_step_stacked_from_the_table_and_leocad_hides_it_when_it_goes(tmp_path):
     """A 2x4 brick on a tower of a 2x2 brick and two 2x2 plates, over air by two studs: a
     prop 5 plates tall (a 1x1 brick on two 1x1 plates) under its stud (3, 0), stood before
     step 4 and taken away after it.  Its three parts are in step 4, plates at the bottom
     (plate layers 0 and 1, the brick 2..4), each after LeoCAD's ``STEP_HIDE 5``; the
     bricks round-trip as before."""
-    bricks = [Brick(0, "3003", (2, 2, 3), (0, 0, 0), step=1), Brick(1, "3022", (2, 2, 1), (0, 0, 3), step=2),
-              Brick(2, "3022", (2, 2, 1), (0, 0, 4), step=3), Brick(3, "3001", (4, 2, 3), (0, 0, 5), step=4)]
-    filled = np.zeros((4, 2, 8), dtype=bool)
-    for b in bricks:
-        filled[b.slices()] = True
-    lay = Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), bricks)
-    prop = {"step": 4, "cell": [3, 0, 5], "plates": 5, "parts": {"3005": 1, "3024": 2}, "under": 3,
-            "removed_after": 4, "closed_in": False}
+    lay, prop = propped_tower(capped=False)
+    bricks, filled = lay.bricks, lay.grid.filled
     text = ldraw.write(lay, [], [[0], [1], [2], [3]], tmp_path / "a.mpd", props=[prop]).read_text()
     assert "0 // prop under brick 3: stand it before this step; take it away after step 4" in text
     assert text.count("0 !LEOCAD PIECE STEP_HIDE 5") == 3
@@ -293,16 +303,8 @@ def test_leocad_shows_a_prop_in_its_step_and_hides_it_once_it_is_taken_away(tmp_
     if leocad is None or xvfb is None:
         pytest.skip("leocad or xvfb-run not installed (apt-get install leocad xvfb)")
     from PIL import Image
-    bricks = [Brick(0, "3003", (2, 2, 3), (0, 0, 0), step=1), Brick(1, "3022", (2, 2, 1), (0, 0, 3), step=2),
-              Brick(2, "3022", (2, 2, 1), (0, 0, 4), step=3), Brick(3, "3001", (4, 2, 3), (0, 0, 5), step=4),
-              Brick(4, "3003", (2, 2, 3), (0, 0, 8), step=5)]
-    filled = np.zeros((4, 2, 11), dtype=bool)
-    for b in bricks:
-        filled[b.slices()] = True
-    lay = Layout(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), bricks)
-    prop = {"step": 4, "cell": [3, 0, 5], "plates": 5, "parts": {"3005": 1, "3024": 2}, "under": 3,
-            "removed_after": 4, "closed_in": False}
-    path = ldraw.write(lay, [], [[b.id] for b in bricks], tmp_path / "a.mpd", props=[prop])
+    lay, prop = propped_tower(capped=True)
+    path = ldraw.write(lay, [], [[b.id] for b in lay.bricks], tmp_path / "a.mpd", props=[prop])
     run = subprocess.run([xvfb, "-a", leocad, "-l", str(box_library(tmp_path / "ldraw")), "-i",
                           str(tmp_path / "s.png"), "-w", "320", "-h", "240", "-f", "4", "-t", "5",
                           "--viewpoint", "front", str(path)], capture_output=True, text=True, timeout=120,
