@@ -134,7 +134,7 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     if fmt in ("step", "brep", "fcstd"):
         readers = {"step": _read_step, "brep": _read_brep}
         shape = readers[fmt](file) if fmt in readers else _read_fcstd(file, warnings)
-        brep = _scaled_shape(shape, factor, file.name, turn)
+        brep = _scaled_turned_shape(shape, factor, file.name, turn)
         vertices, faces = _tessellate(brep, tolerance_mm, file.name)
     else:
         vertices, faces = _read_mesh(file, fmt, read)
@@ -406,7 +406,7 @@ def _read_brep(file: Path):
     return _solids(shape, file.name, "the BREP file")
 
 
-def _scaled_shape(shape, factor: float, name: str, turn: np.ndarray | None = None):
+def _scaled_turned_shape(shape, factor: float, name: str, turn: np.ndarray | None = None):
     """``shape`` scaled by ``factor`` and turned by the rotation ``turn`` (3 x 3) about the
     origin (the shape itself if neither changes it)."""
     turn = np.eye(3) if turn is None else np.asarray(turn, dtype=float)
