@@ -495,6 +495,9 @@ class _Warm:
         self.highs = prog.highs(simplex=True)
         self.present = np.ones(m.nbody, dtype=bool)
         self.basis = None
+        #: solver iterations so far: the simplex's and crossover's, and the interior point's
+        #: at :data:`IPM_ITERATION_WORK` each
+        self.work = 0
         self._ok = highspy.HighsModelStatus.kOptimal
 
     def factor_of(self, body_present: np.ndarray, propped: np.ndarray | None = None) -> float | None:
@@ -536,6 +539,9 @@ class _Warm:
             h.setOptionValue("solver", "ipm")
             h.setOptionValue("run_crossover", "on")
         _run(h)
+        info = h.getInfo()
+        self.work += (max(info.simplex_iteration_count, 0) + max(info.crossover_iteration_count, 0)
+                      + IPM_ITERATION_WORK * max(info.ipm_iteration_count, 0))
         if cold:
             h.setOptionValue("solver", "simplex")
             h.setOptionValue("run_crossover", "choose")
@@ -586,17 +592,20 @@ class BuildChecker:
     it finds above :data:`FRAGILE` is solved again with the whole program.
     Past :data:`MAX_BODIES` bodies no program is solved: a set that would need
     one is checked by the brick graph only (:func:`graph_only_why`); so are the
-    sets asked about once the programs have taken ``budget_s`` seconds in all
-    (None: :data:`BUILD_BUDGET_S`; :attr:`why` then says so).
+    sets asked about once the programs have done more than ``budget`` units of work in
+    all (:attr:`work`; None: :data:`BUILD_BUDGET`; :attr:`why` then says so).  The work is
+    counted in the solver's iterations, not in seconds, so the same build gets the same
+    answers on a busy machine as on an idle one.
     """
 
     def __init__(self, layout: Layout, ground: str = "table", printed=(), clamp=None,
                  clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None,
-                 budget_s: float | None = None):
+                 budget: int | None = None):
         self.layout = layout
         self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
         self.model.propping = True
-        self.budget_s = BUILD_BUDGET_S if budget_s is None else budget_s
+        self.budget = BUILD_BUDGET if budget is None else budget
+        #: seconds the programs took in all (reported; the budget counts :attr:`work`)
         self.seconds = 0.0
         #: why sets that need a program are checked by the graph only (None: they are not)
         self.why: str | None = None if self.model.nbody <= MAX_BODIES else graph_only_why(
@@ -662,11 +671,12 @@ class BuildChecker:
             return True, 0.0                     # every present cell rests on a present cell
         if not self._held(present):
             return False, math.inf
-        if self.programs and self.seconds > self.budget_s:
+        if self.programs and self.work > self.budget:
             self.programs = False
             self.why = (f"{m.nbody} bricks and printed parts: the programs of the partial builds "
-                        f"took {self.seconds:.0f} s in all, past the {self.budget_s:.0f} s they "
-                        "are given; from here on " + _GRAPH_ONLY)
+                        f"ran {self.work:,} solver iterations in all, more than the "
+                        f"{self.budget:,} they are given (about a minute); from here on "
+                        + _GRAPH_ONLY)
         if not self.programs:
             return True, math.nan
         start = time.perf_counter()
@@ -674,6 +684,13 @@ class BuildChecker:
             return self._programs(present, propped)
         finally:
             self.seconds += time.perf_counter() - start
+
+    @property
+    def work(self) -> int:
+        """The programs' work so far: the iterations of every solve (:attr:`_Warm.work`),
+        and :data:`FRESH_WORK` for each set solved by a program of its own."""
+        warm = [w for w in (self._whole, self._sub and self._sub[0]) if w is not None]
+        return sum(w.work for w in warm) + FRESH_WORK * self.fresh
 
     def _programs(self, present: np.ndarray, propped: np.ndarray | None) -> tuple[bool, float]:
         """:meth:`stands` of a set joined to the ground that needs a program (with the table
@@ -883,11 +900,21 @@ MAX_HANGING = 20000
 #: is reported unchecked (the interior point needs minutes on solid, overhanging builds of
 #: thousands of bricks: 371 s for a 3,923-brick HMD shell scaled x5).
 PROGRAM_SECONDS = 120.0
-#: Seconds the programs of one build's partial builds may take in all (:class:`BuildChecker`);
-#: past them the steps that need one are checked by the brick graph only.  A 2,151-brick
-#: connecting rod (Assembly4's, scaled x5) had run its steps' programs for more than 13
-#: minutes, each a whole program of its solid, overhanging body.
-BUILD_BUDGET_S = 60.0
+#: Solver iterations the programs of one build's partial builds may run in all
+#: (:class:`BuildChecker`); past them the steps that need one are checked by the brick graph
+#: only.  A 2,151-brick connecting rod (Assembly4's, scaled x5) had run its steps' programs
+#: for more than 13 minutes, each a whole program of its solid, overhanging body.  Counted
+#: in iterations, not seconds, so that the answer does not depend on the machine's load.
+#: A warm-started iteration took 0.44-0.9 ms on this 2-core machine, beside another job:
+#: the Stanford bunny's 507-brick build runs 74,700 in all (307 programs, 29-54 s); the rod
+#: scaled x5 ran 80,000 in 70 s.  So about a minute.
+BUILD_BUDGET = 100_000
+#: The work of one iteration of the interior point (a cold solve), in simplex iterations:
+#: the bunny's first program, 30 interior-point iterations and 1,579 of crossover, 3.5 s.
+IPM_ITERATION_WORK = 100
+#: The work counted for a set solved by a program of its own (rare: a degenerate set the
+#: warm start cannot answer), in simplex iterations.
+FRESH_WORK = 5_000
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Levels of bricks under the hanging part that the build steps' program of it takes in

@@ -775,8 +775,8 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
         assert checker._missing_outside == len(pairs)
 
 
-def test_steps_past_the_time_budget_are_checked_by_the_graph_and_the_report_says_why():
-    """Once the partial builds' programs have taken the checker's budget, later steps that
+def test_steps_past_the_work_budget_are_checked_by_the_graph_and_the_report_says_why():
+    """Once the partial builds' programs have done the checker's budget of work, later steps that
     need one are NaN (checked by the brick graph); the steps before keep the programs'
     answers, the steps in pure compression stay 0, and the report gives the budget reason."""
     import dataclasses
@@ -786,9 +786,9 @@ def test_steps_past_the_time_budget_are_checked_by_the_graph_and_the_report_says
     full_checker = forces.BuildChecker(lay)
     full = build_order.standing(lay, order, full_checker.stands)
     assert full_checker.why is None and full_checker.solves > 1
-    checker = forces.BuildChecker(lay, budget_s=0.0)
+    checker = forces.BuildChecker(lay, budget=0)
     cut = build_order.standing(lay, order, checker.stands)
-    assert checker.solves == 1 and checker.why and "past the 0 s they are given" in checker.why
+    assert checker.solves == 1 and checker.why and "more than the 0 they are given" in checker.why
     f, c = np.array(full.utilisation), np.array(cut.utilisation)
     assert [s.bricks for s in cut.steps] == [s.bricks for s in full.steps]
     first = int(np.flatnonzero(f > 0)[0])
@@ -796,6 +796,33 @@ def test_steps_past_the_time_budget_are_checked_by_the_graph_and_the_report_says
     assert np.all(np.isnan(c[f > 0][1:])) and np.all(c[f == 0] == 0)
     doc = pipeline.build_stability(dataclasses.replace(cut, graph_only_why=checker.why), len(lay.bricks))
     assert doc["graph_only_why"] == checker.why and doc["first_graph_only_step"] > first + 1
+
+
+def test_the_work_budget_counts_solver_iterations_so_a_slow_machine_gets_the_same_steps(monkeypatch):
+    """The budget of the partial builds' programs is solver iterations, not seconds: with a
+    clock that runs an hour per reading (a very busy machine) the same steps are checked by
+    programs and the same ones by the graph as on this one.  The work is HiGHS's own count
+    of its iterations: the first (cold) program's interior-point and crossover iterations."""
+    import time as clock
+    from core import build_order
+    lay = slab_over_box()
+    order = build_order.plan(lay)
+    first = forces.BuildChecker(lay)
+    first_steps = build_order.standing(lay, order, first.stands)
+    assert first.why is None and first.work > 0
+    budget = first.work * 2 // 3
+    calm = forces.BuildChecker(lay, budget=budget)
+    calm_steps = build_order.standing(lay, order, calm.stands)
+    hours = iter(range(10 ** 9))
+    monkeypatch.setattr(clock, "perf_counter", lambda: 3600.0 * next(hours))
+    busy = forces.BuildChecker(lay, budget=budget)
+    busy_steps = build_order.standing(lay, order, busy.stands)
+    assert busy.solves == calm.solves > 10 and busy.seconds > 3600 * 10 and calm.seconds < 3600
+    c, b = np.array(calm_steps.utilisation), np.array(busy_steps.utilisation)
+    assert np.isnan(c).any() and not np.isnan(np.array(first_steps.utilisation)).any()
+    np.testing.assert_array_equal(np.isnan(c), np.isnan(b))
+    np.testing.assert_allclose(c[~np.isnan(c)], b[~np.isnan(b)])
+    assert calm.why == busy.why and f"more than the {budget:,} they are given" in calm.why
 
 
 def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(monkeypatch):
