@@ -93,7 +93,9 @@ class Effort:
     ``node_limit``: branch-and-bound nodes per window; ``time_limit_s``: the
     safety limit per window; ``layer_cells``: the most studs of one layer window of the
     closing sweep (:meth:`_Search.sweep_layers`; 0: no sweep), ``layer_sweeps``: how many
-    times it sweeps the layers, each time grouping their bricks from another corner.
+    times it sweeps the layers, each time grouping their bricks from another corner;
+    ``weak_windows``: while weak points remain that do not hold a leaf on a one-cell-thin
+    feature, the most windows of ``best``'s sizes tried at the end (:func:`_repair_weak`).
     """
 
     windows_per_cell: float
@@ -108,6 +110,7 @@ class Effort:
     time_limit_s: float
     layer_cells: int
     layer_sweeps: int
+    weak_windows: int = 0
 
 
 #: The first window box tried at every site: so large that the bricks nearest the site fill
@@ -119,12 +122,18 @@ class Effort:
 #: with 1,000 nodes took 430 s on the soap holder, 34 s now), and it tries at most 600.
 NEAREST = (16, 16, 9)
 
+#: ``normal`` ends, while weak points remain that a thin feature does not force, by trying up
+#: to this many windows of ``best``'s sizes, the weak bricks first.  ``normal``'s windows
+#: are too small for some: the Relativty eyes panel kept 1 weak point at 82 bricks (0 at 83
+#: after 120 such windows, 3.5 s), the hw box 3 (2 thin) at 141 (2 thin at 136 after 40, 4.9 s).
+WEAK_WINDOWS = 120
+
 #: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
 #: ``normal``'s result with larger windows (so it is never worse on the key).
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.08, 120, 1000, 200, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)),
-                     0.4, 1500, 500, 200, 10.0, 300, 4),
+                     0.4, 1500, 500, 200, 10.0, 300, 4, WEAK_WINDOWS),
     "best": Effort(0.15, 150, 600, 300, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4),
                                          (8, 8, 4), (6, 6, 6)), 0.4, 2500, 700, 200, 20.0, 300, 4),
 }
@@ -248,7 +257,22 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report, budget)
     search.sweep_layers(level, report)
+    _repair_weak(search, level, report)
     return search.layout(next_id, renumber=False)
+
+
+def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
+    """Up to ``level.weak_windows`` more windows of ``best``'s sizes (weak bricks first, as
+    :meth:`_Search.sites` orders them), while ``search``'s layout has weak points that do not
+    hold a leaf on a one-cell-thin feature (:func:`thin_weak_points`); kept on the key."""
+    def only_thin() -> bool:
+        return search.key[2] <= len(thin_weak_points(search.layout(None, False)))
+
+    if not level.weak_windows or only_thin():
+        return
+    budget = search.windows + level.weak_windows
+    search.run(EFFORT_LEVELS["best"], budget, lambda fraction, message: report(
+        1.0, message.replace("improve: window", "improve: weak point window")), budget, only_thin)
 
 
 def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
@@ -673,10 +697,11 @@ class _Search:
 
     # -- the search ----------------------------------------------------------
 
-    def run(self, level: Effort, budget: int, report: Progress, total: int) -> None:
+    def run(self, level: Effort, budget: int, report: Progress, total: int,
+            enough: Callable[[], bool] | None = None) -> None:
         """Try windows, shape by shape, sites in order of promise, until ``budget`` windows
-        have been tried in all; progress is reported as a share of the ``total`` windows of
-        the whole stage."""
+        have been tried in all (or, after a window is kept, ``enough()`` says so); progress
+        is reported as a share of the ``total`` windows of the whole stage."""
         tried: set[tuple] = set()
         report(min(self.windows / total, 1.0), "improve: windows")
         while self.windows < budget:
@@ -698,6 +723,8 @@ class _Search:
                     self.windows += 1
                     if self.solve(ids, level):
                         self.accepted += 1
+                        if enough is not None and enough():
+                            return
                     report(min(self.windows / total, 1.0),
                            f"improve: window {self.windows}/{total}, {self.key[3]} bricks, "
                            + (f"{self.key[2]} weak points" if self.weak_on else "compacting"))
