@@ -143,11 +143,13 @@ EFFORT_LEVELS = {
                                          (8, 8, 4), (6, 6, 6)), 0.4, 2500, 700, 200, 20.0, 300, 4),
 }
 
-#: ``best`` runs ``normal``'s search from this many seeds (the seed, then the next ones) on
-#: layouts of up to BEST_STARTS_CELLS cells, and goes on from the best result on the key:
-#: the search's result varies with the seed by several per cent in bricks.
-BEST_STARTS = 3
-BEST_STARTS_CELLS = 5_000
+#: ``best`` runs ``normal``'s search from several seeds (the seed, then the next ones) and
+#: goes on from the best result on the key: the search's result varies with the seed by
+#: several per cent in bricks.  (most cells of the layout, seeds), smallest first; larger
+#: layouts one.  Small layouts' ``normal`` takes 2-7 s, so they get 8: from 3 to 8 seeds the
+#: charger stand went 59 -> 58 bricks, the phone holder 53 -> 51, the soap holder 86 -> 84,
+#: the eyes panel 80 -> 79, and 6 others stayed (``best`` then took 17-62 s, two at a time).
+BEST_STARTS = ((1_000, 8), (5_000, 3))
 
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
@@ -202,7 +204,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
     without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
     input, effort and seed give the same layout; ``best`` starts from the best
-    of what ``normal`` gives from :data:`BEST_STARTS` seeds (``seed`` first), so it is
+    of what ``normal`` gives from :func:`best_starts` seeds (``seed`` first), so it is
     never worse on the key.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
     ``progress(fraction, message)`` is called after every window; an
@@ -234,11 +236,14 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
 
 def _starts(name: str, effort: str, layout: Layout) -> int:
     """How many seeds the search of effort level ``name`` runs from when ``effort`` was
-    asked for: :data:`BEST_STARTS` for ``normal``'s within ``best`` on layouts of up to
-    :data:`BEST_STARTS_CELLS` cells, else one."""
-    if effort == "best" and name == "normal" and layout.grid.count <= BEST_STARTS_CELLS:
-        return BEST_STARTS
-    return 1
+    asked for: :func:`best_starts` for ``normal``'s within ``best``, else one."""
+    return best_starts(layout.grid.count) if effort == "best" and name == "normal" else 1
+
+
+def best_starts(cells: int) -> int:
+    """How many seeds ``best`` runs ``normal``'s search from on a layout of ``cells`` cells
+    (:data:`BEST_STARTS`)."""
+    return next((seeds for most, seeds in BEST_STARTS if cells <= most), 1)
 
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
