@@ -402,20 +402,37 @@ def _weak_points_by_networkx(lay: Layout) -> int:
     return len(list(nx.articulation_points(graph)))
 
 
+def _mended(monkeypatch, name: str):
+    """The shared model ``name`` fabricated with ``normal`` (no slicing), and again without its
+    closing weak-point windows (``weak_windows`` 0); skips where the shared models are absent."""
+    import dataclasses
+    from pathlib import Path
+    from core import pipeline
+    model = Path(__file__).resolve().parents[3] / "shared" / "models" / name
+    if not model.exists():
+        pytest.skip(f"{model.parent} is absent: the shared benchmark models are not here")
+    fab = pipeline.run(model, slice_parts=False, picture=False)
+    without = dataclasses.replace(improve.EFFORT_LEVELS["normal"], weak_windows=0)
+    monkeypatch.setitem(improve.EFFORT_LEVELS, "normal", without)
+    return fab.layout, pipeline.run(model, slice_parts=False, picture=False).layout
+
+
 def test_normal_removes_the_eyes_panels_weak_point_with_windows_of_bests_size(monkeypatch):
     """On the Relativty eyes panel ``normal``'s own windows leave one weak point that no thin
     feature forces; its closing windows of ``best``'s sizes remove it (0 weak points, no
     more components).  Weak points are counted by networkx on a brick graph built here."""
-    import dataclasses
-    from pathlib import Path
-    from core import pipeline
-    model = Path(__file__).resolve().parents[3] / "shared" / "models" / "relativty_eyes_panel_open.stl"
-    if not model.exists():
-        pytest.skip(f"{model.parent} is absent: the shared benchmark models are not here")
-    fab = pipeline.run(model, slice_parts=False, picture=False)
-    assert _weak_points_by_networkx(fab.layout) == 0
-    assert improve.quality(fab.layout)[0] == 1 and covers_once(fab.layout)
-    without = dataclasses.replace(improve.EFFORT_LEVELS["normal"], weak_windows=0)
-    monkeypatch.setitem(improve.EFFORT_LEVELS, "normal", without)
-    before = pipeline.run(model, slice_parts=False, picture=False)
-    assert _weak_points_by_networkx(before.layout) == 1 and not improve.thin_weak_points(before.layout)
+    after, before = _mended(monkeypatch, "relativty_eyes_panel_open.stl")
+    assert _weak_points_by_networkx(after) == 0
+    assert improve.quality(after)[0] == 1 and covers_once(after)
+    assert _weak_points_by_networkx(before) == 1 and not improve.thin_weak_points(before)
+
+
+def test_normal_mends_a_weak_point_on_a_thin_feature_too(monkeypatch):
+    """The soap dispenser holder: ``normal``'s own windows leave one weak point, which holds a
+    leaf on a one-cell-thin feature; the closing windows try it too, and cover the feature so
+    that none is left, in one piece, with fewer bricks (counted by networkx here)."""
+    after, before = _mended(monkeypatch, "soap_dispenser_holder.stl")
+    assert _weak_points_by_networkx(before) == 1 and len(improve.thin_weak_points(before)) == 1
+    assert _weak_points_by_networkx(after) == 0
+    assert improve.quality(after)[0] == 1 and covers_once(after)
+    assert len(after.bricks) < len(before.bricks)
