@@ -149,6 +149,8 @@ class Forces:
     sub_structures: int = 0
     bands: int = 0
     bodies: int = 0
+    #: the work of the programs solved for it (:func:`solver_work`): the same on any machine
+    work: int = 0
 
     def to_json(self) -> dict:
         """The ``stability.force`` block of report.json (inf written as null)."""
@@ -301,6 +303,7 @@ class _Program:
     nrow: int = 0
     row_lo: list = field(default_factory=list)
     row_hi: list = field(default_factory=list)
+    spent: int = 0
 
     def columns(self, n: int, lo, hi, cost: float = 0.0) -> np.ndarray:
         """``n`` new columns with bounds ``lo``..``hi`` (scalars or arrays); their indices."""
@@ -369,25 +372,58 @@ class _Program:
         h.passModel(lp)
         return h
 
-    def solve(self, seconds: float | None = None) -> tuple[str, np.ndarray | None]:
+    def solve(self, work: int | None = None, seconds: float | None = None
+              ) -> tuple[str, np.ndarray | None]:
         """('optimal', column values), ('infeasible', None), ('unbounded', None), or
-        ('time', None) when ``seconds`` (None: no limit) passed first."""
+        ('limit', None) when the solver stopped first at ``work`` units of
+        :func:`solver_work` (as iteration limits: the interior point's scaled by this
+        program's size, and the simplex's) or at ``seconds`` (None: no such limit).
+        :attr:`spent` is then the work this solve did."""
         import highspy
         h = self.highs()
+        nnz = sum(len(v) for v in self.vals)
+        if work is not None:
+            h.setOptionValue("ipm_iteration_limit", max(1, int(work // ipm_iteration_work(nnz))))
+            h.setOptionValue("simplex_iteration_limit", max(1, int(work)))
         if seconds is not None:
             h.setOptionValue("time_limit", float(seconds))
         _run(h)
+        self.spent = solver_work(h.getInfo(), nnz)
         status = h.getModelStatus()
         if status == highspy.HighsModelStatus.kOptimal:
             return "optimal", np.asarray(h.getSolution().col_value)
-        if status == highspy.HighsModelStatus.kTimeLimit:
-            return "time", None
+        if status in (highspy.HighsModelStatus.kTimeLimit, highspy.HighsModelStatus.kIterationLimit):
+            return "limit", None
         if status == highspy.HighsModelStatus.kInfeasible:
             return "infeasible", None
         if status in (highspy.HighsModelStatus.kUnbounded,
                       highspy.HighsModelStatus.kUnboundedOrInfeasible):
             return "unbounded", None
         raise SolverTrouble(f"the force program ended with HiGHS status {h.modelStatusToString(status)}")
+
+
+def ipm_iteration_work(nnz: int) -> int:
+    """The work of one interior-point iteration on a program of ``nnz`` coefficients, in
+    simplex iterations (each about a millisecond on this machine's force programs): its
+    factorisation grows faster than the program.  Measured on this 2-core machine: 0.19 s
+    for 22 iterations at 56,453 coefficients (a slab over a box; 31 each here), 7.0 s for
+    29 at 296,026 and 10.3 s for 27 at 347,516 (bands of an HMD shell scaled x5; 364 and
+    463), 41.9 s for 36 at 631,012 (a connecting rod scaled x5; 1,132)."""
+    return max(1, round((nnz / 1000.0) ** 1.5 / 14.0))
+
+
+def solver_work(info, nnz: int) -> int:
+    """The work of one HiGHS run whose info is ``info`` on a program of ``nnz`` coefficients,
+    in simplex iterations: its simplex and crossover iterations, and its interior-point
+    iterations at :func:`ipm_iteration_work` each.  The same program gets the same count
+    on a busy machine as on an idle one (one thread)."""
+    return (max(info.simplex_iteration_count, 0) + max(info.crossover_iteration_count, 0)
+            + ipm_iteration_work(nnz) * max(info.ipm_iteration_count, 0))
+
+
+def _work_words(subject: str) -> str:
+    """:data:`PROGRAM_WORK` in words: "the N solver iterations <subject> given (...)"."""
+    return f"the {PROGRAM_WORK:,} solver iterations {subject} given (about two minutes)"
 
 
 def _run(h) -> None:
@@ -424,7 +460,7 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     point in N, ``profile`` the slicer settings printed masses follow.
     ``detail`` False gives the verdict and the worst utilisation only (one
     small program), with ``utilisation`` and ``failures`` left empty.
-    ``seconds`` (None: :data:`PROGRAM_SECONDS`, and past :data:`MAX_BODIES`
+    ``seconds`` (None: :data:`PROGRAM_WORK` per program, and past :data:`MAX_BODIES`
     bodies no whole program) is what the whole build's programs may take; given,
     a build past :data:`MAX_BODIES` that its parts and bands do not settle is
     solved as one program too (minutes for 4,000 bricks).
@@ -495,9 +531,9 @@ class _Warm:
         self.highs = prog.highs(simplex=True)
         self.present = np.ones(m.nbody, dtype=bool)
         self.basis = None
-        #: solver iterations so far: the simplex's and crossover's, and the interior point's
-        #: at :data:`IPM_ITERATION_WORK` each
+        #: the solves' work so far (:func:`solver_work`)
         self.work = 0
+        self.nnz = prog.matrix().nnz
         self._ok = highspy.HighsModelStatus.kOptimal
 
     def factor_of(self, body_present: np.ndarray, propped: np.ndarray | None = None) -> float | None:
@@ -539,9 +575,7 @@ class _Warm:
             h.setOptionValue("solver", "ipm")
             h.setOptionValue("run_crossover", "on")
         _run(h)
-        info = h.getInfo()
-        self.work += (max(info.simplex_iteration_count, 0) + max(info.crossover_iteration_count, 0)
-                      + IPM_ITERATION_WORK * max(info.ipm_iteration_count, 0))
+        self.work += solver_work(h.getInfo(), self.nnz)
         if cold:
             h.setOptionValue("solver", "simplex")
             h.setOptionValue("run_crossover", "choose")
@@ -650,6 +684,7 @@ class BuildChecker:
         self._hanging = 0
         self.solves = 0
         self.fresh = 0
+        self._fresh_work = 0
         self._whole: _Warm | None = None
         self._sub: tuple[_Warm, np.ndarray] | None = None
         # the last set found joined to the ground (the next is usually it and one step more)
@@ -659,7 +694,8 @@ class BuildChecker:
         """(stands, worst utilisation) of the bricks ``present`` (a bool per brick of the
         layout, in its order): inf when some present brick is joined to nothing on the ground;
         (True, NaN) when it is joined to the ground but would need a program past
-        :data:`MAX_BODIES` bodies (checked by the brick graph only).  ``props`` ((n, 3) cells
+        :data:`MAX_BODIES` bodies, or past the budget, or its own program ran past
+        :data:`PROGRAM_WORK` (checked by the brick graph only).  ``props`` ((n, 3) cells
         i, j, k, or None): cells held up by a prop each, a column on the table (or the
         baseplate) under the cell that pushes up on its bottom (:meth:`_Model.resting`)."""
         m = self.model
@@ -687,10 +723,10 @@ class BuildChecker:
 
     @property
     def work(self) -> int:
-        """The programs' work so far: the iterations of every solve (:attr:`_Warm.work`),
-        and :data:`FRESH_WORK` for each set solved by a program of its own."""
+        """The programs' work so far (:func:`solver_work`): of every warm-started solve
+        (:attr:`_Warm.work`) and of the sets solved by a program of their own."""
         warm = [w for w in (self._whole, self._sub and self._sub[0]) if w is not None]
-        return sum(w.work for w in warm) + FRESH_WORK * self.fresh
+        return sum(w.work for w in warm) + self._fresh_work
 
     def _programs(self, present: np.ndarray, propped: np.ndarray | None) -> tuple[bool, float]:
         """:meth:`stands` of a set joined to the ground that needs a program (with the table
@@ -708,6 +744,8 @@ class BuildChecker:
         if self._whole is None:
             self._whole = _Warm(m)
         worst = self._solve(self._whole, present, propped)
+        if math.isnan(worst):                    # its own program ran past its work: the graph's
+            return True, worst
         return bool(worst <= FAIL_ABOVE), worst
 
     def _supported(self, present: np.ndarray) -> bool:
@@ -795,7 +833,9 @@ class BuildChecker:
         self.fresh += 1
         idx = np.flatnonzero(present)
         own = model._model_of(idx, model.support[model.body_of[idx]] if model.on_supports else None)
-        return own.verdict(detail=False).max_utilisation
+        verdict = own.verdict(detail=False)
+        self._fresh_work += verdict.work
+        return verdict.max_utilisation
 
 def _worst(factor: float) -> float:
     """The worst utilisation of a largest load factor: its inverse; 0 for a structure that
@@ -896,10 +936,14 @@ PART_SHARE = 0.7
 #: A hanging piece that no cut splits (a bunny scaled x3: 6,908 of its 6,912 bricks) is
 #: solved whole only up to MERGED_BODIES: that one program ran 360 s (infeasible).
 MAX_HANGING = 20000
-#: Seconds one program of a whole build (or of a hanging part) may take before the build
-#: is reported unchecked (the interior point needs minutes on solid, overhanging builds of
-#: thousands of bricks: 371 s for a 3,923-brick HMD shell scaled x5).
-PROGRAM_SECONDS = 120.0
+#: Work (:func:`solver_work`) one program of a whole build (or of a hanging part) may do
+#: before the build is reported unchecked, and the height bands of one build in all
+#: (:meth:`_Model._by_bands`).  Counted in iterations, not seconds, so that the verdict does
+#: not depend on the machine's load; about two minutes on this 2-core machine.  The interior
+#: point needs minutes on solid, overhanging builds of thousands of bricks: 371 s for a
+#: 3,923-brick HMD shell scaled x5 as one program; in bands, one of its bands fell back to
+#: the simplex for 71,251 iterations (104 s).
+PROGRAM_WORK = 120_000
 #: Solver iterations the programs of one build's partial builds may run in all
 #: (:class:`BuildChecker`); past them the steps that need one are checked by the brick graph
 #: only.  A 2,151-brick connecting rod (Assembly4's, scaled x5) had run its steps' programs
@@ -909,12 +953,6 @@ PROGRAM_SECONDS = 120.0
 #: the Stanford bunny's 507-brick build runs 74,700 in all (307 programs, 29-54 s); the rod
 #: scaled x5 ran 80,000 in 70 s.  So about a minute.
 BUILD_BUDGET = 100_000
-#: The work of one iteration of the interior point (a cold solve), in simplex iterations:
-#: the bunny's first program, 30 interior-point iterations and 1,579 of crossover, 3.5 s.
-IPM_ITERATION_WORK = 100
-#: The work counted for a set solved by a program of its own (rare: a degenerate set the
-#: warm start cannot answer), in simplex iterations.
-FRESH_WORK = 5_000
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Levels of bricks under the hanging part that the build steps' program of it takes in
@@ -1043,9 +1081,12 @@ class _Model:
         # on a baseplate, whether the programs hold the points props may press up
         # (:class:`BuildChecker` sets it; on a table every point is there anyway)
         self.propping = False
-        # seconds the whole build's programs may take (None: PROGRAM_SECONDS, and no whole
+        # seconds the whole build's programs may take (None: PROGRAM_WORK each, and no whole
         # program past MAX_BODIES bodies); :func:`analyse` sets it
         self.whole_seconds = None
+        # the work (:func:`solver_work`) of the programs solved for this model so far, its
+        # parts' and bands' included
+        self.work = 0
 
     # -- masses ------------------------------------------------------------------------------
     def _masses(self, printed, profile) -> None:
@@ -1125,7 +1166,31 @@ class _Model:
         return pts, ~np.isnan(dirs[:, :, 0])
 
     # -- the programs ------------------------------------------------------------------------
+    def _solve(self, prog: _Program) -> tuple[str, np.ndarray | None]:
+        """:meth:`_Program.solve` within :data:`PROGRAM_WORK` (or, given, within
+        ``whole_seconds``), its work added to :attr:`work`."""
+        if self.whole_seconds is None:
+            out = prog.solve(work=PROGRAM_WORK)
+        else:
+            out = prog.solve(seconds=self.whole_seconds)
+        self.work += prog.spent
+        return out
+
+    def _limit_words(self) -> str:
+        """What one program is given, in words (:meth:`_solve`)."""
+        if self.whole_seconds is not None:
+            return f"the {self.whole_seconds:.0f} s it is given"
+        return _work_words("it is")
+
     def verdict(self, detail: bool) -> Forces:
+        """:meth:`_verdict`, with :attr:`Forces.work` the work of every program it solved
+        (its parts' and bands' included)."""
+        start = self.work
+        out = self._verdict(detail)
+        out.work = self.work - start
+        return out
+
+    def _verdict(self, detail: bool) -> Forces:
         """A build whose every cell rests on a cell or the ground stands without any pull
         (no program).  Otherwise phase 1: the largest load factor (gravity and loads times
         it) the joints carry with their clutch; the worst utilisation is its inverse.  Phase
@@ -1158,13 +1223,12 @@ class _Model:
                              + "; the brick graph's verdict stands alone (python -m core stability "
                              "layout.json --seconds 900 solves it as one program)")
             return out
-        limit = PROGRAM_SECONDS if self.whole_seconds is None else self.whole_seconds
         prog, parts = self._program(detail=False)
-        status, x = prog.solve(limit)
-        if status == "time":
+        status, x = self._solve(prog)
+        if status == "limit":
             out = self._forces(False, math.nan, {}, [], [], [])
             out.unchecked = (f"{self.nbody} bricks and printed parts: the force program of the "
-                             f"whole build ran past the {limit:.0f} s it is given"
+                             f"whole build ran past {self._limit_words()}"
                              "; the brick graph's verdict stands alone")
             return out
         factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
@@ -1183,14 +1247,19 @@ class _Model:
             # 3,834-brick HMD shell
             return each_worst()
         prog, parts = self._program(detail=True, cap=worst)
-        status, x = prog.solve(limit if stable or self.nbody > MAX_BODIES else None)
-        if status == "time":
+        if stable or self.nbody > MAX_BODIES:
+            status, x = self._solve(prog)
+        else:                                    # what fails, and why, however long it takes
+            status, x = prog.solve()
+            self.work += prog.spent
+        if status == "limit":
             return each_worst()                  # the worst bounds every brick's
         residual = np.zeros(self.nbody)
         if status != "optimal":
             slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e3)
             prog.put(np.repeat(parts["eq"], 2), slack, np.tile([1.0, -1.0], 6 * self.nbody))
             status, x = prog.solve()
+            self.work += prog.spent
             if status != "optimal":
                 raise RuntimeError(f"the force program with slack ended {status}")
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
@@ -1373,8 +1442,8 @@ class _Model:
             except SolverTrouble:                # as if it did not stand: merged or the whole
                 f = self._forces(False, math.inf, {}, [], [], [])
             if f.unchecked:
-                return None, (f"a program of {len(groups[w])} of its hanging bricks ran past the "
-                              f"{PROGRAM_SECONDS:.0f} s it is given")
+                return None, (f"a program of {len(groups[w])} of its hanging bricks ran past "
+                              + _work_words("it is"))
             effort += len(groups[w])
             if not f.stable and self.nbody > MAX_BODIES:
                 f, members, below = self._deepened(groups[w], hanging, claimed, under)
@@ -1471,7 +1540,7 @@ class _Model:
         flat on its bottom layer as a whole (:meth:`_falls_over` found nothing tipping).
         Returns (the verdict, each brick given its band's worst, "") or (None, where a band
         does not stand or could not be solved)."""
-        start = time.perf_counter()
+        start = self.work
         under = self._under()
         low = self._lowest_layer()
         band = self._bands(under, low)
@@ -1498,12 +1567,13 @@ class _Model:
                 f, push, studs = sub._carried()
             except SolverTrouble:
                 f, push, studs = self._forces(False, math.inf, {}, [], [], []), {}, {}
-            if time.perf_counter() - start > PROGRAM_SECONDS:
-                return None, (f"solved in height bands, its bands ran past the "
-                              f"{PROGRAM_SECONDS:.0f} s they are given in all")
+            self.work += sub.work
+            if self.work - start > PROGRAM_WORK:
+                return None, ("solved in height bands, its bands' programs ran past "
+                              + _work_words("they are") + " in all")
             if f.unchecked:
-                return None, (f"a program of a band of {len(members)} bricks ran past the "
-                              f"{PROGRAM_SECONDS:.0f} s it is given")
+                return None, (f"a program of a band of {len(members)} bricks ran past "
+                              + _work_words("it is"))
             if f.stable:
                 for body, force in push.items():
                     extra[body] += force
@@ -1589,10 +1659,10 @@ class _Model:
         a brick outside (parent brick -> [(point, grams)], as :attr:`point_masses`); None
         when it does not stand."""
         prog, parts = self._program(detail=False)
-        status, x = prog.solve(PROGRAM_SECONDS)
-        if status == "time":
+        status, x = self._solve(prog)
+        if status == "limit":
             out = self._forces(False, math.nan, {}, [], [], [])
-            out.unchecked = "time"
+            out.unchecked = "limit"
             return out, None, None
         factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
         worst = _worst(factor)
@@ -1600,10 +1670,10 @@ class _Model:
         if not out.stable:
             return out, None, None
         prog, parts = self._program(detail=True, cap=worst)
-        status, x = prog.solve(PROGRAM_SECONDS)
+        status, x = self._solve(prog)
         if status != "optimal":
             out.stable = False
-            out.unchecked = "time" if status == "time" else None
+            out.unchecked = "limit" if status == "limit" else None
             return out, None, None
         eq = parts["eq"]
         inside = self.band
@@ -1633,8 +1703,11 @@ class _Model:
 
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
                 detail: bool) -> Forces:
-        """The verdict of the bodies ``group`` on the supports right under them."""
-        return self._sub_model(group, support, under)[0].verdict(detail)
+        """The verdict of the bodies ``group`` on the supports right under them (its
+        programs' work added to :attr:`work`)."""
+        f = self._sub_model(group, support, under)[0].verdict(detail)
+        self.work += f.work
+        return f
 
     def _sub_model(self, group: np.ndarray, support: np.ndarray,
                    under: sparse.csr_matrix) -> tuple["_Model", np.ndarray]:

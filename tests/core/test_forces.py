@@ -460,9 +460,9 @@ def count_programs(monkeypatch) -> list:
     solved = []
     real = forces._Program.solve
 
-    def counted(self, *args):
+    def counted(self, *args, **kwargs):
         solved.append(1)
-        return real(self, *args)
+        return real(self, *args, **kwargs)
 
     monkeypatch.setattr(forces._Program, "solve", counted)
     return solved
@@ -662,18 +662,42 @@ def test_a_big_build_standing_easily_gives_each_brick_its_worst_without_phase_tw
     assert set(quick.utilisation.values()) == {quick.max_utilisation}
 
 
-def test_a_program_past_its_seconds_leaves_the_build_unchecked_saying_so(monkeypatch):
-    """No force program runs for minutes: past PROGRAM_SECONDS the whole build is reported
+def test_a_program_past_its_work_leaves_the_build_unchecked_saying_so(monkeypatch):
+    """No force program runs for minutes: past PROGRAM_WORK the whole build is reported
     unchecked (the graph's verdict stands alone), and so is a build checked in parts."""
     lay = slab_over_box()
-    monkeypatch.setattr(forces, "PROGRAM_SECONDS", 1e-9)
+    monkeypatch.setattr(forces, "PROGRAM_WORK", 1)
     whole = forces.analyse(lay)
-    assert whole.unchecked and f"ran past the {forces.PROGRAM_SECONDS:.0f} s" in whole.unchecked
+    assert whole.unchecked and "ran past the 1 solver iterations it is given" in whole.unchecked
     assert whole.to_json()["checked"] is False and whole.to_json()["stable"] is None
     monkeypatch.setattr(forces, "EXACT_BODIES", 0)
     monkeypatch.setattr(forces, "PART_SHARE", 1.0)
     parted = forces.analyse(lay, detail=False)
     assert parted.unchecked and "ran past" in parted.unchecked
+
+
+def test_the_whole_programs_limit_is_its_work_not_the_clock(monkeypatch):
+    """The whole program is given solver iterations (the interior point's weighed by the
+    program's size), not seconds: with a clock that runs an hour per reading it gets the
+    same verdict; given exactly the work it needs it stands as before, given one
+    interior-point iteration less it is unchecked.  The work is HiGHS's own count."""
+    import time as clock
+    lay = slab_over_box()
+    calm = forces.analyse(lay, detail=False)
+    assert calm.stable and calm.unchecked is None and calm.work > 0
+    hours = iter(range(10 ** 9))
+    monkeypatch.setattr(clock, "perf_counter", lambda: 3600.0 * next(hours))
+    busy = forces.analyse(lay, detail=False)
+    assert busy.seconds >= 3600 and busy.unchecked is None
+    assert (busy.stable, busy.max_utilisation, busy.work) == (calm.stable, calm.max_utilisation, calm.work)
+    monkeypatch.setattr(forces, "PROGRAM_WORK", calm.work)
+    assert forces.analyse(lay, detail=False).max_utilisation == calm.max_utilisation
+    prog, _ = forces._Model(lay, "table", [], (), None, forces.CLUTCH_N, None)._program(detail=False)
+    step = forces.ipm_iteration_work(prog.matrix().nnz)
+    assert calm.work % step == 0                 # interior-point iterations alone, no simplex
+    monkeypatch.setattr(forces, "PROGRAM_WORK", calm.work - step)
+    short = forces.analyse(lay, detail=False)
+    assert short.unchecked and f"ran past the {calm.work - step:,} solver iterations" in short.unchecked
 
 
 def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
@@ -901,7 +925,7 @@ def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monke
     monkeypatch.setattr(forces, "MERGED_BODIES", 10)
     monkeypatch.setattr(forces, "MAX_BANDED", 10)
 
-    def no_program(self, *args):
+    def no_program(self, *args, **kwargs):
         raise AssertionError("a program was solved")
 
     monkeypatch.setattr(forces._Program, "solve", no_program)
@@ -953,8 +977,8 @@ def test_a_build_past_max_bodies_is_checked_in_height_bands_as_the_hand_calculat
 
 def test_height_bands_bound_the_whole_programs_worst_from_above(monkeypatch):
     """A slab over a hollow box on a table, in bands of about 20 bricks: it stands, and the
-    worst the bands' forces reach is at least the whole program's least; past the time
-    they are given, the build is unchecked."""
+    worst the bands' forces reach is at least the whole program's least; past half the
+    work they did, the build is unchecked."""
     lay = slab_over_box()
     whole = forces.analyse(lay, detail=False)
     assert whole.stable
@@ -966,6 +990,6 @@ def test_height_bands_bound_the_whole_programs_worst_from_above(monkeypatch):
     assert banded.stable and banded.bands > 2
     assert whole.max_utilisation - 1e-6 <= banded.max_utilisation < 1
     assert set(banded.utilisation) == {b.id for b in lay.bricks}
-    monkeypatch.setattr(forces, "PROGRAM_SECONDS", 1e-9)
+    monkeypatch.setattr(forces, "PROGRAM_WORK", banded.work // 2)
     late = forces.analyse(lay, detail=False)
-    assert late.unchecked and "ran past" in late.unchecked
+    assert late.unchecked and "its bands' programs ran past the" in late.unchecked
