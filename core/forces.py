@@ -303,7 +303,10 @@ class _Program:
     nrow: int = 0
     row_lo: list = field(default_factory=list)
     row_hi: list = field(default_factory=list)
+    #: the work (:func:`solver_work`) of the last :meth:`solve`, and the coefficients of
+    #: the last program :meth:`highs` built
     spent: int = 0
+    nnz: int = 0
 
     def columns(self, n: int, lo, hi, cost: float = 0.0) -> np.ndarray:
         """``n`` new columns with bounds ``lo``..``hi`` (scalars or arrays); their indices."""
@@ -365,6 +368,7 @@ class _Program:
         lp.col_lower_, lp.col_upper_ = self.col_bounds()
         lp.row_lower_, lp.row_upper_ = self.row_bounds()
         mat = self.matrix()
+        self.nnz = mat.nnz
         lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
         lp.a_matrix_.start_ = mat.indptr
         lp.a_matrix_.index_ = mat.indices
@@ -381,7 +385,7 @@ class _Program:
         :attr:`spent` is then the work this solve did."""
         import highspy
         h = self.highs()
-        nnz = sum(len(v) for v in self.vals)
+        nnz = self.nnz
         if work is not None:
             h.setOptionValue("ipm_iteration_limit", max(1, int(work // ipm_iteration_work(nnz))))
             h.setOptionValue("simplex_iteration_limit", max(1, int(work)))
@@ -404,12 +408,14 @@ class _Program:
 
 def ipm_iteration_work(nnz: int) -> int:
     """The work of one interior-point iteration on a program of ``nnz`` coefficients, in
-    simplex iterations (each about a millisecond on this machine's force programs): its
-    factorisation grows faster than the program.  Measured on this 2-core machine: 0.19 s
-    for 22 iterations at 56,453 coefficients (a slab over a box; 31 each here), 7.0 s for
-    29 at 296,026 and 10.3 s for 27 at 347,516 (bands of an HMD shell scaled x5; 364 and
-    463), 41.9 s for 36 at 631,012 (a connecting rod scaled x5; 1,132)."""
-    return max(1, round((nnz / 1000.0) ** 1.5 / 14.0))
+    simplex iterations (each about a millisecond on the big force programs): about a
+    millisecond per unit too, growing with the square of the program.  Measured on this
+    2-core machine, milliseconds per iteration (this function's value): 8.9 at 56,453
+    coefficients (a slab over a box; 9), 20-80 at 104,000-145,000 (the bands of a
+    connecting rod scaled x6; 31-60), 136 at 205,813 (121), 254 at 296,026 and 381 at
+    347,516 (bands of an HMD shell scaled x5; 250, 345), 1,162 at 631,012 (the rod scaled
+    x5 as one program; 1,138)."""
+    return max(1, round((nnz / 1000.0) ** 2 / 350.0))
 
 
 def solver_work(info, nnz: int) -> int:
@@ -533,7 +539,7 @@ class _Warm:
         self.basis = None
         #: the solves' work so far (:func:`solver_work`)
         self.work = 0
-        self.nnz = prog.matrix().nnz
+        self.nnz = prog.nnz
         self._ok = highspy.HighsModelStatus.kOptimal
 
     def factor_of(self, body_present: np.ndarray, propped: np.ndarray | None = None) -> float | None:
