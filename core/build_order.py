@@ -123,7 +123,9 @@ class BuildOrder:
     ``on`` (table or baseplate) under ``cell`` before step ``step``, under the brick ``under``, filling
     ``box_mm`` (min and max corner in the model's coordinates), taken away after
     step ``removed_after``, None when the finished build still needs it or,
-    ``closed_in``, when the build closes it in before it can go).
+    ``closed_in``, when the build closes it in before it can go); ``finished`` the
+    force check of the finished build with the props that stay in it
+    (:func:`finished_with_props`; None when none stays or it was not asked).
     """
 
     steps: list[Step] = field(default_factory=list)
@@ -134,6 +136,7 @@ class BuildOrder:
     moved: int = 0
     graph_only_why: str = ""
     props: list[dict] = field(default_factory=list)
+    finished: dict | None = None
 
     def to_json(self) -> dict:
         """The order as plain data (:meth:`from_json` reads it back; NaN and inf
@@ -142,7 +145,8 @@ class BuildOrder:
                 "early_parts": list(self.early_parts),
                 "utilisation": [float(u) for u in self.utilisation],
                 "unstable": list(self.unstable), "moved": int(self.moved),
-                "graph_only_why": self.graph_only_why, "props": list(self.props)}
+                "graph_only_why": self.graph_only_why, "props": list(self.props),
+                "finished": self.finished}
 
     @classmethod
     def from_json(cls, doc: dict) -> "BuildOrder":
@@ -150,7 +154,8 @@ class BuildOrder:
         return cls([Step(**s) for s in doc["steps"]], list(doc.get("unattached", ())),
                    list(doc.get("early_parts", ())), [float(u) for u in doc.get("utilisation", ())],
                    list(doc.get("unstable", ())), int(doc.get("moved", 0)),
-                   str(doc.get("graph_only_why", "")), list(doc.get("props", ())))
+                   str(doc.get("graph_only_why", "")), list(doc.get("props", ())),
+                   doc.get("finished"))
 
     def step_of(self) -> dict[int, int]:
         """Brick id -> step number."""
@@ -657,6 +662,35 @@ class _Spots:
         return {"step": number, "cell": [int(c) for c in cell], "plates": plates,
                 "parts": parts, "under": int(brick_id), "on": self.ground,
                 "box_mm": [[round(float(v), 3) for v in lo], [round(float(v), 3) for v in hi]]}
+
+
+def finished_with_props(layout: Layout, order: BuildOrder, stands) -> dict | None:
+    """The finished build of ``layout`` held up by the props of ``order`` that stay in it
+    (``removed_after`` None: still needed, or closed in), judged by ``stands`` (as
+    :func:`standing`'s, e.g. :meth:`core.forces.BuildChecker.stands` built with what the
+    object carries): {"props_left_in", "checked", "stands", "max_utilisation"} (stands and
+    utilisation None when the check gave NaN: the brick graph only; utilisation None when
+    infinite).  None when no prop stays."""
+    left = [p["cell"] for p in order.props if p["removed_after"] is None]
+    if not left:
+        return None
+    ok, value = stands(np.ones(len(layout.bricks), dtype=bool), np.array(left, dtype=np.int64))
+    checked = not np.isnan(value)
+    return {"props_left_in": len(left), "checked": bool(checked),
+            "stands": bool(ok) if checked else None,
+            "max_utilisation": _finite(value) if checked else None}
+
+
+def finished_words(finished: dict, force: dict) -> str:
+    """:func:`finished_with_props`'s answer in one clause, with the ground and mass of the
+    ``stability.force`` document ``force``: "with its 2 prop(s) left in, it stands on a
+    baseplate with 550 g: worst joint utilisation 0.12"."""
+    head = f"with its {finished['props_left_in']} prop(s) left in, it "
+    if not finished["checked"]:
+        return head + "is checked by the brick graph only (too many bricks for the programs)"
+    worst = "infinite" if finished["max_utilisation"] is None else f"{finished['max_utilisation']:.2f}"
+    return (head + f"{'stands' if finished['stands'] else 'does not stand'} on a {force['ground']} "
+            f"with {force['mass_g']:.0f} g: worst joint utilisation {worst}")
 
 
 def prop_last_step(prop: dict, steps: int) -> int:

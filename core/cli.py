@@ -569,7 +569,7 @@ def _calibration_strip(args) -> int:
 
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
-    from core import forces
+    from core import build_order, forces
 
     if doc["model"]["repaired"]:
         sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
@@ -609,6 +609,8 @@ def _summary(doc: dict, out) -> None:
                 print(f"  {prop['words']}")
             if len(props) > 3:
                 print(f"  and {len(props) - 3} more")
+        if build.get("finished_with_props"):
+            print(build_order.finished_words(build["finished_with_props"], force))
         for step in build.get("unstable_steps", ())[:5]:
             sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
     hollow = doc.get("hollow")

@@ -618,8 +618,8 @@ class _Warm:
 class BuildChecker:
     """Whether partial builds of one layout stand: every prefix of a build order.
 
-    Built once for ``layout`` (the settings as :func:`analyse`; no loads: what
-    the object carries goes on when it is built), it answers :meth:`stands`
+    Built once for ``layout`` (the settings as :func:`analyse`; no ``loads``
+    unless given: what the object carries goes on when it is built), it answers :meth:`stands`
     for any set of its bricks.  A set whose every cell rests on a cell of the
     set (or the ground) stands in pure compression and needs no program;
     otherwise a program is solved with the absent bodies' rows let go and
@@ -640,9 +640,10 @@ class BuildChecker:
 
     def __init__(self, layout: Layout, ground: str = "table", printed=(), clamp=None,
                  clutch_n: float = CLUTCH_N, profile: dict[str, str] | None = None,
-                 budget: int | None = None):
+                 budget: int | None = None, loads=()):
         self.layout = layout
-        self.model = _Model(layout, ground, [], printed, clamp, float(clutch_n), profile)
+        self.model = _Model(layout, ground, [parse_load(x) for x in loads], printed, clamp,
+                            float(clutch_n), profile)
         self.model.propping = True
         self.budget = BUILD_BUDGET if budget is None else budget
         #: seconds the programs took in all (reported; the budget counts :attr:`work`)

@@ -300,6 +300,11 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         order = timed("build_stability", 0.83, build_order.standing, layout, order, checker.stands,
                       props=True, ground=req.ground)
         order = dataclasses.replace(order, graph_only_why=checker.why or "")
+        if order.props:
+            final = forces_stage.BuildChecker(layout, req.ground, made, clamp, req.clutch_n, settings,
+                                              loads=req.loads)
+            order = dataclasses.replace(order, finished=timed(
+                "finished_with_props", 0.84, build_order.finished_with_props, layout, order, final.stands))
     layout = build_order.numbered(layout, order)
     iteration = None
     if before is not None:
@@ -548,6 +553,7 @@ def build_stability(order: build_order.BuildOrder, bodies: int, layout: Layout |
             "steps_moved_earlier": order.moved,
             "props": [dict(p, words=build_order.prop_words(layout, p)) if layout is not None
                       else dict(p) for p in order.props],
+            **({} if order.finished is None else {"finished_with_props": dict(order.finished)}),
             "explain": "Each step's partial build is checked with the same forces, without what "
                        "the object carries. A step is put earlier than planned when that lets the "
                        "build stand; where no order does, a prop (a stack of 1x1 bricks and "

@@ -53,7 +53,7 @@ def summary(fab) -> list[str]:
              (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
               "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
     if st.get("force"):
-        lines.append(f"force check: {force_words(st['force'])}")
+        lines.append(f"force check: {force_words(st['force'], st.get('build'))}")
     times = doc.get("print_time_s")
     if times:
         lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "

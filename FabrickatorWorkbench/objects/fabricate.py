@@ -421,24 +421,28 @@ def _restore_parameters(obj) -> None:
             log.warning(f"{obj.Label}: {name} put back to {value!r}, the last value that worked")
 
 
-def force_words(force: dict | None) -> str:
-    """The force check of report.json (``stability.force``) in one line."""
-    from core import forces
+def force_words(force: dict | None, build: dict | None = None) -> str:
+    """The force check of report.json (``stability.force``) in one line; with the build
+    check (``stability.build``), what the props left in the finished build do."""
+    from core import build_order, forces
 
     if not force:
         return "not checked"
     if not force.get("checked", True):
         return f"not checked: {force['unchecked_why']}"
     failing = len(force["failing_bricks"])
-    return forces.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
+    finished = (build or {}).get("finished_with_props")
+    return (forces.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
+            + (f"; {build_order.finished_words(finished, force)}" if finished else ""))
 
 
-def _store_forces(obj, force: dict | None) -> None:
-    """The force check's verdict into Stands, FailingBricks and Forces (words); the
-    Report view says it when the build does not stand."""
+def _store_forces(obj, force: dict | None, build: dict | None = None) -> None:
+    """The force check's verdict into Stands, FailingBricks and Forces (words, with what
+    the props left in do: ``build``, the report's ``stability.build``); the Report view
+    says it when the build does not stand."""
     obj.Stands = bool(force and force["stable"])
     obj.FailingBricks = len(force["failing_bricks"]) if force else 0
-    obj.Forces = force_words(force)
+    obj.Forces = force_words(force, build)
     if force and force.get("checked", True) and not force["stable"]:
         log.warning(f"{obj.Label}: {obj.Forces} (the Report lists them; the Stress display "
                     f"mode shows them white)")
@@ -466,7 +470,7 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     obj.Components = int(report["stability"]["components"])
     obj.WeakPoints = int(report["stability"]["weak_points"])
     obj.SpeedUp = float(report["speedup"] or 0.0)
-    _store_forces(obj, report["stability"].get("force"))
+    _store_forces(obj, report["stability"].get("force"), report["stability"].get("build"))
     obj.BricksKept, obj.BricksChanged = kept, changed
     obj.GridOrigin = bridge.vector(fab.grid.origin)
     obj.CellSize = bridge.vector(fab.grid.cell)

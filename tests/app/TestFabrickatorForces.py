@@ -267,5 +267,13 @@ class TestForceParity(FabrickatorTestCase):
                              cwd=str(ROOT), env=dict(os.environ, FABRICKATOR_SLICER="none"),
                              capture_output=True, text=True, timeout=600)
         self.assertEqual(run.returncode, 0, run.stderr)
-        cli = json.loads(Path(out, "report.json").read_text())["stability"]["build"]["props"]
+        build = json.loads(Path(out, "report.json").read_text())["stability"]["build"]
+        cli = build["props"]
         self.assertEqual([{k: v for k, v in p.items() if k != "words"} for p in cli], props)
+        # with its props left in, the finished part stands: the Forces words say so, as the
+        # command line's report does
+        finished = build["finished_with_props"]
+        self.assertTrue(finished["stands"])
+        self.assertEqual(finished["props_left_in"], len(props))
+        self.assertIn(f"; with its {len(props)} prop(s) left in, it stands on a table", f.Forces)
+        self.assertEqual(json.loads(f.ReportJson)["stability"]["build"]["finished_with_props"], finished)

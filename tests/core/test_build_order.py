@@ -289,6 +289,11 @@ def test_the_phone_charger_stand_is_built_on_a_prop_and_an_export_keeps_it(tmp_p
     assert [p["cell"] for p in props] == [p["cell"] for p in order.props]
     assert all("the finished build still needs it" in p["words"] for p in props
                if p["removed_after"] is None)
+    # the finished stand, with the props it keeps, stands (it tips over without them)
+    left = sum(p["removed_after"] is None for p in order.props)
+    finished = doc["stability"]["build"]["finished_with_props"]
+    assert finished["props_left_in"] == left and finished["checked"] and finished["stands"]
+    assert 0 <= finished["max_utilisation"] <= 1
     needed: dict[str, int] = {}
     for p in order.props:
         for number, count in p["parts"].items():

@@ -337,6 +337,35 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
     assert "the finished build still needs it" in words
 
 
+def test_the_finished_build_is_judged_with_the_props_it_keeps_and_what_it_carries():
+    """The arm's finished build (test above) keeps its prop: with it, it stands in pure
+    compression.  Judged with a load on the arm's middle studs (x 1..3), the prop and the
+    brick carry it and the arm bends between them: its utilisation grows with the load
+    (twice the load, twice the utilisation: its own weight only presses), and 100 kg break it."""
+    from core import build_order
+    layout = layout_of(t_layout().bricks[:3])
+    checker = forces.BuildChecker(layout, ground="table")
+    order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
+                                 checker.stands, props=True)
+    bare = build_order.finished_with_props(layout, order, checker.stands)
+    assert bare == {"props_left_in": 1, "checked": True, "stands": True, "max_utilisation": 0.0}
+
+    def loaded(grams):
+        loaded = forces.BuildChecker(layout, ground="table", loads=[f"8,0,19.2,24,8,25:{grams}"])
+        return build_order.finished_with_props(layout, order, loaded.stands)
+
+    five, ten, heavy = loaded(5000), loaded(10000), loaded(100000)
+    assert five["stands"] and ten["stands"] and 0.01 < five["max_utilisation"] < ten["max_utilisation"]
+    assert ten["max_utilisation"] == pytest.approx(2 * five["max_utilisation"], rel=0.01)
+    assert heavy["stands"] is False and heavy["max_utilisation"] > 1
+    force = {"ground": "table", "mass_g": 10002.0}
+    assert build_order.finished_words(ten, force) == (
+        f"with its 1 prop(s) left in, it stands on a table with 10002 g: worst joint utilisation "
+        f"{ten['max_utilisation']:.2f}")
+    unpropped = dataclasses.replace(order, props=[dict(p, removed_after=3) for p in order.props])
+    assert build_order.finished_with_props(layout, unpropped, checker.stands) is None
+
+
 def built_without_and_with_props(lay: Layout, ground: str):
     """The checked build orders of ``lay`` (one brick a step) without props and with them."""
     from core import build_order
