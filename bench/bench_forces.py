@@ -41,6 +41,16 @@ def _verdict(f: forces.Forces) -> str:
 UPRIGHT = {"stanford_bunny_open.obj": "y"}
 
 
+def _finished(finished: dict | None) -> str | None:
+    """The finished build with the props it keeps (:func:`core.build_order.finished_with_props`)."""
+    if finished is None:
+        return None
+    if not finished["checked"]:
+        return "graph only"
+    worst = "inf" if finished["max_utilisation"] is None else f"{finished['max_utilisation']:.3f}"
+    return f"{'stands' if finished['stands'] else 'FAILS'} {worst}"
+
+
 def bench_model(path: Path, ground: str, up: str = "z") -> dict:
     """One row: the pipeline on ``path`` turned by ``up`` (no slicing), its force and build verdicts."""
     row = {"model": path.name + ("" if up == "z" else f" --up {up}"), "ground": ground}
@@ -69,6 +79,7 @@ def bench_model(path: Path, ground: str, up: str = "z") -> dict:
         "steps moved": fab.order.moved,
         "props": len(fab.order.props),
         "props left in": sum(p["removed_after"] is None for p in fab.order.props),
+        "finished with them": _finished(fab.order.finished),
         "steps by the graph only": int(np.isnan(fab.order.utilisation).sum()),
         "steps": len(fab.order.steps),
         "forces s": round(fab.forces.seconds, 2),
