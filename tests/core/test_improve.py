@@ -402,36 +402,46 @@ def _weak_points_by_networkx(lay: Layout) -> int:
     return len(list(nx.articulation_points(graph)))
 
 
-def _mended(monkeypatch, name: str):
-    """The shared model ``name`` fabricated with ``normal`` (no slicing), and again without its
-    closing weak-point windows (``weak_windows`` 0); skips where the shared models are absent."""
+def _mended(monkeypatch, name: str, level=None):
+    """The shared model ``name`` fabricated with ``normal`` (no slicing; ``level`` in its
+    place when given), and again without its closing weak-point windows (``weak_windows``
+    0); skips where the shared models are absent."""
     import dataclasses
     from pathlib import Path
     from core import pipeline
     model = Path(__file__).resolve().parents[3] / "shared" / "models" / name
     if not model.exists():
         pytest.skip(f"{model.parent} is absent: the shared benchmark models are not here")
+    level = level or improve.EFFORT_LEVELS["normal"]
+    monkeypatch.setitem(improve.EFFORT_LEVELS, "normal", level)
     fab = pipeline.run(model, slice_parts=False, picture=False)
-    without = dataclasses.replace(improve.EFFORT_LEVELS["normal"], weak_windows=0)
-    monkeypatch.setitem(improve.EFFORT_LEVELS, "normal", without)
+    monkeypatch.setitem(improve.EFFORT_LEVELS, "normal", dataclasses.replace(level, weak_windows=0))
     return fab.layout, pipeline.run(model, slice_parts=False, picture=False).layout
 
 
-def test_normal_removes_the_eyes_panels_weak_point_with_windows_of_bests_size(monkeypatch):
-    """On the Relativty eyes panel ``normal``'s own windows leave one weak point that no thin
-    feature forces; its closing windows of ``best``'s sizes remove it (0 weak points, no
-    more components).  Weak points are counted by networkx on a brick graph built here."""
-    after, before = _mended(monkeypatch, "relativty_eyes_panel_open.stl")
-    assert _weak_points_by_networkx(after) == 0
+def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monkeypatch):
+    """On the Relativty hw box ``normal``'s own windows leave two weak points, one of them
+    holding a leaf on a one-cell-thin feature; its closing windows remove the other (one
+    left, the thin one), in one piece, with fewer bricks.  Weak points are counted by
+    networkx on a brick graph built here."""
+    after, before = _mended(monkeypatch, "relativty_hw_box_nonmanifold.stl")
+    assert _weak_points_by_networkx(before) == 2 and len(improve.thin_weak_points(before)) == 1
+    assert _weak_points_by_networkx(after) == 1 and len(improve.thin_weak_points(after)) == 1
     assert improve.quality(after)[0] == 1 and covers_once(after)
-    assert _weak_points_by_networkx(before) == 1 and not improve.thin_weak_points(before)
+    assert len(after.bricks) < len(before.bricks)
 
 
 def test_normal_mends_a_weak_point_on_a_thin_feature_too(monkeypatch):
-    """The soap dispenser holder: ``normal``'s own windows leave one weak point, which holds a
-    leaf on a one-cell-thin feature; the closing windows try it too, and cover the feature so
-    that none is left, in one piece, with fewer bricks (counted by networkx here)."""
-    after, before = _mended(monkeypatch, "soap_dispenser_holder.stl")
+    """The soap dispenser holder, with ``normal``'s windows as they were (up to 200 cells,
+    without the two largest boxes; 120 closing windows): its own windows leave one weak
+    point, which holds a leaf on a one-cell-thin feature; the closing windows try it too,
+    and cover the feature so that none is left, in one piece, with fewer bricks (counted by
+    networkx here)."""
+    import dataclasses
+    normal = improve.EFFORT_LEVELS["normal"]
+    smaller = dataclasses.replace(normal, max_window_cells=200, shapes=improve.SHAPES[:5],
+                                  max_columns=1500, mip_columns=500, weak_windows=120)
+    after, before = _mended(monkeypatch, "soap_dispenser_holder.stl", smaller)
     assert _weak_points_by_networkx(before) == 1 and len(improve.thin_weak_points(before)) == 1
     assert _weak_points_by_networkx(after) == 0
     assert improve.quality(after)[0] == 1 and covers_once(after)
