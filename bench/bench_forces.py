@@ -180,7 +180,7 @@ def main() -> int:
     refused = [r for r in rows if "error" in r]
     cols = ["model", "ground", "bricks", "before forces (layout)", "after forces (layout)", "verdict",
             "failing", "unsupported", "every step stands", "steps moved", "props", "props left in",
-            "steps by the graph only", "steps", "reinforce s",
+            "finished with them", "steps by the graph only", "steps", "reinforce s",
             "forces s", "build check s"]
     scaling = bench_scaling()
     text = ["## Forces per model (verdict: stands/FAILS and the worst utilisation)", "",
