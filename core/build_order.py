@@ -684,13 +684,17 @@ def finished_with_props(layout: Layout, order: BuildOrder, stands) -> dict | Non
 def finished_words(finished: dict, force: dict) -> str:
     """:func:`finished_with_props`'s answer in one clause, with the ground and mass of the
     ``stability.force`` document ``force``: "with its 2 prop(s) left in, it stands on a
-    baseplate with 550 g: worst joint utilisation 0.12"."""
+    baseplate with 550 g: worst joint utilisation 0.12", and "(fragile: ...)" when it stands
+    with its hardest joint above :data:`FRAGILE` of its strength, as a fragile step is."""
     head = f"with its {finished['props_left_in']} prop(s) left in, it "
     if not finished["checked"]:
         return head + "is checked by the brick graph only (too many bricks for the programs)"
-    worst = "infinite" if finished["max_utilisation"] is None else f"{finished['max_utilisation']:.2f}"
+    worst = finished["max_utilisation"]
+    fragile = finished["stands"] and worst is not None and worst > FRAGILE
     return (head + f"{'stands' if finished['stands'] else 'does not stand'} on a {force['ground']} "
-            f"with {force['mass_g']:.0f} g: worst joint utilisation {worst}")
+            f"with {force['mass_g']:.0f} g: worst joint utilisation "
+            + ("infinite" if worst is None else f"{worst:.2f}")
+            + (f" (fragile: its hardest joint works above {FRAGILE:g} of what it holds)" if fragile else ""))
 
 
 def prop_last_step(prop: dict, steps: int) -> int:

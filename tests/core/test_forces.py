@@ -358,6 +358,12 @@ def test_the_finished_build_is_judged_with_the_props_it_keeps_and_what_it_carrie
     assert five["stands"] and ten["stands"] and 0.01 < five["max_utilisation"] < ten["max_utilisation"]
     assert ten["max_utilisation"] == pytest.approx(2 * five["max_utilisation"], rel=0.01)
     assert heavy["stands"] is False and heavy["max_utilisation"] > 1
+    # between, by the same line: 6.5 times the 10 kg stands, above what is fragile
+    near = loaded(65000)
+    assert near["stands"] and 0.8 < near["max_utilisation"] <= 1
+    assert build_order.finished_words(near, {"ground": "table", "mass_g": 65002.0}).endswith(
+        "(fragile: its hardest joint works above 0.8 of what it holds)")
+    assert "fragile" not in build_order.finished_words(heavy, {"ground": "table", "mass_g": 1.0})
     force = {"ground": "table", "mass_g": 10002.0}
     assert build_order.finished_words(ten, force) == (
         f"with its 1 prop(s) left in, it stands on a table with 10002 g: worst joint utilisation "
