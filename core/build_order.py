@@ -691,9 +691,9 @@ def finished_words(finished: dict, force: dict) -> str:
         return head + "is checked by the brick graph only (too many bricks for the programs)"
     worst = finished["max_utilisation"]
     fragile = finished["stands"] and worst is not None and worst > FRAGILE
-    return (head + f"{'stands' if finished['stands'] else 'does not stand'} on a {force['ground']} "
-            f"with {force['mass_g']:.0f} g: worst joint utilisation "
-            + ("infinite" if worst is None else f"{worst:.2f}")
+    verdict = forces.verdict_words({"stable": finished["stands"], "ground": force["ground"],
+                                    "mass_g": force["mass_g"], "max_utilisation": worst})
+    return (head + verdict
             + (f" (fragile: its hardest joint works above {FRAGILE:g} of what it holds)" if fragile else ""))
 
 

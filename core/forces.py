@@ -1173,10 +1173,13 @@ class _Model:
         return pts, ~np.isnan(dirs[:, :, 0])
 
     # -- the programs ------------------------------------------------------------------------
-    def _solve(self, prog: _Program) -> tuple[str, np.ndarray | None]:
+    def _solve(self, prog: _Program, limited: bool = True) -> tuple[str, np.ndarray | None]:
         """:meth:`_Program.solve` within :data:`PROGRAM_WORK` (or, given, within
-        ``whole_seconds``), its work added to :attr:`work`."""
-        if self.whole_seconds is None:
+        ``whole_seconds``; not ``limited``: however long it takes), its work added to
+        :attr:`work`."""
+        if not limited:
+            out = prog.solve()
+        elif self.whole_seconds is None:
             out = prog.solve(work=PROGRAM_WORK)
         else:
             out = prog.solve(seconds=self.whole_seconds)
@@ -1254,19 +1257,15 @@ class _Model:
             # 3,834-brick HMD shell
             return each_worst()
         prog, parts = self._program(detail=True, cap=worst)
-        if stable or self.nbody > MAX_BODIES:
-            status, x = self._solve(prog)
-        else:                                    # what fails, and why, however long it takes
-            status, x = prog.solve()
-            self.work += prog.spent
+        # unless it stands, what fails and why, however long it takes
+        status, x = self._solve(prog, limited=stable or self.nbody > MAX_BODIES)
         if status == "limit":
             return each_worst()                  # the worst bounds every brick's
         residual = np.zeros(self.nbody)
         if status != "optimal":
             slack = prog.columns(12 * self.nbody, 0.0, np.inf, 1e3)
             prog.put(np.repeat(parts["eq"], 2), slack, np.tile([1.0, -1.0], 6 * self.nbody))
-            status, x = prog.solve()
-            self.work += prog.spent
+            status, x = self._solve(prog, limited=False)
             if status != "optimal":
                 raise RuntimeError(f"the force program with slack ended {status}")
             residual = np.abs(x[slack]).reshape(self.nbody, 12).sum(axis=1)
