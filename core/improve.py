@@ -375,7 +375,7 @@ LEAF_FREE_REGION_CELLS = 96
 
 
 def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0,
-                    no_weak_points: bool = False) -> dict:
+                    no_weak_points: bool = False, connected: bool = False) -> dict:
     """A lower bound on the bricks of any layout that the improvement's targets accept: one
     component per region and no weak point but those holding a leaf on a one-cell-thin
     feature (:func:`thin_weak_points`).
@@ -390,12 +390,18 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     connection costs at least.  With ``no_weak_points`` it bounds the layouts with one
     component per region and no weak point at all (thin ones included): it also forbids
     every brick whose cells split its region (:func:`separating`), which such a layout
-    cannot have.  Returns ``{"bound", "optimal", "objective", "status",
-    "seconds", "variables"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is
-    the larger of the relaxation's bound (interior point, certified by weak duality) and
-    HiGHS's dual bound, rounded up (0 when neither came in ``time_limit_s``; None past
+    cannot have.  With ``connected`` the program is solved again and again with lazy cuts
+    (:func:`_connection_cuts`) until its cover has one component per region (and, with
+    ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
+    covers that are not such layouts, so every round's bound is still one, and a cover that
+    passes is the fewest bricks any such layout has.  Returns ``{"bound", "optimal",
+    "objective", "status", "seconds", "variables", "rounds", "cuts"}`` as
+    :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
+    relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
+    bounds, rounded up (0 when neither came in ``time_limit_s``; None past
     :data:`core.lower_bound.MAX_VARIABLES` placements, ``status`` "too large"),
-    ``objective`` the best such cover found or None.
+    ``objective`` the best such cover found or None (with ``connected``, only a cover that
+    passes the cuts), ``rounds`` the programs solved and ``cuts`` the cuts added.
     """
     start = time.perf_counter()
     filled = np.ascontiguousarray(np.asarray(grid.filled, dtype=bool))
@@ -403,9 +409,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     boxes = _placements(filled, None, shapes)
     n, m = len(boxes), int(filled.sum())
 
+    rounds, cuts = 0, 0
+
     def result(bound, optimal, objective, status):
         return {"bound": bound, "optimal": optimal, "objective": objective, "status": status,
-                "seconds": round(time.perf_counter() - start, 4), "variables": n}
+                "seconds": round(time.perf_counter() - start, 4), "variables": n,
+                "rounds": rounds, "cuts": cuts}
 
     if m == 0:
         return result(0, True, 0, "optimal")
@@ -461,21 +470,99 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                mip_abs_gap=1.0 - 1e-3)
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
-    h.run()
-    status = h.getModelStatus()
-    if status == highspy.HighsModelStatus.kInfeasible:
-        return result(None, True, None, "infeasible")
-    info = h.getInfo()
-    found = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
-    objective = round(info.objective_function_value) if found else None
-    dual = info.mip_dual_bound
-    if np.isfinite(dual):
-        bound = max(bound, int(np.ceil(dual - 1e-6)))
+    sizes = np.diff(cover.tocsc().indptr)
+    while True:
+        rounds += 1
+        h.run()
+        status = h.getModelStatus()
+        if status == highspy.HighsModelStatus.kInfeasible:
+            return result(None, True, None, "infeasible")
+        info = h.getInfo()
+        found = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
+        objective = round(info.objective_function_value) if found else None
+        dual = info.mip_dual_bound
+        if np.isfinite(dual):
+            bound = max(bound, int(np.ceil(dual - 1e-6)))
+        added = []
+        if connected and found:
+            chosen = np.flatnonzero(np.asarray(h.getSolution().col_value) > 0.5)
+            added = _connection_cuts(boxes[chosen], chosen, filled, cell_index, cover, sizes,
+                                     labels, no_weak_points)
+        if added:
+            objective = None
+        left = time_limit_s - (time.perf_counter() - start)
+        if not added or status != highspy.HighsModelStatus.kOptimal or left <= 0:
+            break
+        for columns, values, lower in added:
+            h.addRow(lower, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
+        cuts += len(added)
+        h.setOptionValue("time_limit", max(left, 0.05))
     optimal = objective is not None and (status == highspy.HighsModelStatus.kOptimal
                                          or bound >= objective)
     if optimal:
         bound = objective
     return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+
+
+def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
+                     cell_index: np.ndarray, cover: sparse.csr_matrix, sizes: np.ndarray,
+                     labels: np.ndarray, no_weak_points: bool) -> list:
+    """Cuts that the cover ``chosen`` (placement indices, their ``chosen_boxes``) breaks
+    and every layout with one component per region (and, with ``no_weak_points``, no weak
+    point) keeps, as ``(columns, values, lower)`` rows ``values . x[columns] >= lower``
+    over the placements; empty when the cover is such a layout.
+
+    Bricks join only where one is over another, so the cells ``S`` of a component in a
+    region it does not fill have all their neighbours above and below in ``S``: in a
+    layout with one component per region some brick must lie partly in ``S`` and partly
+    outside it (sum of those >= 1).  Likewise the cells ``S`` of a piece that falls off
+    when the brick ``p`` is taken away have their neighbours above and below in ``S`` or
+    under ``p``: with ``p`` chosen and no weak point, some brick must lie partly in
+    ``S`` and partly in the rest of the region, off ``p`` (sum of those >= x_p).
+    ``cover`` is the (cells, placements) cover matrix, ``sizes`` its column sums,
+    ``labels`` the 6-connected regions.
+    """
+    n = len(chosen_boxes)
+    lab = np.full(filled.shape, -1, dtype=np.int64)
+    for k, (x, y, z, sx, sy, sz) in enumerate(chosen_boxes):
+        lab[x:x + sx, y:y + sy, z:z + sz] = k
+    cell_brick = lab[filled]                       # per cell (cover's row order): its brick
+    region = labels[chosen_boxes[:, 0], chosen_boxes[:, 1], chosen_boxes[:, 2]]
+    indptr, indices = _csr(lab, n)
+    graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
+    ncomp, comp = connected_components(graph, directed=False)
+    per_region = np.bincount(np.unique(np.stack([region, comp], 1), axis=0)[:, 0])
+    cover_t = cover.T.tocsr()
+    out = []
+
+    def inside(bricks: np.ndarray) -> np.ndarray:
+        """Per placement: how many of its cells lie in the cells of ``bricks``."""
+        return cover_t @ np.isin(cell_brick, bricks).astype(np.float64)
+
+    for c in range(ncomp):
+        members = np.flatnonzero(comp == c)
+        if per_region[region[members[0]]] > 1:
+            count = inside(members)
+            cross = np.flatnonzero((count > 0) & (count < sizes))
+            out.append((cross, np.ones(len(cross)), 1.0))
+    if not no_weak_points:
+        return out
+    for p in np.flatnonzero(articulation_points(indptr, indices, n)):
+        keep = np.ones(n, dtype=bool)
+        keep[p] = False
+        rest = graph[keep][:, keep]
+        pieces, piece = connected_components(rest, directed=False)
+        others = np.flatnonzero(keep)
+        on_p = inside(np.array([p]))
+        sides = [others[piece == k] for k in range(pieces)]
+        own = comp[p]
+        sides = [side for side in sides if comp[side[0]] == own]
+        for side in sides[:-1] if len(sides) == 2 else sides:
+            count = inside(side)
+            cross = np.flatnonzero((count > 0) & (count + on_p < sizes) & (on_p == 0))
+            out.append((np.append(cross, chosen[p]),
+                        np.append(np.ones(len(cross)), -1.0), 0.0))
+    return out
 
 
 def separating(boxes: np.ndarray, labels: np.ndarray) -> np.ndarray:

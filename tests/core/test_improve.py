@@ -339,6 +339,38 @@ def test_leaf_free_bound_of_a_column_is_the_hand_count():
     assert strict["bound"] == 8 and strict["optimal"]
 
 
+def test_connected_bound_of_a_strip_is_the_hand_count():
+    """A strip one stud wide, eight long and two plates high, from 1x4 and 1x2 plates.  The
+    fewest plates are four 1x4s, two over two with their seams over each other: two stacks
+    that never join, so without the cuts the bound is 4.  Joined, one layer's seam must fall
+    inside a plate of the other layer, which then needs a 1x4 across it and a 1x2 at each
+    end: 5, and the cover found is one piece (checked by networkx).  A two-plate strip's
+    brick graph is a path, so past two plates it always has a weak point: none exists."""
+    from core.lower_bound import brick_lower_bound
+    grid = grid_of(np.ones((1, 8, 2), bool))
+    parts = tuple(p for p in catalog.CATALOG if p.number in ("3710", "3023"))
+    assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 4
+    assert improve.leaf_free_bound(grid, parts, time_limit_s=10)["bound"] == 4
+    joined = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True)
+    assert joined["bound"] == 5 and joined["optimal"] and joined["objective"] == 5
+    assert joined["rounds"] >= 2 and joined["cuts"] >= 2
+    strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
+                                     no_weak_points=True)
+    assert strict["bound"] is None and strict["status"] == "infeasible"
+
+
+def test_connected_bound_without_weak_points_of_a_column_is_the_hand_count():
+    """The 2x4 column of the test above: the cuts keep its hand count, 8, whose layout has no
+    weak point, and 7 without weak points asked for."""
+    grid = grid_of(np.ones((2, 4, 15), bool))
+    parts = tuple(p for p in catalog.CATALOG if p.number in ("3001", "3003"))
+    strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
+                                     no_weak_points=True)
+    assert strict["bound"] == 8 and strict["optimal"] and strict["objective"] == 8
+    joined = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True)
+    assert joined["bound"] == 7 and joined["optimal"]
+
+
 def test_separating_bricks_are_those_that_split_their_region():
     """A bar of five 1x1 plates in a row, and beside it (not touching) a tower of three
     1x1 plates: a plate inside the bar or the tower's middle one splits its region; an
@@ -385,6 +417,17 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     assert strict["bound"] >= found["bound"]
     if comps == regions and weak == 0:
         assert strict["bound"] <= bricks
+    # the lazy cuts only take away covers that are not such layouts
+    for no_weak, least, counts in ((False, found["bound"], accepted),
+                                   (True, strict["bound"], comps == regions and weak == 0)):
+        joined = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, connected=True,
+                                         no_weak_points=no_weak)
+        if joined["bound"] is None:
+            assert joined["status"] == "infeasible" and not counts
+            continue
+        assert joined["bound"] >= least
+        if counts:
+            assert joined["bound"] <= bricks
 
 
 def _weak_points_by_networkx(lay: Layout) -> int:
