@@ -71,18 +71,31 @@ def bench_model(path: Path, time_limit: float, efforts: list[str]) -> dict:
                lb_s=lb["seconds"])
     leafless = improve.leaf_free_bound(fab.grid, fab.parts, time_limit_s=time_limit,
                                        connected=True)
-    row.update(leaf_free=max(leafless["bound"] or 0, bound or 0) or None,
-               leaf_free_proven="yes" if leafless["optimal"] else leafless["status"])
+    row.update(leaf_free=_stronger(leafless, bound), leaf_free_proven=_proven(leafless))
     strict = improve.leaf_free_bound(fab.grid, fab.parts, time_limit_s=time_limit,
                                      no_weak_points=True, connected=True)
-    row.update(weak_free=max(strict["bound"] or 0, row["leaf_free"] or 0) or None,
-               weak_free_proven="yes" if strict["optimal"] else strict["status"])
+    row.update(weak_free=_stronger(strict, row["leaf_free"]), weak_free_proven=_proven(strict))
     row["fast"] = measure(fab.layout, fab.timings_s["layout"], bound)
     for effort in efforts:
         start = time.perf_counter()
         better = improve.improve(fab.layout, fab.parts, effort, fab.seed)
         row[effort] = measure(better, fab.timings_s["layout"] + time.perf_counter() - start, bound)
     return row
+
+
+def _stronger(found: dict, weaker: int | None) -> int | None:
+    """A bound of :func:`core.improve.leaf_free_bound`, or the ``weaker`` one where it is less;
+    None where the program proved that no such layout exists."""
+    if found["status"] == "infeasible":
+        return None
+    return max(found["bound"] or 0, weaker or 0) or None
+
+
+def _proven(found: dict) -> str:
+    """Whether a bound is proven: "yes", "none exists" (no such layout), or why not."""
+    if found["status"] == "infeasible":
+        return "none exists"
+    return "yes" if found["optimal"] else found["status"]
 
 
 def model_rows(rows: list[dict], efforts: list[str]) -> list[dict]:
