@@ -332,7 +332,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     ``ratio`` bricks / bound.  The bound is computed when ``lower_bound`` is
     asked for (:data:`LOWER_BOUND_S`), else only when the program is small
     (:data:`CHEAP_VARIABLES`) and then within the seconds the layout took;
-    otherwise it is None with the reason.
+    otherwise it is None with the reason.  When asked for, ``lower_bound.one_piece`` is
+    :func:`one_piece_bound` too.
     """
     from core import lower_bound as lb_stage
 
@@ -360,6 +361,11 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
             "ratio": round(after[3] / bound, 4) if bound else None,
             "greedy_ratio": round(before[3] / bound, 4) if bound else None}
         seconds["lower_bound"] = found["seconds"]
+        if lower_bound:
+            block["lower_bound"]["one_piece"] = one_piece_bound(
+                layout, parts, block["components"] == block["regions"], after[2],
+                block["weak_points_thin"], limit)
+            seconds["one_piece_bound"] = block["lower_bound"]["one_piece"]["seconds"]
     else:
         block["lower_bound"] = {
             "bound": None, "variables": variables,
@@ -367,6 +373,31 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
                    "than the layout; ask for it with --lower-bound"}
     block["seconds"] = seconds
     return block
+
+
+def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak: int, thin: int,
+                    time_limit_s: float) -> dict:
+    """The fewest bricks that ``layout``'s kind of layout can have, as far as
+    :func:`leaf_free_bound` with its cuts finds in ``time_limit_s``: layouts in one piece per
+    region with no weak point when ``layout`` has none (``weak`` 0), else with none but
+    thin ones (``weak`` == ``thin``, its weak points that :func:`thin_weak_points` finds).
+    ``joined`` says whether ``layout`` has one component per region.  Returns ``{"bound",
+    "proven", "status", "time_limit_s", "seconds", "layouts", "ratio"}`` (``layouts`` names
+    the kind, ``ratio`` is bricks / bound); for a layout of neither kind, ``bound`` None
+    and ``why``, as no such bound holds for it."""
+    if not joined or weak > thin:
+        return {"bound": None, "seconds": 0.0,
+                "why": "the layout is not in one piece per region with no weak point but those "
+                       "on one-cell-thin features, so no bound of such layouts holds for it"}
+    found = leaf_free_bound(layout.grid, parts, time_limit_s, no_weak_points=weak == 0,
+                            connected=True)
+    bound = found["bound"]
+    return {"bound": bound, "proven": bool(found["optimal"]), "status": found["status"],
+            "time_limit_s": time_limit_s, "seconds": found["seconds"],
+            "layouts": "in one piece per region, with no weak point" if weak == 0 else
+                       "in one piece per region, with no weak point but those holding a leaf "
+                       "brick on a one-cell-thin feature",
+            "ratio": round(len(layout.bricks) / bound, 4) if bound else None}
 
 
 #: Regions of more cells than this need at least three bricks (no part covers more than

@@ -122,9 +122,11 @@ class Request:
                                      "or best (up to a minute): fewer separate pieces, weak points "
                                      "and bricks", "--effort", "LEVEL")
     lower_bound: bool = _setting(False, "also solve the exact lower bound on the brick count (an "
-                                        "integer program, up to 20 s) for report.json's "
-                                        "layout_quality; without it the bound is only computed "
-                                        "when it costs no more than the layout", "--lower-bound")
+                                        "integer program, up to 20 s), and the fewest bricks of a "
+                                        "layout in one piece like this one (up to 20 s more), for "
+                                        "report.json's layout_quality; without it the first bound "
+                                        "is only computed when it costs no more than the layout",
+                                 "--lower-bound")
     palette: str = _setting("bom", "brick colours of layout.png and the FreeCAD view: bom (the colour "
                                    "the parts list orders) or random (a LEGO colour per brick, to "
                                    "tell bricks apart; parts list, LDraw and instructions keep the "

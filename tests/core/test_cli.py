@@ -68,6 +68,23 @@ def test_box_end_to_end(box_stl, tmp_path):
         assert name in report["outputs"]
 
 
+def test_lower_bound_says_how_far_the_layout_is_from_the_fewest_bricks(box_stl, tmp_path):
+    """The 5 x 3 stud box two bricks high: a course of 15 studs needs three catalog parts
+    (no two footprints that fit make 15), so six bricks at least, and the layout has six,
+    in one piece with no weak point: the summary says it is 1.000 times the fewest."""
+    out = tmp_path / "out"
+    proc = fabricate(str(box_stl), "--out", str(out), "--lower-bound", "--no-picture")
+    assert proc.returncode == 0, proc.stderr
+    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("lower bound:"))
+    assert line == ("lower bound: any layout needs at least 6 bricks (proven); a layout in one "
+                    "piece per region, with no weak point at least 6 (proven): these 6 are 1.000 "
+                    "times that (report.json layout_quality.lower_bound)")
+    bound = json.loads((out / "report.json").read_text())["layout_quality"]["lower_bound"]
+    assert bound["one_piece"]["bound"] == 6 and bound["one_piece"]["proven"]
+    plain = fabricate(str(box_stl), "--out", str(tmp_path / "plain"), "--no-picture")
+    assert "lower bound:" not in plain.stdout
+
+
 def test_seed_is_deterministic(box_stl, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert fabricate(str(box_stl), "--out", str(a), "--seed", "3", "--no-picture").returncode == 0

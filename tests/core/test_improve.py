@@ -293,6 +293,19 @@ def test_thin_weak_point_on_a_one_cell_spike():
     assert block["weak_points"] == 1 and block["weak_points_thin"] == 1
     assert block["lower_bound"]["bound"] == 3 and block["lower_bound"]["proven"]
     assert block["lower_bound"]["ratio"] == 1.0
+    assert "one_piece" not in block["lower_bound"]
+    # asked for, the bound of layouts whose only weak points are thin ones: 3 again
+    asked = improve.layout_quality(lay, lay, catalog.CATALOG, lower_bound=True)
+    piece = asked["lower_bound"]["one_piece"]
+    assert piece["bound"] == 3 and piece["proven"] and piece["ratio"] == 1.0
+    assert "but those holding a leaf brick on a one-cell-thin feature" in piece["layouts"]
+    # a layout with a weak point that is not thin: no such bound holds for it
+    apart = Layout(grid_of(filled[:, :, :6]), lay.bricks[:1] + [
+        Brick(1, "3004", (1, 2, 3), (0, 0, 3)), Brick(2, "3004", (1, 2, 3), (1, 0, 3))])
+    assert improve.quality(apart)[2] == 1 and not improve.thin_weak_points(apart)
+    other = improve.layout_quality(apart, apart, catalog.CATALOG, lower_bound=True)
+    assert other["lower_bound"]["one_piece"]["bound"] is None
+    assert "no bound of such layouts holds" in other["lower_bound"]["one_piece"]["why"]
 
 
 def test_the_pipeline_improves_and_reports_layout_quality(tmp_path):
