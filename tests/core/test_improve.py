@@ -357,8 +357,8 @@ def test_connected_bound_of_a_strip_is_the_hand_count():
     fewest plates are four 1x4s, two over two with their seams over each other: two stacks
     that never join, so without the cuts the bound is 4.  Joined, one layer's seam must fall
     inside a plate of the other layer, which then needs a 1x4 across it and a 1x2 at each
-    end: 5, and the cover found is one piece (checked by networkx).  A two-plate strip's
-    brick graph is a path, so past two plates it always has a weak point: none exists."""
+    end: 5.  A two-plate strip's brick graph is a path, so past two plates it always has a
+    weak point: no layout without one exists."""
     from core.lower_bound import brick_lower_bound
     grid = grid_of(np.ones((1, 8, 2), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3710", "3023"))
