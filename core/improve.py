@@ -431,8 +431,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
     bounds, rounded up (0 when neither came in ``time_limit_s``; None past
     :data:`core.lower_bound.MAX_VARIABLES` placements, ``status`` "too large"),
-    ``objective`` the best such cover found or None (with ``connected``, only a cover that
-    passes the cuts), ``rounds`` the programs solved and ``cuts`` the cuts added.
+    ``objective`` the bricks of the best such cover found or None (with ``connected``, only a
+    cover that passes the cuts), ``cover`` its placements as ``[x, y, z, sx, sy, sz]`` cell
+    boxes (or None), ``rounds`` the programs solved and ``cuts`` the cuts added.
     """
     start = time.perf_counter()
     filled = np.ascontiguousarray(np.asarray(grid.filled, dtype=bool))
@@ -440,12 +441,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     boxes = _placements(filled, None, shapes)
     n, m = len(boxes), int(filled.sum())
 
-    rounds, cuts = 0, 0
+    rounds, cuts, passed = 0, 0, None
 
     def result(bound, optimal, objective, status):
         return {"bound": bound, "optimal": optimal, "objective": objective, "status": status,
                 "seconds": round(time.perf_counter() - start, 4), "variables": n,
-                "rounds": rounds, "cuts": cuts}
+                "rounds": rounds, "cuts": cuts, "cover": passed}
 
     if m == 0:
         return result(0, True, 0, "optimal")
@@ -515,10 +516,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         if np.isfinite(dual):
             bound = max(bound, int(np.ceil(dual - 1e-6)))
         added = []
-        if connected and found:
+        if found:
             chosen = np.flatnonzero(np.asarray(h.getSolution().col_value) > 0.5)
-            added = _connection_cuts(boxes[chosen], chosen, filled, cell_index, cover, sizes,
-                                     labels, no_weak_points)
+            if connected:
+                added = _connection_cuts(boxes[chosen], chosen, filled, cell_index, cover,
+                                         sizes, labels, no_weak_points)
+            passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
         left = time_limit_s - (time.perf_counter() - start)

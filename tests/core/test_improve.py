@@ -357,8 +357,9 @@ def test_connected_bound_of_a_strip_is_the_hand_count():
     fewest plates are four 1x4s, two over two with their seams over each other: two stacks
     that never join, so without the cuts the bound is 4.  Joined, one layer's seam must fall
     inside a plate of the other layer, which then needs a 1x4 across it and a 1x2 at each
-    end: 5.  A two-plate strip's brick graph is a path, so past two plates it always has a
-    weak point: no layout without one exists."""
+    end: 5; the cover found is one piece (checked by networkx).  A two-plate strip's brick
+    graph is a path, so past two plates it always has a weak point: no layout without one
+    exists."""
     from core.lower_bound import brick_lower_bound
     grid = grid_of(np.ones((1, 8, 2), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3710", "3023"))
@@ -367,6 +368,13 @@ def test_connected_bound_of_a_strip_is_the_hand_count():
     joined = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True)
     assert joined["bound"] == 5 and joined["optimal"] and joined["objective"] == 5
     assert joined["rounds"] >= 2 and joined["cuts"] >= 2
+    bricks = [Brick(k, "3710" if sy == 4 else "3023", (sx, sy, sz), (x, y, z))
+              for k, (x, y, z, sx, sy, sz) in enumerate(joined["cover"])]
+    cover = Layout(grid, bricks)
+    # one piece, by networkx, and a path of five plates: three weak points
+    import networkx as nx
+    assert covers_once(cover) and nx.is_connected(_graph_by_networkx(cover))
+    assert _weak_points_by_networkx(cover) == 3
     strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
                                      no_weak_points=True)
     assert strict["bound"] is None and strict["status"] == "infeasible"
@@ -443,9 +451,9 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
             assert joined["bound"] <= bricks
 
 
-def _weak_points_by_networkx(lay: Layout) -> int:
-    """Articulation points of the brick graph built here from the bricks' boxes (one brick on
-    another where its bottom meets the other's top over a shared stud), by networkx."""
+def _graph_by_networkx(lay: Layout):
+    """The brick graph built here from the bricks' boxes (one brick on another where its
+    bottom meets the other's top over a shared stud), as a networkx graph."""
     import networkx as nx
     graph = nx.Graph()
     graph.add_nodes_from(range(len(lay.bricks)))
@@ -455,7 +463,13 @@ def _weak_points_by_networkx(lay: Layout) -> int:
                     b.cell[k] < a.cell[k] + a.size[k] and a.cell[k] < b.cell[k] + b.size[k]
                     for k in (0, 1)):
                 graph.add_edge(i, j)
-    return len(list(nx.articulation_points(graph)))
+    return graph
+
+
+def _weak_points_by_networkx(lay: Layout) -> int:
+    """Articulation points of :func:`_graph_by_networkx`, by networkx."""
+    import networkx as nx
+    return len(list(nx.articulation_points(_graph_by_networkx(lay))))
 
 
 def _mended(monkeypatch, name: str, level=None):
