@@ -567,25 +567,9 @@ def _calibration_strip(args) -> int:
     return 0
 
 
-def _bound_words(bricks: int, bound: dict) -> str:
-    """The summary line of the lower bounds asked for with ``--lower-bound``."""
-    def proven(found):
-        return "proven" if found.get("proven") else f"not proven in {found['time_limit_s']:g} s"
-
-    words = (f"lower bound: any layout needs at least {bound['bound']} bricks ({proven(bound)})"
-             if bound.get("bound") else "lower bound: none found in the time given")
-    piece = bound["one_piece"]
-    if piece.get("bound"):
-        words += (f"; a layout {piece['layouts']} at least {piece['bound']} ({proven(piece)}): "
-                  f"these {bricks} are {piece['ratio']:.3f} times that")
-    elif piece.get("why"):
-        words += f"; {piece['why']}"
-    return words + " (report.json layout_quality.lower_bound)"
-
-
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
-    from core import build_order, forces
+    from core import build_order, forces, improve
 
     if doc["model"]["repaired"]:
         sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
@@ -600,9 +584,9 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
-    bound = (doc.get("layout_quality") or {}).get("lower_bound") or {}
-    if "one_piece" in bound:
-        print(_bound_words(br["total"], bound))
+    quality = doc.get("layout_quality") or {}
+    if "one_piece" in (quality.get("lower_bound") or {}):
+        print(improve.bound_words(quality))
     force = st.get("force")
     if force and not force.get("checked", True):
         print(f"force check skipped: {force['unchecked_why']}")

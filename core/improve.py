@@ -400,6 +400,25 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
             "ratio": round(len(layout.bricks) / bound, 4) if bound else None}
 
 
+def bound_words(quality: dict) -> str:
+    """The lower bounds of a :func:`layout_quality` block asked for with ``lower_bound``
+    (its ``lower_bound`` has ``one_piece``) in one line of words."""
+    bricks, bound = quality["bricks"], quality["lower_bound"]
+
+    def proven(found):
+        return "proven" if found.get("proven") else f"not proven in {found['time_limit_s']:g} s"
+
+    words = (f"lower bound: any layout needs at least {bound['bound']} bricks ({proven(bound)})"
+             if bound.get("bound") else "lower bound: none found in the time given")
+    piece = bound["one_piece"]
+    if piece.get("bound"):
+        words += (f"; a layout {piece['layouts']} at least {piece['bound']} ({proven(piece)}): "
+                  f"these {bricks} are {piece['ratio']:.3f} times that")
+    elif piece.get("why"):
+        words += f"; {piece['why']}"
+    return words + " (report.json layout_quality.lower_bound)"
+
+
 #: Regions of more cells than this need at least three bricks (no part covers more than
 #: 48 cells), so a leaf brick in them makes its neighbour a weak point.
 LEAF_FREE_REGION_CELLS = 96

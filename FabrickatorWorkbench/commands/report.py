@@ -52,6 +52,10 @@ def summary(fab) -> list[str]:
               "of the build)" if weak else "no weak points"),
              (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
               "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
+    quality = doc.get("layout_quality") or {}
+    if "one_piece" in (quality.get("lower_bound") or {}):
+        from core import improve
+        lines.append(improve.bound_words(quality))
     if st.get("force"):
         lines.append(f"force check: {force_words(st['force'], st.get('build'))}")
     times = doc.get("print_time_s")

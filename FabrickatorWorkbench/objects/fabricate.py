@@ -30,8 +30,9 @@ from FabrickatorWorkbench.objects import high_res_region, load, tree
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
-PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "Effort", "SecondsPerBrick",
-              "SecondsPerPart", "SlicePrintTimes", "FitGrid", "Ground", "Clutch", "Hollow")
+PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "Effort", "LowerBound",
+              "SecondsPerBrick", "SecondsPerPart", "SlicePrintTimes", "FitGrid", "Ground",
+              "Clutch", "Hollow")
 
 
 #: Milliseconds the status bar says that a recompute was stopped with Esc.
@@ -180,7 +181,7 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
         hollow=int(obj.Hollow),
-        effort=str(obj.Effort),
+        effort=str(obj.Effort), lower_bound=bool(obj.LowerBound),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
         clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale)).checked()

@@ -84,6 +84,12 @@ PROPERTIES = (
                              "greedy layout only), normal (a few seconds for 2,000 cells) or best "
                              "(up to a minute): fewer separate pieces, weak points and bricks"),
          effort_choices),
+    Prop("App::PropertyBool", "LowerBound", "Fabrication",
+         QT("App::Property", "Also solve the exact lower bound on the brick count and the fewest "
+                             "bricks of a layout in one piece like this one (up to 20 s each), "
+                             "shown by the Report command; off: the first bound only when it "
+                             "costs no more than the layout"),
+         partial(setting_default, "lower_bound")),
     Prop("App::PropertyFloat", "SecondsPerBrick", "Fabrication",
          QT("App::Property", "Assembly estimate: seconds to place one LEGO brick"),
          partial(setting_default, "seconds_per_brick")),

@@ -238,6 +238,31 @@ class TestFabrication(FabrickatorTestCase):
         f.Effort = "fast"
         self.assertEqual(fabricate.request(f, "part.stl", (), ()).effort, "fast")
 
+    def test_lower_bound_property_gives_the_bounds_of_the_command_line(self):
+        """LowerBound, off by default as in the core's table: on, the Fabrication's report has
+        the bounds ``--lower-bound`` gives for the same 5 x 3 stud box two bricks high (six
+        bricks at least, proven, and six in one piece without weak points), and the words
+        the command line prints."""
+        from core import improve
+        from core.request import DEFAULTS
+        from FabrickatorWorkbench.objects import fabricate
+
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.assertEqual(f.LowerBound, DEFAULTS["lower_bound"])
+        self.doc.recompute()
+        self.assertNotIn("one_piece", fab().report(f)["layout_quality"]["lower_bound"])
+        f.LowerBound = True
+        self.assertTrue(fabricate.request(f, "part.stl", (), ()).lower_bound)
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        quality = fab().report(f)["layout_quality"]
+        self.assertEqual(quality["lower_bound"]["one_piece"]["bound"], 6)
+        self.assertEqual(improve.bound_words(quality), (
+            "lower bound: any layout needs at least 6 bricks (proven); a layout in one piece per "
+            "region, with no weak point at least 6 (proven): these 6 are 1.000 times that "
+            "(report.json layout_quality.lower_bound)"))
+
     def test_body_becomes_bricks_that_cover_every_cell_once(self):
         body, _, _ = padded_body(self.doc)
         f = fab().make_fabrication(body)
