@@ -392,6 +392,11 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
     found = leaf_free_bound(layout.grid, parts, time_limit_s, no_weak_points=weak == 0,
                             connected=True)
     bound = found["bound"]
+    if found["status"] == "infeasible":
+        # a weak point that holds a thin leaf counts as thin even when it also holds a leaf
+        # the program forbids: such a layout is not of the kind the program bounds
+        return {"bound": None, "seconds": found["seconds"],
+                "why": "the program finds no layout of this kind, so no bound is given"}
     return {"bound": bound, "proven": bool(found["optimal"]), "status": found["status"],
             "time_limit_s": time_limit_s, "seconds": found["seconds"],
             "layouts": "in one piece per region, with no weak point" if weak == 0 else
@@ -445,7 +450,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
     covers that are not such layouts, so every round's bound is still one, and a cover that
     passes is the fewest bricks any such layout has.  Returns ``{"bound", "optimal",
-    "objective", "status", "seconds", "variables", "rounds", "cuts"}`` as
+    "objective", "status", "seconds", "variables", "rounds", "cuts", "cover"}`` as
     :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
     relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
     bounds, rounded up (0 when neither came in ``time_limit_s``; None past
@@ -538,8 +543,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         if found:
             chosen = np.flatnonzero(np.asarray(h.getSolution().col_value) > 0.5)
             if connected:
-                added = _connection_cuts(boxes[chosen], chosen, filled, cell_index, cover,
-                                         sizes, labels, no_weak_points)
+                added = _connection_cuts(boxes[chosen], chosen, filled, cover, sizes, labels,
+                                         no_weak_points)
             passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
@@ -558,8 +563,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
 
 
 def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
-                     cell_index: np.ndarray, cover: sparse.csr_matrix, sizes: np.ndarray,
-                     labels: np.ndarray, no_weak_points: bool) -> list:
+                     cover: sparse.csr_matrix, sizes: np.ndarray, labels: np.ndarray,
+                     no_weak_points: bool) -> list:
     """Cuts that the cover ``chosen`` (placement indices, their ``chosen_boxes``) breaks
     and every layout with one component per region (and, with ``no_weak_points``, no weak
     point) keeps, as ``(columns, values, lower)`` rows ``values . x[columns] >= lower``
