@@ -168,7 +168,8 @@ def main() -> int:
         print(f"  measured {path.name}", file=sys.stderr)
     table = model_rows(rows, efforts)
     columns = ["model", "cells", "effort", "bricks", "lower bound", "proven", "ratio",
-               "bound, one piece, no leaves", "proven too", "ratio to it", "bound, one piece, no weak points",
+               "bound, one piece, no leaves", "proven too", "ratio to it",
+               "bound, one piece, no weak points",
                "proven (3)", "ratio to it (3)", "components/regions", "weak", "weak thin",
                "seconds", "ratio<=1.15", "connected", "no weak"]
     scale = scaling(efforts)

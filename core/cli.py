@@ -584,9 +584,9 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
-    quality = doc.get("layout_quality") or {}
-    if "one_piece" in (quality.get("lower_bound") or {}):
-        print(improve.bound_words(quality))
+    bound = improve.bound_words(doc.get("layout_quality") or {})
+    if bound:
+        print(bound)
     force = st.get("force")
     if force and not force.get("checked", True):
         print(f"force check skipped: {force['unchecked_why']}")

@@ -405,10 +405,13 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
             "ratio": round(len(layout.bricks) / bound, 4) if bound else None}
 
 
-def bound_words(quality: dict) -> str:
+def bound_words(quality: dict) -> str | None:
     """The lower bounds of a :func:`layout_quality` block asked for with ``lower_bound``
-    (its ``lower_bound`` has ``one_piece``) in one line of words."""
-    bricks, bound = quality["bricks"], quality["lower_bound"]
+    (its ``lower_bound`` has ``one_piece``) in one line of words; None for a block made
+    without asking."""
+    bricks, bound = quality.get("bricks"), quality.get("lower_bound") or {}
+    if "one_piece" not in bound:
+        return None
 
     def proven(found):
         return "proven" if found.get("proven") else f"not proven in {found['time_limit_s']:g} s"
@@ -526,7 +529,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                mip_abs_gap=1.0 - 1e-3)
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
-    sizes = np.diff(cover.tocsc().indptr)
+    by_placement = cover.T.tocsr()
     while True:
         rounds += 1
         h.run()
@@ -543,7 +546,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         if found:
             chosen = np.flatnonzero(np.asarray(h.getSolution().col_value) > 0.5)
             if connected:
-                added = _connection_cuts(boxes[chosen], chosen, filled, cover, sizes, labels,
+                added = _connection_cuts(boxes[chosen], chosen, filled, by_placement, labels,
                                          no_weak_points)
             passed = None if added else boxes[chosen].tolist()
         if added:
@@ -563,7 +566,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
 
 
 def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
-                     cover: sparse.csr_matrix, sizes: np.ndarray, labels: np.ndarray,
+                     by_placement: sparse.csr_matrix, labels: np.ndarray,
                      no_weak_points: bool) -> list:
     """Cuts that the cover ``chosen`` (placement indices, their ``chosen_boxes``) breaks
     and every layout with one component per region (and, with ``no_weak_points``, no weak
@@ -577,7 +580,7 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
     when the brick ``p`` is taken away have their neighbours above and below in ``S`` or
     under ``p``: with ``p`` chosen and no weak point, some brick must lie partly in
     ``S`` and partly in the rest of the region, off ``p`` (sum of those >= x_p).
-    ``cover`` is the (cells, placements) cover matrix, ``sizes`` its column sums,
+    ``by_placement`` is the (placements, cells) matrix of the cells each placement covers,
     ``labels`` the 6-connected regions.
     """
     n = len(chosen_boxes)
@@ -590,12 +593,12 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     ncomp, comp = connected_components(graph, directed=False)
     per_region = np.bincount(np.unique(np.stack([region, comp], 1), axis=0)[:, 0])
-    cover_t = cover.T.tocsr()
+    sizes = np.diff(by_placement.indptr)
     out = []
 
     def inside(bricks: np.ndarray) -> np.ndarray:
         """Per placement: how many of its cells lie in the cells of ``bricks``."""
-        return cover_t @ np.isin(cell_brick, bricks).astype(np.float64)
+        return by_placement @ np.isin(cell_brick, bricks).astype(np.float64)
 
     for c in range(ncomp):
         members = np.flatnonzero(comp == c)
