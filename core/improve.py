@@ -77,7 +77,7 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume, fitting_positions
+from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -918,13 +918,15 @@ class _Search:
             lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
             hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
             sl = tuple(slice(a, b) for a, b in zip(lo, hi))
-            if len(ids) > 2 and len(_placements(free[sl], None, shapes)) > limit:
+            boxes = _placements(free[sl], None, shapes)
+            if len(ids) > 2 and len(boxes) > limit:
                 ids = ids[:max(2, (len(ids) * 4) // 5)]
                 continue
+            if self.apart is not None:
+                boxes = _placements(free[sl], self.apart[sl], shapes)
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
-            window = (free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
-                      None if self.apart is None else self.apart[sl], shapes, current,
-                      self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
+            window = (boxes, free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+                      current, self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
             chosen = _solve_window(*window)
             if chosen is not TOO_LARGE:
                 break
@@ -1059,28 +1061,51 @@ def _nearest_groups(rec: np.ndarray, sign: np.ndarray, cells: int) -> list[list[
 # -- the window program ------------------------------------------------------
 
 def _placements(free, apart, shapes):
-    """Every placement on the freed cells: (n, 6) boxes (x, y, z, sx, sy, sz).
+    """Every placement on the freed cells: (n, 6) boxes (x, y, z, sx, sy, sz), shape by
+    shape in the order of ``shapes``, each shape's min corners in C order.
 
     With ``apart`` cells a placement lies wholly inside or wholly outside them.
     """
     masks = [free] if apart is None else [free & apart, free & ~apart]
-    out = []
-    for mask in masks:
-        if not mask.any():
-            continue
-        table = _summed_volume(mask)
-        for (sx, sy, sz), _ in shapes:
-            pos = fitting_positions(table, (sx, sy, sz))
-            if len(pos):
-                out.append(np.column_stack([pos, np.tile([sx, sy, sz], (len(pos), 1))]))
-    return np.concatenate(out).astype(np.int64) if out else np.empty((0, 6), dtype=np.int64)
+    sizes = np.array([size for size, _ in shapes], dtype=np.int64).reshape(-1, 3)
+    out = [_fitting_boxes(_summed_volume(mask), sizes) for mask in masks if mask.any()]
+    return np.concatenate(out) if out else np.empty((0, 6), dtype=np.int64)
+
+
+@njit(cache=True)
+def _fitting_boxes(table, sizes):
+    """The boxes (n, 6) of every size of ``sizes`` (k, 3) made only of filled cells, size by
+    size, min corners in C order; ``table`` is the grid's summed-volume table
+    (:func:`core.lower_bound._summed_volume`)."""
+    nx, ny, nz = table.shape[0] - 1, table.shape[1] - 1, table.shape[2] - 1
+    out = np.empty((0, 6), dtype=np.int64)
+    count = 0
+    for fill in (False, True):
+        if fill:
+            out = np.empty((count, 6), dtype=np.int64)
+            count = 0
+        for k in range(sizes.shape[0]):
+            sx, sy, sz = sizes[k, 0], sizes[k, 1], sizes[k, 2]
+            for x in range(nx - sx + 1):
+                for y in range(ny - sy + 1):
+                    for z in range(nz - sz + 1):
+                        inside = (table[x + sx, y + sy, z + sz] - table[x, y + sy, z + sz]
+                                  - table[x + sx, y, z + sz] - table[x + sx, y + sy, z]
+                                  + table[x, y, z + sz] + table[x, y + sy, z]
+                                  + table[x + sx, y, z] - table[x, y, z])
+                        if inside == sx * sy * sz:
+                            if fill:
+                                out[count, 0], out[count, 1], out[count, 2] = x, y, z
+                                out[count, 3], out[count, 4], out[count, 5] = sx, sy, sz
+                            count += 1
+    return out
 
 
 def _cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:
     """The (cells x placements) 0/1 matrix of which placement covers which cell: ``boxes``
     (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them)."""
     cols, rows = [], []
-    for (sx, sy, sz) in {tuple(b) for b in boxes[:, 3:]}:
+    for (sx, sy, sz) in np.unique(boxes[:, 3:], axis=0):
         sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
         di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
         cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
@@ -1174,42 +1199,56 @@ def _covering(boxes, targets, cell_ptr, cell_cols, cell_index):
     return np.array(out_t, dtype=np.int64), np.array(out_q, dtype=np.int64)
 
 
+@njit(cache=True)
 def _fixed_leaf_targets(free, filled, lab):
     """Boxes (x0, y0, x1, y1, layer) of the freed cells that a fixed brick touches, for the
     fixed bricks beside the window that touch no other fixed brick and touch freed cells
-    on one side only: such a brick becomes a leaf if one placement covers that box."""
-    nz = free.shape[2]
-    targets = []
-    for b in np.unique(lab[lab >= 0]):
-        cells = np.argwhere(lab == b)
-        (x0, y0, z0), (x1, y1, z1) = cells.min(axis=0), cells.max(axis=0)
-        touch_fixed = set()
-        boxes = []
-        for z in (z0 - 1, z1 + 1):
+    on one side only: such a brick becomes a leaf if one placement covers that box.  The
+    bricks are taken in the order of their labels, each as far as it lies in the grid."""
+    nx, ny, nz = lab.shape
+    flat = lab.ravel()
+    ids = np.unique(flat[flat >= 0])
+    lo = np.full((ids.size, 3), 1 << 30, dtype=np.int64)
+    hi = np.full((ids.size, 3), -1, dtype=np.int64)
+    for x in range(nx):
+        for y in range(ny):
+            for z in range(nz):
+                if lab[x, y, z] >= 0:
+                    j = np.searchsorted(ids, lab[x, y, z])
+                    lo[j, 0], lo[j, 1], lo[j, 2] = min(lo[j, 0], x), min(lo[j, 1], y), min(lo[j, 2], z)
+                    hi[j, 0], hi[j, 1], hi[j, 2] = max(hi[j, 0], x), max(hi[j, 1], y), max(hi[j, 2], z)
+    out = np.empty((ids.size, 5), dtype=np.int64)
+    count = 0
+    for j in range(ids.size):
+        touch, sides = False, 0
+        for z in (lo[j, 2] - 1, hi[j, 2] + 1):
             if z < 0 or z >= nz:
                 continue
-            foot_f = filled[x0:x1 + 1, y0:y1 + 1, z]
-            foot_w = free[x0:x1 + 1, y0:y1 + 1, z]
-            other = lab[x0:x1 + 1, y0:y1 + 1, z][foot_f & ~foot_w]
-            touch_fixed.update(int(v) for v in other if v >= 0 and v != b)
-            if foot_w.any():
-                w = np.argwhere(foot_w)
-                boxes.append((x0 + w[:, 0].min(), y0 + w[:, 1].min(),
-                              x0 + w[:, 0].max(), y0 + w[:, 1].max(), z))
-        if not touch_fixed and len(boxes) == 1:
-            targets.append(boxes[0])
-    return np.array(targets, dtype=np.int64).reshape(-1, 5)
+            bx0, by0, bx1, by1 = 1 << 30, 1 << 30, -1, -1
+            for x in range(lo[j, 0], hi[j, 0] + 1):
+                for y in range(lo[j, 1], hi[j, 1] + 1):
+                    if free[x, y, z]:
+                        bx0, by0, bx1, by1 = min(bx0, x), min(by0, y), max(bx1, x), max(by1, y)
+                    elif filled[x, y, z] and lab[x, y, z] >= 0 and lab[x, y, z] != ids[j]:
+                        touch = True
+            if bx1 >= 0:
+                sides += 1
+                out[count, 0], out[count, 1], out[count, 2] = bx0, by0, bx1
+                out[count, 3], out[count, 4] = by1, z
+        if not touch and sides == 1:
+            count += 1
+    return out[:count]
 
 
-def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort, leaf_cost: float,
+def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cost: float,
                   penalty: dict | None = None):
-    """The best re-cover of the ``free`` cells of a local box, as a list of boxes, or None.
+    """The best re-cover of the ``free`` cells of a local box by the placements ``boxes``
+    (:func:`_placements`), as a list of boxes, or None.
 
     ``lab`` holds the fixed bricks' indices (-1 on freed and empty cells);
     the box has a margin of one cell around the freed cells where the grid
     allows.  ``current`` (the freed bricks' boxes) is the starting solution.
     """
-    boxes = _placements(free, apart, shapes)
     n = len(boxes)
     if n == 0:
         return None
@@ -1284,6 +1323,7 @@ def _solve_window(free, filled, lab, apart, shapes, current, rng, level: Effort,
     if not lp_done:
         h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
                                 np.full(n, highspy.HighsVarType.kInteger))
+        h.setOptionValue("presolve", "on")
         start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:])
         if start is not None:
             sol = highspy.HighsSolution()
