@@ -380,7 +380,9 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
     """The fewest bricks that ``layout``'s kind of layout can have, as far as
     :func:`leaf_free_bound` with its cuts finds in ``time_limit_s``: layouts in one piece per
     region with no weak point when ``layout`` has none (``weak`` 0), else with none but
-    thin ones (``weak`` == ``thin``, its weak points that :func:`thin_weak_points` finds).
+    thin ones (``weak`` == ``thin``, its weak points that :func:`thin_weak_points` finds)
+    and at most ``weak`` of them (``most_weak``): those as good as ``layout`` on the first
+    terms of :func:`quality` (failing joints aside).
     ``joined`` says whether ``layout`` has one component per region.  Returns ``{"bound",
     "proven", "status", "time_limit_s", "seconds", "layouts", "ratio"}`` (``layouts`` names
     the kind, ``ratio`` is bricks / bound); for a layout of neither kind, ``bound`` None
@@ -390,7 +392,7 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
                 "why": "the layout is not in one piece per region with no weak point but those "
                        "on one-cell-thin features, so no bound of such layouts holds for it"}
     found = leaf_free_bound(layout.grid, parts, time_limit_s, no_weak_points=weak == 0,
-                            connected=True)
+                            connected=True, most_weak=weak or None)
     bound = found["bound"]
     if found["status"] == "infeasible":
         # a weak point that holds a thin leaf counts as thin even when it also holds a leaf
@@ -400,8 +402,8 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
     return {"bound": bound, "proven": bool(found["optimal"]), "status": found["status"],
             "time_limit_s": time_limit_s, "seconds": found["seconds"],
             "layouts": "in one piece per region, with no weak point" if weak == 0 else
-                       "in one piece per region, with no weak point but those holding a leaf "
-                       "brick on a one-cell-thin feature",
+                       f"in one piece per region, with at most {weak} weak point(s), each "
+                       "holding a leaf brick on a one-cell-thin feature",
             "ratio": round(len(layout.bricks) / bound, 4) if bound else None}
 
 
@@ -433,7 +435,8 @@ LEAF_FREE_REGION_CELLS = 96
 
 
 def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0,
-                    no_weak_points: bool = False, connected: bool = False) -> dict:
+                    no_weak_points: bool = False, connected: bool = False,
+                    most_weak: int | None = None) -> dict:
     """A lower bound on the bricks of any layout that the improvement's targets accept: one
     component per region and no weak point but those holding a leaf on a one-cell-thin
     feature (:func:`thin_weak_points`).
@@ -452,9 +455,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     (:func:`_connection_cuts`) until its cover has one component per region (and, with
     ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
     covers that are not such layouts, so every round's bound is still one, and a cover that
-    passes is the fewest bricks any such layout has.  Returns ``{"bound", "optimal",
-    "objective", "status", "seconds", "variables", "rounds", "cuts", "cover"}`` as
-    :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
+    passes is the fewest bricks any such layout has.  With ``connected`` and ``most_weak``
+    (and not ``no_weak_points``) it bounds the layouts that also have at most ``most_weak``
+    weak points: the weak-point cuts of :func:`_connection_cuts` hold for every brick but
+    those the program marks as weak, at most ``most_weak`` of them.
+    Returns ``{"bound", "optimal", "objective", "status", "seconds", "variables", "rounds",
+    "cuts", "cover"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
     relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
     bounds, rounded up (0 when neither came in ``time_limit_s``; None past
     :data:`core.lower_bound.MAX_VARIABLES` placements, ``status`` "too large"),
@@ -530,6 +536,11 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
     by_placement = cover.T.tocsr()
+    weak_cuts = connected and (no_weak_points or most_weak is not None)
+    marks: dict[int, int] = {}        # placement -> the column of "it may be a weak point"
+    if weak_cuts and not no_weak_points:
+        h.addRow(-highspy.kHighsInf, float(most_weak), 0, np.empty(0, np.int32), np.empty(0))
+        marks_row = h.getNumRow() - 1
     while True:
         rounds += 1
         h.run()
@@ -544,17 +555,27 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
             bound = max(bound, int(np.ceil(dual - 1e-6)))
         added = []
         if found:
-            chosen = np.flatnonzero(np.asarray(h.getSolution().col_value) > 0.5)
+            solution = np.asarray(h.getSolution().col_value)
+            chosen = np.flatnonzero(solution[:n] > 0.5)
             if connected:
                 added = _connection_cuts(boxes[chosen], chosen, filled, by_placement, labels,
-                                         no_weak_points)
+                                         weak_cuts)
+                # a weak point the program marked as one breaks no cut
+                added = [cut for cut in added if cut[3] not in marks
+                         or solution[marks[cut[3]]] < 0.5]
             passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
         left = time_limit_s - (time.perf_counter() - start)
         if not added or status != highspy.HighsModelStatus.kOptimal or left <= 0:
             break
-        for columns, values, lower in added:
+        for columns, values, lower, p in added:
+            if p >= 0 and not no_weak_points:
+                if p not in marks:
+                    h.addCol(0.0, 0.0, 1.0, 1, np.array([marks_row], np.int32), np.ones(1))
+                    marks[p] = h.getNumCol() - 1
+                    h.changeColIntegrality(marks[p], highspy.HighsVarType.kInteger)
+                columns, values = np.append(columns, marks[p]), np.append(values, 1.0)
             h.addRow(lower, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
         cuts += len(added)
         h.setOptionValue("time_limit", max(left, 0.05))
@@ -567,11 +588,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
 
 def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
                      by_placement: sparse.csr_matrix, labels: np.ndarray,
-                     no_weak_points: bool) -> list:
+                     weak_cuts: bool) -> list:
     """Cuts that the cover ``chosen`` (placement indices, their ``chosen_boxes``) breaks
-    and every layout with one component per region (and, with ``no_weak_points``, no weak
-    point) keeps, as ``(columns, values, lower)`` rows ``values . x[columns] >= lower``
-    over the placements; empty when the cover is such a layout.
+    and every layout with one component per region (and, with ``weak_cuts``, where the
+    brick ``p`` of the cut is not a weak point) keeps, as ``(columns, values, lower, p)``
+    rows ``values . x[columns] >= lower`` over the placements (``p`` -1 for a cut that
+    holds whatever the weak points); empty when the cover is such a layout.
 
     Bricks join only where one is over another, so the cells ``S`` of a component in a
     region it does not fill have all their neighbours above and below in ``S``: in a
@@ -605,8 +627,8 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
         if per_region[region[members[0]]] > 1:
             count = inside(members)
             cross = np.flatnonzero((count > 0) & (count < sizes))
-            out.append((cross, np.ones(len(cross)), 1.0))
-    if not no_weak_points:
+            out.append((cross, np.ones(len(cross)), 1.0, -1))
+    if not weak_cuts:
         return out
     for p in np.flatnonzero(articulation_points(indptr, indices, n)):
         keep = np.ones(n, dtype=bool)
@@ -622,7 +644,7 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
             count = inside(side)
             cross = np.flatnonzero((count > 0) & (count + on_p < sizes) & (on_p == 0))
             out.append((np.append(cross, chosen[p]),
-                        np.append(np.ones(len(cross)), -1.0), 0.0))
+                        np.append(np.ones(len(cross)), -1.0), 0.0, int(chosen[p])))
     return out
 
 
@@ -1215,8 +1237,9 @@ def _fixed_leaf_targets(free, filled, lab):
             for z in range(nz):
                 if lab[x, y, z] >= 0:
                     j = np.searchsorted(ids, lab[x, y, z])
-                    lo[j, 0], lo[j, 1], lo[j, 2] = min(lo[j, 0], x), min(lo[j, 1], y), min(lo[j, 2], z)
-                    hi[j, 0], hi[j, 1], hi[j, 2] = max(hi[j, 0], x), max(hi[j, 1], y), max(hi[j, 2], z)
+                    for axis, v in ((0, x), (1, y), (2, z)):
+                        lo[j, axis] = min(lo[j, axis], v)
+                        hi[j, axis] = max(hi[j, axis], v)
     out = np.empty((ids.size, 5), dtype=np.int64)
     count = 0
     for j in range(ids.size):

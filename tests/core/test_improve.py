@@ -298,7 +298,8 @@ def test_thin_weak_point_on_a_one_cell_spike():
     asked = improve.layout_quality(lay, lay, catalog.CATALOG, lower_bound=True)
     piece = asked["lower_bound"]["one_piece"]
     assert piece["bound"] == 3 and piece["proven"] and piece["ratio"] == 1.0
-    assert "but those holding a leaf brick on a one-cell-thin feature" in piece["layouts"]
+    assert piece["layouts"] == ("in one piece per region, with at most 1 weak point(s), each "
+                                "holding a leaf brick on a one-cell-thin feature")
     # a layout with a weak point that is not thin: no such bound holds for it
     apart = Layout(grid_of(filled[:, :, :6]), lay.bricks[:1] + [
         Brick(1, "3004", (1, 2, 3), (0, 0, 3)), Brick(2, "3004", (1, 2, 3), (1, 0, 3))])
@@ -359,7 +360,8 @@ def test_connected_bound_of_a_strip_is_the_hand_count():
     inside a plate of the other layer, which then needs a 1x4 across it and a 1x2 at each
     end: 5; the cover found is one piece (checked by networkx).  A two-plate strip's brick
     graph is a path, so past two plates it always has a weak point: no layout without one
-    exists."""
+    exists; a path of five plates has three, so with at most two none exists either, and
+    with at most three the fewest is 5 again."""
     from core.lower_bound import brick_lower_bound
     grid = grid_of(np.ones((1, 8, 2), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3710", "3023"))
@@ -378,6 +380,15 @@ def test_connected_bound_of_a_strip_is_the_hand_count():
     strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
                                      no_weak_points=True)
     assert strict["bound"] is None and strict["status"] == "infeasible"
+    for most in (0, 2):
+        few = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
+                                      most_weak=most)
+        assert few["bound"] is None and few["status"] == "infeasible"
+    few = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True, most_weak=3)
+    assert few["bound"] == 5 and few["optimal"]
+    cover = Layout(grid, [Brick(k, "3710" if sy == 4 else "3023", (sx, sy, sz), (x, y, z))
+                          for k, (x, y, z, sx, sy, sz) in enumerate(few["cover"])])
+    assert covers_once(cover) and _weak_points_by_networkx(cover) == 3
 
 
 def test_connected_bound_without_weak_points_of_a_column_is_the_hand_count():
@@ -438,11 +449,14 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     assert strict["bound"] >= found["bound"]
     if comps == regions and weak == 0:
         assert strict["bound"] <= bricks
-    # the lazy cuts only take away covers that are not such layouts
-    for no_weak, least, counts in ((False, found["bound"], accepted),
-                                   (True, strict["bound"], comps == regions and weak == 0)):
+    # the lazy cuts only take away covers that are not such layouts (with at most as many
+    # weak points as the improved layout has, in the third)
+    for no_weak, most, least, counts in (
+            (False, None, found["bound"], accepted),
+            (True, None, strict["bound"], comps == regions and weak == 0),
+            (False, weak, found["bound"], accepted)):
         joined = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, connected=True,
-                                         no_weak_points=no_weak)
+                                         no_weak_points=no_weak, most_weak=most)
         if joined["bound"] is None:
             assert joined["status"] == "infeasible" and not counts
             continue
@@ -516,3 +530,49 @@ def test_normal_mends_a_weak_point_on_a_thin_feature_too(monkeypatch):
     assert _weak_points_by_networkx(after) == 0
     assert improve.quality(after)[0] == 1 and covers_once(after)
     assert len(after.bricks) < len(before.bricks)
+
+
+@settings(max_examples=30, deadline=None)
+@given(data=st.data())
+def test_window_placements_are_every_box_of_filled_cells(data):
+    """The window's placements are exactly the boxes of the catalog's shapes made only of
+    freed cells, counted here box by box, and with ``apart`` cells none straddles them."""
+    size = tuple(data.draw(st.integers(1, 5)) for _ in range(3))
+    free = np.array(data.draw(st.lists(st.booleans(), min_size=int(np.prod(size)),
+                                       max_size=int(np.prod(size))))).reshape(size)
+    apart = np.array(data.draw(st.lists(st.booleans(), min_size=free.size,
+                                        max_size=free.size))).reshape(size)
+    shapes = improve._shapes(catalog.CATALOG)
+    for mask in (None, apart):
+        found = improve._placements(free, mask, shapes)
+        expected = set()
+        for (sx, sy, sz), _ in shapes:
+            for x, y, z in np.ndindex(size):
+                cells = (slice(x, x + sx), slice(y, y + sy), slice(z, z + sz))
+                if (x + sx > size[0] or y + sy > size[1] or z + sz > size[2]
+                        or not free[cells].all()):
+                    continue
+                if mask is None or mask[cells].all() or not mask[cells].any():
+                    expected.add((x, y, z, sx, sy, sz))
+        assert sorted(map(tuple, found.tolist())) == sorted(expected)
+        assert len(found) == len(expected)
+
+
+def test_fixed_leaf_targets_of_a_hand_made_window():
+    """One layer of four freed cells in a row (x 0..3, layer 1).  Over them: a 1x1 brick on
+    the first, and a 1x4 over the other three that reaches past the window onto a fixed
+    1x1 (x 4, layer 1).  Under them: a 1x2 under the second and third, a 1x1 under the
+    fourth.  The 1x4 and the brick it sits on touch each other, so neither becomes a leaf;
+    each of the three others touches freed cells alone, on one side: the box of those
+    cells is a target, in the order of the bricks' labels."""
+    free = np.zeros((5, 1, 3), bool)
+    free[:4, 0, 1] = True
+    lab = np.full(free.shape, -1, np.int64)
+    lab[0, 0, 2] = 7                       # 1x1 over the first freed cell
+    lab[1:5, 0, 2] = 8                     # 1x4 over the others and the fixed brick 9
+    lab[4, 0, 1] = 9                       # fixed 1x1 beside the window
+    lab[3, 0, 0] = 10                      # 1x1 under the fourth freed cell
+    lab[1:3, 0, 0] = 12                    # 1x2 under the second and third
+    filled = free | (lab >= 0)
+    targets = improve._fixed_leaf_targets(free, filled, lab)
+    assert targets.tolist() == [[0, 0, 0, 0, 1], [3, 0, 3, 0, 1], [1, 0, 2, 0, 1]]
