@@ -50,17 +50,15 @@ SECONDS_TARGET = {2_000: 10.0, 20_000: 60.0}
 def measure(lay, start_s: float, bound, parts, time_limit: float, kinds: dict) -> dict:
     """Bricks, ratio, components, weak points (thin ones apart) of one layout, and the
     bound of its kind (:func:`core.improve.one_piece_bound`; ``kinds`` keeps those found
-    for the model's other layouts, by their weak points)."""
+    for the model's other layouts, by whether they are joined and their weak points)."""
     st = analyse(lay)
     forced = len(improve.thin_weak_points(lay))
     n, weak = len(lay.bricks), len(st.weak_points)
     joined = st.components == st.regions
-    if not joined or weak > forced:
-        kind = improve.one_piece_bound(lay, parts, joined, weak, forced, time_limit)
-    else:
-        if weak not in kinds:
-            kinds[weak] = improve.one_piece_bound(lay, parts, joined, weak, forced, time_limit)
-        kind = kinds[weak]
+    if (joined, weak, forced) not in kinds:
+        kinds[joined, weak, forced] = improve.one_piece_bound(lay, parts, joined, weak, forced,
+                                                              time_limit)
+    kind = kinds[joined, weak, forced]
     return {"bricks": n, "ratio": n / bound if bound else None,
             "components": st.components, "regions": st.regions,
             "weak": weak, "thin": forced, "s": start_s,

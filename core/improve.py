@@ -77,7 +77,7 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume
+from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume, fitting_boxes
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -149,12 +149,12 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 #: 198 -> 199), in about 1.5x the time (spheres of 2,636 and 23,439 cells: 3.3 -> 4.2 s,
 #: 17.6 -> 20.4 s).  Once the windows' placements and leaf targets were compiled (same
 #: layouts, in less time), ``normal``'s windows per cell went 0.08 -> 0.12 (the hw box's
-#: ``normal`` then took 10.1 -> 5.7 s, the soap holder's 7.5 -> 6.8 s): on 19 models 2,169 -> 2,148 bricks, the same 4 weak points (all thin)
-#: (OpenBot body STL 199 -> 190, HMD body 165 -> 160, drilling plate 283 -> 279, VR
-#: headset 250 -> 246, hw box 135 -> 133; Stanford bunny 476 -> 480).  0.16 gave 2,136
-#: bricks but 6 weak points (hw box 1 -> 3).  (Presolving the windows' integer programs
-#: saved up to 1.4 s a model but changed which of equal re-covers is kept: the phone
-#: mount's proven fewest, 20, became 21.)
+#: ``normal`` then took 10.1 -> 5.7 s, the soap holder's 7.5 -> 6.8 s): on 19 models
+#: 2,169 -> 2,148 bricks, the same 4 weak points (all thin) (OpenBot body STL 199 -> 190,
+#: HMD body 165 -> 160, drilling plate 283 -> 279, VR headset 250 -> 246, hw box 135 -> 133;
+#: Stanford bunny 476 -> 480).  0.16 gave 2,136 bricks but 6 weak points (hw box 1 -> 3).
+#: (Presolving the windows' integer programs saved up to 1.4 s a model but changed which
+#: of equal re-covers is kept: the phone mount's proven fewest, 20, became 21.)
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
@@ -1097,37 +1097,8 @@ def _placements(free, apart, shapes):
     """
     masks = [free] if apart is None else [free & apart, free & ~apart]
     sizes = np.array([size for size, _ in shapes], dtype=np.int64).reshape(-1, 3)
-    out = [_fitting_boxes(_summed_volume(mask), sizes) for mask in masks if mask.any()]
+    out = [fitting_boxes(_summed_volume(mask), sizes) for mask in masks if mask.any()]
     return np.concatenate(out) if out else np.empty((0, 6), dtype=np.int64)
-
-
-@njit(cache=True)
-def _fitting_boxes(table, sizes):
-    """The boxes (n, 6) of every size of ``sizes`` (k, 3) made only of filled cells, size by
-    size, min corners in C order; ``table`` is the grid's summed-volume table
-    (:func:`core.lower_bound._summed_volume`)."""
-    nx, ny, nz = table.shape[0] - 1, table.shape[1] - 1, table.shape[2] - 1
-    out = np.empty((0, 6), dtype=np.int64)
-    count = 0
-    for fill in (False, True):
-        if fill:
-            out = np.empty((count, 6), dtype=np.int64)
-            count = 0
-        for k in range(sizes.shape[0]):
-            sx, sy, sz = sizes[k, 0], sizes[k, 1], sizes[k, 2]
-            for x in range(nx - sx + 1):
-                for y in range(ny - sy + 1):
-                    for z in range(nz - sz + 1):
-                        inside = (table[x + sx, y + sy, z + sz] - table[x, y + sy, z + sz]
-                                  - table[x + sx, y, z + sz] - table[x + sx, y + sy, z]
-                                  + table[x, y, z + sz] + table[x, y + sy, z]
-                                  + table[x + sx, y, z] - table[x, y, z])
-                        if inside == sx * sy * sz:
-                            if fill:
-                                out[count, 0], out[count, 1], out[count, 2] = x, y, z
-                                out[count, 3], out[count, 4], out[count, 5] = sx, sy, sz
-                            count += 1
-    return out
 
 
 def _cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:

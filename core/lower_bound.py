@@ -36,6 +36,7 @@ import time
 
 import highspy
 import numpy as np
+from numba import njit
 from scipy import ndimage
 
 from core.catalog import CATALOG, Part
@@ -66,12 +67,41 @@ def _summed_volume(filled: np.ndarray) -> np.ndarray:
 
 
 def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
-    """Min corners (n, 3) of every box of size ``shape`` made only of filled cells.
+    """Min corners (n, 3) of every box of size ``shape`` made only of filled cells, in C
+    order.
 
     ``table`` is the summed-volume table of the grid (:func:`_summed_volume`).
     """
-    fits = _fits(table, shape)
-    return np.empty((0, 3), dtype=np.int64) if fits is None else np.argwhere(fits)
+    return fitting_boxes(table, np.array([shape], dtype=np.int64))[:, :3]
+
+
+@njit(cache=True)
+def fitting_boxes(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The boxes (n, 6) of every size of ``sizes`` (k, 3) made only of filled cells, size by
+    size, min corners in C order; ``table`` is the grid's summed-volume table
+    (:func:`_summed_volume`)."""
+    nx, ny, nz = table.shape[0] - 1, table.shape[1] - 1, table.shape[2] - 1
+    out = np.empty((0, 6), dtype=np.int64)
+    count = 0
+    for fill in (False, True):
+        if fill:
+            out = np.empty((count, 6), dtype=np.int64)
+            count = 0
+        for k in range(sizes.shape[0]):
+            sx, sy, sz = sizes[k, 0], sizes[k, 1], sizes[k, 2]
+            for x in range(nx - sx + 1):
+                for y in range(ny - sy + 1):
+                    for z in range(nz - sz + 1):
+                        inside = (table[x + sx, y + sy, z + sz] - table[x, y + sy, z + sz]
+                                  - table[x + sx, y, z + sz] - table[x + sx, y + sy, z]
+                                  + table[x, y, z + sz] + table[x, y + sy, z]
+                                  + table[x + sx, y, z] - table[x, y, z])
+                        if inside == sx * sy * sz:
+                            if fill:
+                                out[count, 0], out[count, 1], out[count, 2] = x, y, z
+                                out[count, 3], out[count, 4], out[count, 5] = sx, sy, sz
+                            count += 1
+    return out
 
 
 def fitting_count(table: np.ndarray, shape: tuple[int, int, int]) -> int:
