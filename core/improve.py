@@ -462,7 +462,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     (:func:`_connection_cuts`) until its cover has one component per region (and, with
     ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
     covers that are not such layouts, so every round's bound is still one, and a cover that
-    passes is the fewest bricks any such layout has.  With ``connected`` and ``most_weak``
+    passes is the fewest bricks any such layout has; with ``no_weak_points`` a cover that
+    does not pass also gets the cuts of :func:`_degree_cuts` (two neighbours or more for
+    every brick in a region of three bricks or more).  With ``connected`` and ``most_weak``
     (and not ``no_weak_points``) it bounds the layouts that also have at most ``most_weak``
     weak points: the weak-point cuts of :func:`_connection_cuts` hold for every brick but
     those the program marks as weak, at most ``most_weak`` of them.
@@ -480,6 +482,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     shapes = _shapes(parts)
     boxes = _placements(filled, None, shapes)
     n, m = len(boxes), int(filled.sum())
+    largest = max((sx * sy * sz for (sx, sy, sz), _ in shapes), default=1)
 
     rounds, cuts, passed = 0, 0, None
 
@@ -570,6 +573,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                 # a weak point the program marked as one breaks no cut
                 added = [cut for cut in added if cut[3] not in marks
                          or solution[marks[cut[3]]] < 0.5]
+                if no_weak_points and added:
+                    added += _degree_cuts(boxes[chosen], chosen, filled, cover, cell_index,
+                                          region > 2 * largest)
             passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
@@ -652,6 +658,42 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
             cross = np.flatnonzero((count > 0) & (count + on_p < sizes) & (on_p == 0))
             out.append((np.append(cross, chosen[p]),
                         np.append(np.ones(len(cross)), -1.0), 0.0, int(chosen[p])))
+    return out
+
+
+def _degree_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
+                 cover: sparse.csr_matrix, cell_index: np.ndarray, crowded: np.ndarray) -> list:
+    """Cuts, as :func:`_connection_cuts` gives them, ``sum(x_q, q next to p) - 2 x_p >= 0``
+    for each brick ``p`` of the cover ``chosen`` (placement indices, their ``chosen_boxes``)
+    with fewer than two neighbours whose placement is ``crowded`` (per placement: its
+    region needs three bricks or more).
+
+    In a layout with one component per region and no weak point, a brick in a region of
+    three bricks or more has two neighbours or more: with none it is a component of its own,
+    with one that neighbour is a weak point.  The bricks next to ``p`` are those covering a
+    cell right above or below it, each counted once, so a cut holds for every such layout
+    and removes every cover where ``p`` has fewer than two neighbours, whichever they are
+    (a weak-point cut removes only covers with that one piece hanging on ``p``).  The
+    placements ``q`` are those covering such a cell but none of ``p``'s.  ``cover`` is the
+    (cells, placements) matrix, ``cell_index`` the row of each filled cell.
+    """
+    n = len(chosen_boxes)
+    lab = np.full(filled.shape, -1, dtype=np.int64)
+    for k, (x, y, z, sx, sy, sz) in enumerate(chosen_boxes):
+        lab[x:x + sx, y:y + sy, z:z + sz] = k
+    indptr, _ = _csr(lab, n)
+    out = []
+    for k in np.flatnonzero((np.diff(indptr) < 2) & crowded[chosen]):
+        x, y, z, sx, sy, sz = chosen_boxes[k]
+        near = []
+        for layer in (z - 1, z + sz):
+            if 0 <= layer < filled.shape[2]:
+                cells = cell_index[x:x + sx, y:y + sy, layer]
+                near.append(cells[cells >= 0])
+        near = np.concatenate(near) if near else np.empty(0, np.int64)
+        own = cell_index[x:x + sx, y:y + sy, z:z + sz].ravel()
+        q = np.setdiff1d(np.unique(cover[near].indices), np.unique(cover[own].indices))
+        out.append((np.append(q, chosen[k]), np.append(np.ones(len(q)), -2.0), 0.0, -1))
     return out
 
 

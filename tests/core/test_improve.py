@@ -403,6 +403,60 @@ def test_connected_bound_without_weak_points_of_a_column_is_the_hand_count():
     assert joined["bound"] == 7 and joined["optimal"]
 
 
+def _every_cover(filled: np.ndarray, parts) -> list[list[tuple]]:
+    """Every exact cover of ``filled`` by ``parts`` in their orientations, by exhaustive
+    search (tiny grids only): the first uncovered cell in C order is the least corner of the
+    box covering it, so only boxes anchored there are tried."""
+    sizes = sorted({(w, d, p.layers) for p in parts for w, d in p.orientations()})
+    found = []
+
+    def extend(todo: np.ndarray, boxes: list[tuple]) -> None:
+        if not todo.any():
+            found.append(list(boxes))
+            return
+        i, j, k = (int(v) for v in np.argwhere(todo)[0])
+        for sx, sy, sz in sizes:
+            box = todo[i:i + sx, j:j + sy, k:k + sz]
+            if box.shape == (sx, sy, sz) and box.all():
+                rest = todo.copy()
+                rest[i:i + sx, j:j + sy, k:k + sz] = False
+                extend(rest, boxes + [(i, j, k, sx, sy, sz)])
+
+    extend(np.array(filled, dtype=bool), [])
+    return found
+
+
+@pytest.mark.parametrize("size, seed", [(size, seed) for size in ((2, 2, 4), (2, 3, 3), (1, 4, 4))
+                                         for seed in range(4)])
+def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, seed):
+    """On small random shapes of one region (blocks with a few cells missing), tiled with
+    1x1, 1x2 and 1x3 plates and 1x1 bricks (so a region of seven cells or more needs three
+    bricks, and the degree cuts apply): the bound in one piece without weak points is
+    proven and equals the fewest bricks of the covers, listed one by one here (up to
+    14,094 of them), whose brick graph (built here) is connected without articulation
+    points (networkx); where no cover is, the bound finds none (7 of these 12 shapes)."""
+    import networkx as nx
+    from scipy import ndimage
+    rng = np.random.default_rng(seed)
+    filled = rng.random(size) < 0.9
+    lab, n = ndimage.label(filled)
+    assert n
+    filled = lab == 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
+    parts = tuple(p for p in catalog.CATALOG if p.number in ("3024", "3023", "3623", "3005"))
+    fewest = None
+    for boxes in _every_cover(filled, parts):
+        lay = Layout(grid_of(filled), [Brick(k, "3024", b[3:], b[:3]) for k, b in enumerate(boxes)])
+        graph = _graph_by_networkx(lay)
+        if nx.is_connected(graph) and not list(nx.articulation_points(graph)):
+            fewest = len(boxes) if fewest is None else min(fewest, len(boxes))
+    found = improve.leaf_free_bound(grid_of(filled), parts, time_limit_s=20, connected=True,
+                                    no_weak_points=True)
+    if fewest is None:
+        assert found["bound"] is None and found["status"] == "infeasible"
+    else:
+        assert found["optimal"] and found["bound"] == found["objective"] == fewest
+
+
 def test_separating_bricks_are_those_that_split_their_region():
     """A bar of five 1x1 plates in a row, and beside it (not touching) a tower of three
     1x1 plates: a plate inside the bar or the tower's middle one splits its region; an
