@@ -77,7 +77,8 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import _SIX, MAX_VARIABLES, _highs, _summed_volume, fitting_boxes
+from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _summed_volume, cover_matrix,
+                               fitting_boxes)
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -101,7 +102,9 @@ class Effort:
     closing sweep (:meth:`_Search.sweep_layers`; 0: no sweep), ``layer_sweeps``: how many
     times it sweeps the layers, each time grouping their bricks from another corner;
     ``weak_windows``: while weak points remain, the most windows (as ``best`` tries them)
-    tried at the end (:func:`_repair_weak`).
+    tried at the end (:func:`_repair_weak`); ``relaxed_start``: the search also runs from the
+    layout whose brick layers the exact cover's relaxation chooses, where that is cheap
+    (:func:`core.layout.relaxed_brick_groups`, the ``others`` of :func:`improve`).
     """
 
     windows_per_cell: float
@@ -117,6 +120,7 @@ class Effort:
     layer_cells: int
     layer_sweeps: int
     weak_windows: int = 0
+    relaxed_start: bool = False
 
 
 #: The first window box tried at every site: so large that the bricks nearest the site fill
@@ -158,7 +162,8 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
-    "best": Effort(0.15, 150, 600, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4),
+    "best": Effort(0.15, 150, 600, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
+                   relaxed_start=True),
 }
 
 #: ``best`` runs ``normal``'s search from several seeds (the seed, then the next ones) and
@@ -210,7 +215,7 @@ def check_effort(effort: str) -> str:
 def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "normal",
             seed: int = 0, progress: Progress | None = None, frozen: Iterable[int] | None = None,
             apart: np.ndarray | None = None, failing_joints: FailingJoints | None = None,
-            next_id: int | None = None) -> Layout:
+            next_id: int | None = None, others: tuple[Layout, ...] = ()) -> Layout:
     """A layout of the same cells that is at least as good as ``layout`` on :func:`quality`.
 
     Promises: the result covers exactly the filled cells of ``layout.grid``
@@ -222,7 +227,9 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
     without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
     input, effort and seed give the same layout; ``best`` starts from the best
-    of what ``normal`` gives from :func:`best_starts` seeds (``seed`` first), so it is
+    of what ``normal`` gives from :func:`best_starts` seeds (``seed`` first), and with
+    ``seed`` from each layout of ``others`` (other layouts of the same cells, e.g. with other
+    brick layers; only where the effort's ``relaxed_start`` says so), so it is
     never worse on the key.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
     ``progress(fraction, message)`` is called after every window; an
@@ -235,15 +242,21 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     if level.max_windows == 0 or not layout.bricks:
         return _copy(layout, renumber=False)
     starts = {name: _starts(name, effort, layout) for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
-    total = sum(starts.values())
+    extra = tuple(others) if level.relaxed_start else ()
+    if extra:
+        # the seeds are shared among the starts, so that ``best`` takes about as long
+        starts["normal"] = -(-starts["normal"] // (1 + len(extra)))
+    total = sum(starts.values()) + len(extra) * starts.get("normal", 0)
     done = 0
     current = layout
     for name, count in starts.items():
         found = []
-        for k in range(count):
+        begins = [(begin, seed + k) for begin in (current,) + (extra if name == "normal" else ())
+                  for k in range(count)]
+        for begin, begin_seed in begins:
             def share(fraction, message, done=done):
                 report((done + fraction) / total, message)
-            found.append(_stage(current, parts, EFFORT_LEVELS[name], seed + k, share, frozen_ids,
+            found.append(_stage(begin, parts, EFFORT_LEVELS[name], begin_seed, share, frozen_ids,
                                 apart, failing_joints, next_id))
             done += 1
         keys = [quality(f, failing_joints) for f in found]
@@ -333,7 +346,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     points), ``weak_points_thin`` (those :func:`thin_weak_points`: a leaf
     brick on a one-cell-thin feature hangs on them, counted apart), ``greedy`` and
     ``improved`` (their :func:`quality` keys by name), ``seconds`` per phase
-    (from ``timings``: layout, improve; and the lower bound's) and
+    (from ``timings``: layout, improve, and with ``best`` layout_relaxed, the layout from
+    the relaxation's brick layers, where it was made; and the lower bound's) and
     ``lower_bound``: the exact-cover bound (:func:`core.lower_bound.brick_lower_bound`)
     with its ``time_limit_s``, whether it is ``proven`` optimal and the
     ``ratio`` bricks / bound.  The bound is computed when ``lower_bound`` is
@@ -349,6 +363,9 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     names = ("components", "failing_joints", "weak_points", "bricks")
     spent = float(timings.get("layout", 0.0)) + float(timings.get("improve", 0.0))
     seconds = {"layout": timings.get("layout"), "improve": timings.get("improve")}
+    if "layout_relaxed" in timings:
+        seconds["layout_relaxed"] = timings["layout_relaxed"]
+        spent += float(timings["layout_relaxed"])
     block = {
         "bricks": after[3], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
         "components": after[0], "weak_points": after[2],
@@ -499,7 +516,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     region_cells = np.bincount(labels.ravel())
     cell_index = np.full(filled.shape, -1, dtype=np.int64)
     cell_index[filled] = np.arange(m)
-    cover = _cover_matrix(boxes, cell_index, m).tocsr()
+    cover = cover_matrix(boxes, cell_index, m).tocsr()
     _, below, above, bbox, _ = _contacts(boxes, filled, filled, np.full(filled.shape, -1, np.int64))
     region = region_cells[labels[boxes[:, 0], boxes[:, 1], boxes[:, 2]]]
     island = (below == 0) & (above == 0) & (boxes[:, 3] * boxes[:, 4] * boxes[:, 5] < region)
@@ -1143,21 +1160,6 @@ def _placements(free, apart, shapes):
     return np.concatenate(out) if out else np.empty((0, 6), dtype=np.int64)
 
 
-def _cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:
-    """The (cells x placements) 0/1 matrix of which placement covers which cell: ``boxes``
-    (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them)."""
-    cols, rows = [], []
-    for (sx, sy, sz) in np.unique(boxes[:, 3:], axis=0):
-        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
-        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
-        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
-                           boxes[sel, 2, None] + dk.ravel()]
-        cols.append(np.repeat(sel, cells.shape[1]))
-        rows.append(cells.ravel())
-    cols, rows = np.concatenate(cols), np.concatenate(rows)
-    return sparse.coo_matrix((np.ones(cols.size), (rows, cols)), shape=(m, len(boxes)))
-
-
 @njit(cache=True)
 def _contacts(boxes, free, filled, lab):
     """Per placement: distinct fixed bricks touching it above or below (capped at 2), freed
@@ -1298,7 +1300,7 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     cell_index = np.full(free.shape, -1, dtype=np.int64)
     cell_index[free] = np.arange(int(free.sum()))
     m = int(free.sum())
-    cover = _cover_matrix(boxes, cell_index, m)
+    cover = cover_matrix(boxes, cell_index, m)
     rows, cols = cover.row, cover.col
     by_cell = cover.tocsr()
     fixed, wb, wa, bbox, seams = _contacts(boxes, free, filled, lab)

@@ -37,7 +37,7 @@ import time
 import highspy
 import numpy as np
 from numba import njit
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 from core.catalog import CATALOG, Part
 from core.errors import InputError
@@ -125,6 +125,50 @@ def _fits(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray | None:
     window = (corner(sx, sy, sz) - corner(0, sy, sz) - corner(sx, 0, sz) - corner(sx, sy, 0)
               + corner(0, 0, sz) + corner(0, sy, 0) + corner(sx, 0, 0) - corner(0, 0, 0))
     return window == sx * sy * sz
+
+
+def cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:
+    """The (cells x placements) 0/1 matrix of which placement covers which cell: ``boxes``
+    (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them)."""
+    cols, rows = [], []
+    for (sx, sy, sz) in np.unique(boxes[:, 3:], axis=0):
+        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
+        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
+        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
+                           boxes[sel, 2, None] + dk.ravel()]
+        cols.append(np.repeat(sel, cells.shape[1]))
+        rows.append(cells.ravel())
+    cols, rows = np.concatenate(cols), np.concatenate(rows)
+    return sparse.coo_matrix((np.ones(cols.size), (rows, cols)), shape=(m, len(boxes)))
+
+
+def relaxed_cover(filled: np.ndarray, shapes: list[tuple[int, int, int]],
+                  time_limit_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Every placement of a box of ``shapes`` on the filled cells, (n, 6) boxes
+    ``(x, y, z, sx, sy, sz)``, and its value in an optimum of the exact cover's LP relaxation
+    (fewest boxes, each filled cell covered once, values in 0..1), solved by interior point
+    without crossover (so where optima tie the values are spread among them; where it
+    cannot confirm its tolerances, its last point, e.g. 161.52 for an optimum of 161.5);
+    None when it runs out of time (``time_limit_s``) or stops otherwise, or no placement
+    fits."""
+    filled = np.ascontiguousarray(filled, dtype=bool)
+    boxes = fitting_boxes(_summed_volume(filled), np.array(shapes, dtype=np.int64).reshape(-1, 3))
+    m = int(filled.sum())
+    if len(boxes) == 0 or m == 0:
+        return None
+    cell_index = np.full(filled.shape, -1, dtype=np.int64)
+    cell_index[filled] = np.arange(m)
+    a = cover_matrix(boxes, cell_index, m).tocsc()
+    lp = _set_partitioning_lp(a.indptr, a.indices, m)
+    h = _highs(time_limit_s, solver="ipm", run_crossover="off", presolve="off")
+    h.passModel(lp)
+    h.run()
+    values = np.asarray(h.getSolution().col_value)
+    if (h.getModelStatus() not in (highspy.HighsModelStatus.kOptimal,
+                                   highspy.HighsModelStatus.kUnknown)
+            or len(values) != len(boxes)):
+        return None
+    return boxes, np.clip(values, 0.0, 1.0)
 
 
 def _placements(filled: np.ndarray, shapes: list[tuple[int, int, int]]):

@@ -146,7 +146,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        kept where they still fit and the rest laid out anew
        (:func:`core.iterate.lay_out`); then **improve**d window by window
        as hard as ``effort`` says (:func:`core.improve.improve`; iterating,
-       the kept bricks stay) and measured (:func:`core.improve.layout_quality`,
+       the kept bricks stay; ``best`` on a fresh layout also starts from the brick layers
+       of the exact cover's relaxation where that is cheap,
+       :func:`core.layout.relaxed_brick_groups`) and measured (:func:`core.improve.layout_quality`,
        with the exact lower bound on request or when it is cheap).  A fresh
        layout is then re-merged around the joints the forces find failing or
        loaded (:func:`core.reinforce.reinforce`).
@@ -255,10 +257,17 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         elif hollowing.on and hollowing.setting < 0:
             hollowing = hollow_stage.judged(hollowing, len(layout.bricks), largest)
     greedy = layout
+    others = ()
+    if (before is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start
+            and layout_stage.relaxable(grid, chosen)):
+        lay = layout_stage.lay_out_around if cells.any() else layout_stage.lay_out
+        extra = (cells,) if cells.any() else ()
+        others = (timed("layout_relaxed", 0.77, lay, grid, *extra, chosen, seed=req.seed,
+                        relaxed=True),)
     layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
-                   next_id=None if plan is None else plan.next_id)
+                   next_id=None if plan is None else plan.next_id, others=others)
     quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None

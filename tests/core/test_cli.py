@@ -85,6 +85,20 @@ def test_lower_bound_says_how_far_the_layout_is_from_the_fewest_bricks(box_stl, 
     assert "lower bound:" not in plain.stdout
 
 
+def test_best_also_lays_out_from_the_relaxed_brick_layers(box_stl, tmp_path):
+    """``--effort best`` on a fresh layout also lays the box out from the brick layers of the
+    exact cover's relaxation (timed as its own phase) and keeps the better: six bricks, the
+    fewest, in one piece with no weak point, like ``normal``."""
+    out = tmp_path / "out"
+    proc = fabricate(str(box_stl), "--out", str(out), "--effort", "best", "--no-picture")
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert "layout_relaxed" in report["timings_s"]
+    quality = report["layout_quality"]
+    assert "layout_relaxed" in quality["seconds"]
+    assert (quality["bricks"], quality["components"], quality["weak_points"]) == (6, 1, 0)
+
+
 def test_seed_is_deterministic(box_stl, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert fabricate(str(box_stl), "--out", str(a), "--seed", "3", "--no-picture").returncode == 0

@@ -193,3 +193,29 @@ def test_real_model_is_held_together(name):
     stab = analyse(layout)
     assert stab.components == stab.regions
     assert len(layout.bricks) < grid.count / 5
+
+
+def test_relaxed_brick_groups_take_each_part_in_its_own_phase():
+    """Two 2x4 towers apart, one on layers 0-2 and one on layers 1-3: the exact cover's
+    relaxation (one 2x4 brick each, 2 parts) gives each its own brick group, which no global
+    phase does; the relaxed layout is then those two bricks."""
+    filled = np.zeros((5, 4, 4), bool)
+    filled[0:2, :, 0:3] = True
+    filled[3:5, :, 1:4] = True
+    groups = layout_stage.relaxed_brick_groups(filled, CATALOG)
+    assert (groups[0:2, :, 0:3] == 0).all() and (groups[3:5, :, 1:4] == 1).all()
+    assert (groups[~filled] == -2).all()
+    lay = lay_out(grid_of(filled), CATALOG, relaxed=True)
+    assert_valid(lay)
+    assert sorted((b.part, b.cell) for b in lay.bricks) == [("3001", (0, 0, 0)),
+                                                           ("3001", (3, 0, 1))]
+
+
+def test_relaxed_layout_of_a_block_with_a_plate_on_top():
+    """A 2x8 block four plates high: the fewest parts are a 2x8 brick and a 2x8 plate; the
+    relaxed layout has two parts, one of them a brick, and covers the block once."""
+    filled = np.ones((2, 8, 4), bool)
+    lay = lay_out(grid_of(filled), CATALOG, relaxed=True)
+    assert_valid(lay)
+    assert sorted(b.part for b in lay.bricks) == ["3007", "3034"]
+    assert layout_stage.relaxable(grid_of(filled), CATALOG)
