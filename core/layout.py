@@ -12,7 +12,8 @@
    again where two neighbouring columns would otherwise touch only side by
    side (a thin floor beside a wall, a staircase, two phases meeting),
    and in a second version of it also beside plate cells that could only
-   hang by one stud.
+   hang by one stud.  ``relaxed`` (``best``'s second start) takes instead the
+   brick layers of the exact cover's LP relaxation (:func:`relaxed_brick_groups`).
 2. **Merging**, per candidate.  Bottom-up, per layer the brick slab and
    then the plate slab, a raster scan takes the first uncovered cell and
    chooses among the footprints of the allowed parts anchored there by a
@@ -270,6 +271,18 @@ def relaxable(grid: Grid, parts: tuple[Part, ...]) -> bool:
     """Whether :func:`relaxed_brick_groups` is cheap on ``grid``: at most
     :data:`RELAXED_PLACEMENTS` placements of ``parts`` fit its filled cells."""
     return placement_count(grid, parts, stop_above=RELAXED_PLACEMENTS) <= RELAXED_PLACEMENTS
+
+
+def relaxed_layout(grid: Grid, cells: np.ndarray | None, parts: tuple[Part, ...] = CATALOG,
+                   seed: int = 0) -> Layout | None:
+    """The layout of ``grid`` (around the marked ``cells`` as :func:`lay_out_around`, where
+    any is marked) whose brick layers the exact cover's relaxation chooses
+    (``relaxed``), or None where that is not cheap (:func:`relaxable`)."""
+    if not relaxable(grid, parts):
+        return None
+    if cells is not None and np.asarray(cells, dtype=bool).any():
+        return lay_out_around(grid, cells, parts, seed=seed, relaxed=True)
+    return lay_out(grid, parts, seed=seed, relaxed=True)
 
 
 def relaxed_brick_groups(filled: np.ndarray, parts: tuple[Part, ...]) -> np.ndarray | None:

@@ -258,12 +258,10 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             hollowing = hollow_stage.judged(hollowing, len(layout.bricks), largest)
     greedy = layout
     others = ()
-    if (before is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start
-            and layout_stage.relaxable(grid, chosen)):
-        lay = layout_stage.lay_out_around if cells.any() else layout_stage.lay_out
-        extra = (cells,) if cells.any() else ()
-        others = (timed("layout_relaxed", 0.77, lay, grid, *extra, chosen, seed=req.seed,
-                        relaxed=True),)
+    if before is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start:
+        relaxed = timed("layout_relaxed", 0.77, layout_stage.relaxed_layout, grid, cells, chosen,
+                        req.seed)
+        others = () if relaxed is None else (relaxed,)
     layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
