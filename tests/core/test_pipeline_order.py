@@ -9,10 +9,11 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 
 #: The modules of core in pipeline order: shared data and utilities first, then the
 #: stages as the driver runs them (regions are read before the grid is fitted to them),
-#: then the exports, then the drivers and tools that use them all.
+#: then the exports, then the drivers and tools that use them all.  The exact-cover
+#: program (lower_bound) comes before the layout, which reads brick layers off its relaxation.
 ORDER = [
     "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
-    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "layout", "lower_bound", "improve", "align", "diff",
+    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "print_time", "export", "render", "picture",
     "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
     "iterate", "pipeline", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
