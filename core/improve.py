@@ -230,9 +230,10 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     ids from one more than the largest id of ``layout`` (or ``next_id``, if larger) on, and
     without ``frozen`` all ids are renumbered 0..n-1 in brick order.  The same
     input, effort and seed give the same layout; ``best`` starts from the best
-    of what ``normal`` gives from :func:`best_starts` seeds (``seed`` first), and with
-    ``seed`` from each layout of ``others`` (other layouts of the same cells, e.g. with other
-    brick layers; only where the effort's ``relaxed_start`` says so), so it is
+    of what ``normal`` gives from :func:`best_starts` seeds (``seed`` first); with
+    ``others`` (other layouts of the same cells, e.g. with other brick layers; used only
+    where the effort's ``relaxed_start`` says so) those seeds are shared out, the same ones
+    (``seed`` first) from ``layout`` and from each of ``others``, so it is
     never worse on the key.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
     ``progress(fraction, message)`` is called after every window; an
@@ -244,11 +245,9 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     frozen_ids = set(frozen or ())
     if level.max_windows == 0 or not layout.bricks:
         return _copy(layout, renumber=False)
-    starts = {name: _starts(name, effort, layout) for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
     extra = tuple(others) if level.relaxed_start else ()
-    if extra:
-        # the seeds are shared among the starts, so that ``best`` takes about as long
-        starts["normal"] = -(-starts["normal"] // (1 + len(extra)))
+    starts = {name: _starts(name, effort, layout, 1 + len(extra))
+              for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
     total = sum(starts.values()) + len(extra) * starts.get("normal", 0)
     done = 0
     current = layout
@@ -268,10 +267,14 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     return _copy(current, renumber=not frozen_ids)
 
 
-def _starts(name: str, effort: str, layout: Layout) -> int:
-    """How many seeds the search of effort level ``name`` runs from when ``effort`` was
-    asked for: :func:`best_starts` for ``normal``'s within ``best``, else one."""
-    return best_starts(layout.grid.count) if effort == "best" and name == "normal" else 1
+def _starts(name: str, effort: str, layout: Layout, begins: int = 1) -> int:
+    """How many seeds the search of effort level ``name`` runs from, from each of ``begins``
+    starting layouts, when ``effort`` was asked for: :func:`best_starts` shared out among
+    them (rounded up, so that ``best`` takes about as long with more starts) for ``normal``'s
+    within ``best``, else one."""
+    if effort == "best" and name == "normal":
+        return -(-best_starts(layout.grid.count) // begins)
+    return 1
 
 
 def best_starts(cells: int) -> int:
