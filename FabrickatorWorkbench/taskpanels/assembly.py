@@ -22,6 +22,7 @@ from pivy import coin
 from PySide import QtCore, QtGui
 
 from FabrickatorWorkbench import make
+from FabrickatorWorkbench.taskpanels.closing import close_dialog
 from FabrickatorWorkbench.taskpanels.titles import fitting_title
 
 #: Colour of the bricks to place in the current step.
@@ -215,7 +216,8 @@ class AssemblyPanel:
         return True
 
     def finish(self) -> None:
-        """Stop playing and show everything as before."""
+        """Stop playing, show everything as before and close; the closed panel has no
+        form (:func:`.closing.close_dialog`)."""
         self.timer.stop()
         for obj in self.highlighted:
             self._plain(obj)
@@ -232,7 +234,7 @@ class AssemblyPanel:
         proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
         if getattr(proxy, "panel", None) is self:
             proxy.panel = None
-        Gui.Control.closeDialog()
+        close_dialog(self)
 
 
 def label_size(view_height: int) -> int:

@@ -28,11 +28,16 @@ from PySide import QtCore, QtGui
 from core import picking
 from FabrickatorWorkbench import log, make
 from FabrickatorWorkbench.objects import high_res_region
+from FabrickatorWorkbench.taskpanels.closing import close_dialog
 from FabrickatorWorkbench.taskpanels.titles import fitting_title
 
 #: Modes and their preview colours.
 MODES = {"high-res": (0.96, 0.62, 0.26), "merge": (0.16, 0.62, 0.56),
          "split": (0.48, 0.17, 0.75), "unmark": (0.55, 0.55, 0.55)}
+
+#: The form's radio button of each mode.
+BUTTONS = {"high-res": "modeHighRes", "merge": "modeMerge", "split": "modeSplit",
+           "unmark": "modeUnmark"}
 
 #: Transaction names per mode.
 TITLES = {"high-res": "High-res brush", "merge": "Merge brush", "split": "Split brush",
@@ -62,11 +67,9 @@ class BrushPanel:
         # below say which brush paints
         self.form.setWindowTitle(fitting_title("Brushes on ", fab.Label, self.form))
         self.form.setToolTip(f"Brushes on {fab.Label}")
-        self.buttons = {"high-res": self.form.modeHighRes, "merge": self.form.modeMerge,
-                        "split": self.form.modeSplit, "unmark": self.form.modeUnmark}
-        self.buttons[mode].setChecked(True)
-        for button in self.buttons.values():
-            button.toggled.connect(self.on_mode)
+        self.button(mode).setChecked(True)
+        for name in BUTTONS:
+            self.button(name).toggled.connect(self.on_mode)
         self.form.clear.clicked.connect(self.clear)
         self.form.modeHelp.setText(HELP[mode])
         #: the stored layout (the core's view of the bricks) and the brick objects by id
@@ -102,9 +105,15 @@ class BrushPanel:
 
     # --- modes and state ------------------------------------------------------------
 
+    def button(self, mode: str):
+        """The form's radio button of ``mode``, asked from the form each time: the panel
+        keeps no wrapper of a widget of its own (:mod:`.closing` says why)."""
+        return getattr(self.form, BUTTONS[mode])
+
     @property
     def mode(self) -> str:
-        return next(m for m, b in self.buttons.items() if b.isChecked())
+        """The checked mode (while the panel is open)."""
+        return next(m for m in BUTTONS if self.button(m).isChecked())
 
     def on_mode(self, checked: bool) -> None:
         if checked:
@@ -305,12 +314,13 @@ class BrushPanel:
 
     def close(self) -> None:
         """Close the panel (after its transaction ended: an aborted one would show the
-        regions again) and hide the Fabrication's regions."""
+        regions again) and hide the Fabrication's regions; the closed panel has no form
+        (:func:`.closing.close_dialog`)."""
         for region in self.fab.Regions:
             high_res_region.show(region)
         proxy = getattr(getattr(self.fab, "ViewObject", None), "Proxy", None)
         if getattr(proxy, "panel", None) is self:
             proxy.panel = None
-        Gui.Control.closeDialog()
+        close_dialog(self)
         if Gui.ActiveDocument is not None and Gui.ActiveDocument.getInEdit() is not None:
             Gui.ActiveDocument.resetEdit()

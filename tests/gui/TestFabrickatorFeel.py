@@ -182,6 +182,25 @@ class TestRegionsShowWhileBrushing(GuiTestCase):
         self.assertEqual(len(f.Regions), 2)
         self.assertEqual([r.Visibility for r in f.Regions], [False, False])
 
+    def test_the_brush_panel_reopens_while_old_panels_are_kept(self):
+        """A closed panel (kept by a macro, or by this test) leaves no wrapper of its
+        deleted widgets, which PySide would hand out again for a new panel's widget made
+        at the same address: seen on FreeCAD 1.0 as "Internal C++ object already deleted"
+        or as a radio button without ``isChecked``."""
+        f = self.fabrication()
+        kept = []
+        for n in range(40):
+            panel = self.open_brush(f)
+            kept.append(panel)
+            self.assertEqual(panel.mode, "high-res")
+            mode = ("merge", "split", "unmark", "high-res")[n % 4]
+            {"merge": panel.form.modeMerge, "split": panel.form.modeSplit,
+             "unmark": panel.form.modeUnmark, "high-res": panel.form.modeHighRes}[mode].setChecked(True)
+            self.assertEqual(panel.mode, mode)
+            panel.reject()
+            settle(0.02)
+        self.assertFalse(Gui.Control.activeDialog())
+
     def test_a_region_painted_over_is_brushed_through(self):
         """A shown region lies over its bricks: a click there paints the brick below it."""
         f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
@@ -243,6 +262,24 @@ class TestRegionsShowWhileBrushing(GuiTestCase):
         f.ViewObject.Proxy.panel.reject()
         settle()
         self.assertTrue(region.Visibility)
+
+    def test_the_assembly_panel_reopens_while_old_panels_are_kept(self):
+        """As the brush panel: a kept, closed assembly panel leaves no stale widget."""
+        f = self.fabrication(high_res=(0, 0, 12.8, 8, 8, 19.2))
+        kept = []
+        for _ in range(25):
+            Gui.Selection.clearSelection()
+            Gui.Selection.addSelection(f)
+            Gui.runCommand("Fabrickator_Assembly")
+            settle(0.02)
+            panel = f.ViewObject.Proxy.panel
+            kept.append(panel)
+            panel.form.next.click()
+            self.assertEqual(panel.current, 2)
+            self.assertEqual(panel.form.stepLabel.text(), f"Step 2 / {f.Steps}")
+            panel.reject()
+            settle(0.02)
+        self.assertFalse(Gui.Control.activeDialog())
 
 
 def still_camera(timeout_s: float = 5.0) -> str:
