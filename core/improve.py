@@ -350,7 +350,7 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
 
     ``bricks``, ``regions``, ``components``, ``weak_points`` (articulation
     points), ``weak_points_thin`` (those :func:`thin_weak_points`: a leaf
-    brick on a one-cell-thin feature hangs on them, counted apart), ``greedy`` and
+    brick on a one-cell-thin feature hangs on them, and no other leaf; counted apart), ``greedy`` and
     ``improved`` (their :func:`quality` keys by name), ``seconds`` per phase
     (from ``timings``: layout, improve, and with ``best`` layout_relaxed, the layout from
     the relaxation's brick layers, where it was made; and the lower bound's) and
@@ -425,10 +425,10 @@ def one_piece_bound(layout: Layout, parts: tuple[Part, ...], joined: bool, weak:
                             connected=True, most_weak=weak or None)
     bound = found["bound"]
     if found["status"] == "infeasible":
-        # a weak point that holds a thin leaf counts as thin even when it also holds a leaf
-        # the program forbids: such a layout is not of the kind the program bounds
+        # ``layout`` is of the kind, so the program cannot be infeasible: said, not hidden
         return {"bound": None, "seconds": found["seconds"],
-                "why": "the program finds no layout of this kind, so no bound is given"}
+                "why": "the program finds no layout of this kind, though this layout is one "
+                       "(a bug), so no bound is given"}
     return {"bound": bound, "proven": bool(found["optimal"]), "status": found["status"],
             "time_limit_s": time_limit_s, "seconds": found["seconds"],
             "layouts": "in one piece per region, with no weak point" if weak == 0 else
@@ -459,11 +459,6 @@ def bound_words(quality: dict) -> str | None:
     return words + " (report.json layout_quality.lower_bound)"
 
 
-#: Regions of more cells than this need at least three bricks (no part covers more than
-#: 48 cells), so a leaf brick in them makes its neighbour a weak point.
-LEAF_FREE_REGION_CELLS = 96
-
-
 def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float = 20.0,
                     no_weak_points: bool = False, connected: bool = False,
                     most_weak: int | None = None) -> dict:
@@ -473,8 +468,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
 
     The exact-cover program (:mod:`core.lower_bound`) with what such a layout cannot have:
     a brick touching nothing above or below in a region it does not fill alone (it would
-    be a component of its own), and, in regions of more than
-    :data:`LEAF_FREE_REGION_CELLS` cells, a brick that touches cells on one side only, at
+    be a component of its own), and, in regions of more than twice the cells of the largest
+    of ``parts`` (which need three bricks or more), a brick that touches cells on one side only, at
     least two of them, all under (or over) one other brick (a leaf: that brick would be a
     weak point, and not a thin one).  Both are necessary conditions, so the answer is a
     lower bound, usually above the plain exact cover's, and the gap between them is what
@@ -528,7 +523,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     island = (below == 0) & (above == 0) & (boxes[:, 3] * boxes[:, 4] * boxes[:, 5] < region)
     if no_weak_points:
         island |= separating(boxes, labels)
-    cand = np.flatnonzero((region > LEAF_FREE_REGION_CELLS) & (bbox[:, 4] >= 0)
+    # a region of more cells than two of the largest parts take needs three bricks or more
+    crowded = region > 2 * largest
+    cand = np.flatnonzero(crowded & (bbox[:, 4] >= 0)
                           & (below + above >= 2))
     t, q = _covering(boxes, bbox[cand], cover.indptr.astype(np.int64),
                      cover.indices.astype(np.int64), cell_index)
@@ -598,7 +595,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                          or solution[marks[cut[3]]] < 0.5]
                 if no_weak_points and added:
                     added += _degree_cuts(boxes[chosen], chosen, filled, cover, cell_index,
-                                          region > 2 * largest)
+                                          crowded)
             passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
@@ -758,26 +755,28 @@ def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, m: int, upper: np.ndarray) 
 
 
 def thin_weak_points(layout: Layout) -> list[int]:
-    """Ids of the weak points that hold a leaf brick on a one-cell-thin feature: a leaf
-    (a brick with a single neighbour) that touches the rest of the model, above and below,
-    through one cell only (a spike, pin or tip) hangs on it.  Such a point is often the
-    shape's doing rather than the layout's, so report.json counts it apart; the search
-    still removes one where covering the feature differently gives its leaf more
-    neighbours."""
+    """Ids of the weak points that hold a leaf brick on a one-cell-thin feature and no
+    other leaf: a leaf (a brick with a single neighbour) that touches the rest of the model,
+    above and below, through one cell only (a spike, pin or tip) hangs on it, and every
+    leaf that hangs on it does so.  Such a point is often the shape's doing rather than the
+    layout's, so report.json counts it apart; the search still removes one where covering
+    the feature differently gives its leaf more neighbours.  A weak point that also holds
+    a leaf touching two cells or more is the layout's doing, and not thin (the bound of
+    :func:`one_piece_bound` forbids such leaves)."""
     lab = layout.labels()
     filled = np.asarray(layout.grid.filled, bool)
     n = len(layout.bricks)
     indptr, indices = _csr(lab, n)
     art = articulation_points(indptr, indices, n)
     deg = np.diff(indptr)
-    forced = set()
+    thin, thick = set(), set()
     for b, brick in enumerate(layout.bricks):
         if deg[b] != 1:
             continue
         support = int(indices[indptr[b]])
-        if art[support] and _contact_cells(filled, brick) <= 1:
-            forced.add(layout.bricks[support].id)
-    return sorted(forced)
+        if art[support]:
+            (thin if _contact_cells(filled, brick) <= 1 else thick).add(layout.bricks[support].id)
+    return sorted(thin - thick)
 
 
 def _contact_cells(filled: np.ndarray, brick: Brick) -> int:
