@@ -480,9 +480,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     (:func:`_connection_cuts`) until its cover has one component per region (and, with
     ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
     covers that are not such layouts, so every round's bound is still one, and a cover that
-    passes is the fewest bricks any such layout has; with ``no_weak_points`` a cover that
-    does not pass also gets the cuts of :func:`_degree_cuts` (two neighbours or more for
-    every brick in a region of three bricks or more).  With ``connected`` and ``most_weak``
+    passes is the fewest bricks any such layout has; a cover that does not pass also gets
+    the cuts of :func:`_degree_cuts` (two neighbours or more for every brick in a region of
+    three bricks or more, but a leaf on a one-cell-thin feature where thin weak points
+    are allowed).  Programs of more than :data:`LP_CUT_VARIABLES` placements first get
+    degree cuts in their relaxation (:func:`_relaxed_degree_cuts`), which the integer
+    program keeps.  With ``connected`` and ``most_weak``
     (and not ``no_weak_points``) it bounds the layouts that also have at most ``most_weak``
     weak points: the weak-point cuts of :func:`_connection_cuts` hold for every brick but
     those the program marks as weak, at most ``most_weak`` of them.
@@ -525,6 +528,8 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         island |= separating(boxes, labels)
     # a region of more cells than two of the largest parts take needs three bricks or more
     crowded = region > 2 * largest
+    # bricks that have two neighbours or more in every such layout (:func:`_degree_cuts`)
+    sociable = crowded & ((below + above >= 2) | no_weak_points)
     cand = np.flatnonzero(crowded & (bbox[:, 4] >= 0)
                           & (below + above >= 2))
     t, q = _covering(boxes, bbox[cand], cover.indptr.astype(np.int64),
@@ -555,16 +560,21 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     h.run()
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
         return result(None, True, None, "infeasible")
-    y = np.asarray(h.getSolution().row_dual)
-    bound = 0
-    if len(y) == a.shape[0]:
-        lp_bound = _dual_bound(a, y, m, lp.col_upper_)
-        bound = max(0, int(np.ceil(lp_bound - 1e-6)))
+    bound = _certified(h)
+    degree_rows = []
+    if n > LP_CUT_VARIABLES:
+        degree_rows = _relaxed_degree_cuts(h, boxes, filled, cover, cell_index, sociable,
+                                           start + LP_CUT_SHARE * time_limit_s)
+        if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
+            return result(None, True, None, "infeasible")
+        bound = max(bound, _certified(h))
     lp.integrality_ = [highspy.HighsVarType.kInteger] * n
     h = _highs(max(time_limit_s - (time.perf_counter() - start), 0.05), random_seed=0,
                mip_abs_gap=1.0 - 1e-3)
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
+    for columns, values in degree_rows:
+        h.addRow(0.0, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
     by_placement = cover.T.tocsr()
     weak_cuts = connected and (no_weak_points or most_weak is not None)
     marks: dict[int, int] = {}        # placement -> the column of "it may be a weak point"
@@ -593,9 +603,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                 # a weak point the program marked as one breaks no cut
                 added = [cut for cut in added if cut[3] not in marks
                          or solution[marks[cut[3]]] < 0.5]
-                if no_weak_points and added:
+                if added:
                     added += _degree_cuts(boxes[chosen], chosen, filled, cover, cell_index,
-                                          crowded)
+                                          sociable)
             passed = None if added else boxes[chosen].tolist()
         if added:
             objective = None
@@ -682,15 +692,19 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
 
 
 def _degree_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
-                 cover: sparse.csr_matrix, cell_index: np.ndarray, crowded: np.ndarray) -> list:
+                 cover: sparse.csr_matrix, cell_index: np.ndarray, sociable: np.ndarray) -> list:
     """Cuts, as :func:`_connection_cuts` gives them, ``sum(x_q, q next to p) - 2 x_p >= 0``
     for each brick ``p`` of the cover ``chosen`` (placement indices, their ``chosen_boxes``)
-    with fewer than two neighbours whose placement is ``crowded`` (per placement: its
-    region needs three bricks or more).
+    with fewer than two neighbours whose placement is ``sociable`` (per placement: its
+    region needs three bricks or more, and, unless the layouts have no weak point at all,
+    it touches two filled cells or more right above and below it, in all).
 
     In a layout with one component per region and no weak point, a brick in a region of
     three bricks or more has two neighbours or more: with none it is a component of its own,
-    with one that neighbour is a weak point.  The bricks next to ``p`` are those covering a
+    with one that neighbour is a weak point.  Where thin weak points are allowed
+    (:func:`thin_weak_points`), so is a leaf touching one cell, but not one touching two
+    cells or more: its neighbour would be a weak point that is not thin.  The bricks next
+    to ``p`` are those covering a
     cell right above or below it, each counted once, so a cut holds for every such layout
     and removes every cover where ``p`` has fewer than two neighbours, whichever they are
     (a weak-point cut removes only covers with that one piece hanging on ``p``).  The
@@ -703,18 +717,26 @@ def _degree_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarra
         lab[x:x + sx, y:y + sy, z:z + sz] = k
     indptr, _ = _csr(lab, n)
     out = []
-    for k in np.flatnonzero((np.diff(indptr) < 2) & crowded[chosen]):
-        x, y, z, sx, sy, sz = chosen_boxes[k]
-        near = []
-        for layer in (z - 1, z + sz):
-            if 0 <= layer < filled.shape[2]:
-                cells = cell_index[x:x + sx, y:y + sy, layer]
-                near.append(cells[cells >= 0])
-        near = np.concatenate(near) if near else np.empty(0, np.int64)
-        own = cell_index[x:x + sx, y:y + sy, z:z + sz].ravel()
-        q = np.setdiff1d(np.unique(cover[near].indices), np.unique(cover[own].indices))
+    for k in np.flatnonzero((np.diff(indptr) < 2) & sociable[chosen]):
+        q = _next_to(chosen_boxes[k], filled, cover, cell_index)
         out.append((np.append(q, chosen[k]), np.append(np.ones(len(q)), -2.0), 0.0, -1))
     return out
+
+
+def _next_to(box: np.ndarray, filled: np.ndarray, cover: sparse.csr_matrix,
+             cell_index: np.ndarray) -> np.ndarray:
+    """The placements (columns of ``cover``, the (cells, placements) matrix) that cover a
+    filled cell right above or below ``box`` (x, y, z, sx, sy, sz) and none of its cells:
+    the bricks that would be its neighbours; ``cell_index`` is the row of each filled cell."""
+    x, y, z, sx, sy, sz = box
+    near = []
+    for layer in (z - 1, z + sz):
+        if 0 <= layer < filled.shape[2]:
+            cells = cell_index[x:x + sx, y:y + sy, layer]
+            near.append(cells[cells >= 0])
+    near = np.concatenate(near) if near else np.empty(0, np.int64)
+    own = cell_index[x:x + sx, y:y + sy, z:z + sz].ravel()
+    return np.setdiff1d(np.unique(cover[near].indices), np.unique(cover[own].indices))
 
 
 def separating(boxes: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -744,14 +766,75 @@ def separating(boxes: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return out
 
 
-def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, m: int, upper: np.ndarray) -> float:
-    """A lower bound on ``min sum x`` subject to ``a[:m] x = 1``, ``a[m:] x <= 1`` and
-    ``0 <= x <= upper``, from any row prices ``y`` (weak duality: the rows past ``m`` take
-    prices of at most 0; an inexact interior-point answer still gives a valid bound)."""
+def _dual_bound(a: sparse.csc_matrix, y: np.ndarray, row_lower: np.ndarray,
+                row_upper: np.ndarray, upper: np.ndarray) -> float:
+    """A lower bound on ``min sum x`` subject to ``row_lower <= a x <= row_upper`` (each row
+    an equation, or bounded on one side) and ``0 <= x <= upper``, from any row prices ``y``
+    (weak duality: a row bounded above takes a price of at most 0, one bounded below of at
+    least 0; an inexact interior-point answer still gives a valid bound)."""
     y = np.nan_to_num(np.asarray(y, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    y[m:] = np.minimum(y[m:], 0.0)
+    low, high = np.isfinite(row_lower), np.isfinite(row_upper)
+    y = np.where(high & ~low, np.minimum(y, 0.0), np.where(low & ~high, np.maximum(y, 0.0), y))
+    rhs = np.where(low, row_lower, np.where(high, row_upper, 0.0))
     reduced = 1.0 - a.T @ y
-    return float(y.sum() + np.minimum(reduced, 0.0) @ upper)
+    return float(y @ rhs + np.minimum(reduced, 0.0) @ upper)
+
+
+def _certified(h: highspy.Highs) -> int:
+    """The bricks that the relaxation ``h`` just solved (by interior point, maybe inexact)
+    certifies by weak duality, rounded up; 0 without row prices."""
+    lp = h.getLp()
+    y = np.asarray(h.getSolution().row_dual)
+    if len(y) != lp.num_row_:
+        return 0
+    a = sparse.csc_matrix((np.asarray(lp.a_matrix_.value_), np.asarray(lp.a_matrix_.index_),
+                           np.asarray(lp.a_matrix_.start_)), shape=(lp.num_row_, lp.num_col_))
+    found = _dual_bound(a, y, np.asarray(lp.row_lower_), np.asarray(lp.row_upper_),
+                        np.asarray(lp.col_upper_))
+    return max(0, int(np.ceil(found - 1e-6)))
+
+
+#: Programs of more placements than this get degree cuts in their relaxation first
+#: (:func:`_relaxed_degree_cuts`), for up to this share of the time limit, at most this many
+#: cuts a round: their integer program's first round seldom ends in 20 s, so its lazy cuts
+#: never come.  The bound in one piece without weak points in 20 s: VR headset 190 -> 194,
+#: HMD body 150 -> 154, OpenBot body STL 167 -> 168; on smaller programs the cuts took the
+#: integer program's time (the lens mount's proof of 32: 9.6 -> 18 s; phone mount 20 -> 19).
+LP_CUT_VARIABLES = 10_000
+LP_CUT_SHARE = 0.5
+LP_CUTS = 4000
+
+
+def _relaxed_degree_cuts(h: highspy.Highs, boxes: np.ndarray, filled: np.ndarray,
+                         cover: sparse.csr_matrix, cell_index: np.ndarray, sociable: np.ndarray,
+                         deadline: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Degree cuts (:func:`_degree_cuts`) for the relaxation ``h`` (solved): while it has a
+    solution that breaks some and ``deadline`` (a ``time.perf_counter`` time) is ahead, the
+    ``LP_CUTS`` most broken are added to ``h`` and it is solved again.  Returns the cuts
+    added, as (columns, values) of rows ``>= 0``, for the integer program."""
+    added = []
+    while time.perf_counter() < deadline:
+        x = np.asarray(h.getSolution().col_value)
+        if len(x) != len(boxes):
+            break
+        found = []
+        for p in np.flatnonzero(sociable & (x > 1e-6)):
+            q = _next_to(boxes[p], filled, cover, cell_index)
+            short = 2.0 * x[p] - x[q].sum()
+            if short > 1e-4:
+                found.append((short, p, q))
+        if not found:
+            break
+        found.sort(key=lambda cut: -cut[0])
+        for _, p, q in found[:LP_CUTS]:
+            columns, values = np.append(q, p), np.append(np.ones(len(q)), -2.0)
+            h.addRow(0.0, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
+            added.append((columns, values))
+        h.setOptionValue("time_limit", max(deadline - time.perf_counter(), 0.01))
+        h.run()
+        if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
+            break
+    return added
 
 
 def thin_weak_points(layout: Layout) -> list[int]:

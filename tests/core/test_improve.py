@@ -440,15 +440,22 @@ def _every_cover(filled: np.ndarray, parts) -> list[list[tuple]]:
     return found
 
 
-@pytest.mark.parametrize("size, seed", [(size, seed) for size in ((2, 2, 4), (2, 3, 3), (1, 4, 4))
-                                         for seed in range(4)])
-def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, seed):
+SMALL_SHAPES = [(size, seed) for size in ((2, 2, 4), (2, 3, 3), (1, 4, 4)) for seed in range(4)]
+
+
+@pytest.mark.parametrize("relaxed_cuts", [False, True])
+@pytest.mark.parametrize("size, seed", SMALL_SHAPES)
+def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, seed, relaxed_cuts,
+                                                                           monkeypatch):
     """On small random shapes of one region (blocks with a few cells missing), tiled with
     1x1, 1x2 and 1x3 plates and 1x1 bricks (so a region of seven cells or more needs three
     bricks, and the degree cuts apply): the bound in one piece without weak points is
     proven and equals the fewest bricks of the covers, listed one by one here (up to
     14,094 of them), whose brick graph (built here) is connected without articulation
-    points (networkx); where no cover is, the bound finds none (7 of these 12 shapes)."""
+    points (networkx); where no cover is, the bound finds none (7 of these 12 shapes).  The
+    same with the degree cuts in the relaxation first, as large programs get them."""
+    if relaxed_cuts:
+        monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
     import networkx as nx
     from scipy import ndimage
     rng = np.random.default_rng(seed)
@@ -490,14 +497,18 @@ def _thin_weak_points_here(filled: np.ndarray, boxes: list[tuple], graph) -> tup
     return len(weak), len(thin)
 
 
-@pytest.mark.parametrize("size, seed", [(size, seed) for size in ((2, 2, 4), (2, 3, 3), (1, 4, 4))
-                                         for seed in range(4)])
-def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, seed):
+@pytest.mark.parametrize("relaxed_cuts", [False, True])
+@pytest.mark.parametrize("size, seed", SMALL_SHAPES)
+def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, seed, relaxed_cuts,
+                                                                       monkeypatch):
     """The shapes and parts of the test above (a region of seven cells or more needs three
     bricks, so the leaf rule applies): for at most 1, 2 and 3 weak points, all thin, the
     bound never exceeds the fewest bricks of the covers, listed one by one here, that are
     in one piece with at most that many weak points, all thin as counted here
-    (:func:`_thin_weak_points_here`); where such covers exist the program finds some."""
+    (:func:`_thin_weak_points_here`); where such covers exist the program finds some.  The
+    same with the degree cuts in the relaxation first, as large programs get them."""
+    if relaxed_cuts:
+        monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
     import networkx as nx
     from scipy import ndimage
     rng = np.random.default_rng(seed)
