@@ -443,6 +443,18 @@ def _every_cover(filled: np.ndarray, parts) -> list[list[tuple]]:
 SMALL_SHAPES = [(size, seed) for size in ((2, 2, 4), (2, 3, 3), (1, 4, 4)) for seed in range(4)]
 
 
+def _small_shape(size: tuple[int, int, int], seed: int):
+    """A block of ``size`` cells with about one in ten missing (``seed``), its largest
+    6-connected piece, and the parts that tile it here: 1x1, 1x2 and 1x3 plates and the
+    1x1 brick.  (filled, parts)."""
+    from scipy import ndimage
+    rng = np.random.default_rng(seed)
+    lab, n = ndimage.label(rng.random(size) < 0.9)
+    assert n
+    filled = lab == 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
+    return filled, tuple(p for p in catalog.CATALOG if p.number in ("3024", "3023", "3623", "3005"))
+
+
 @pytest.mark.parametrize("relaxed_cuts", [False, True])
 @pytest.mark.parametrize("size, seed", SMALL_SHAPES)
 def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, seed, relaxed_cuts,
@@ -457,13 +469,7 @@ def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, 
     if relaxed_cuts:
         monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
     import networkx as nx
-    from scipy import ndimage
-    rng = np.random.default_rng(seed)
-    filled = rng.random(size) < 0.9
-    lab, n = ndimage.label(filled)
-    assert n
-    filled = lab == 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
-    parts = tuple(p for p in catalog.CATALOG if p.number in ("3024", "3023", "3623", "3005"))
+    filled, parts = _small_shape(size, seed)
     fewest = None
     for boxes in _every_cover(filled, parts):
         lay = Layout(grid_of(filled), [Brick(k, "3024", b[3:], b[:3]) for k, b in enumerate(boxes)])
@@ -510,12 +516,7 @@ def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, see
     if relaxed_cuts:
         monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
     import networkx as nx
-    from scipy import ndimage
-    rng = np.random.default_rng(seed)
-    filled = rng.random(size) < 0.9
-    lab, n = ndimage.label(filled)
-    filled = lab == 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
-    parts = tuple(p for p in catalog.CATALOG if p.number in ("3024", "3023", "3623", "3005"))
+    filled, parts = _small_shape(size, seed)
     fewest = {1: None, 2: None, 3: None}
     for boxes in _every_cover(filled, parts):
         lay = Layout(grid_of(filled), [Brick(k, "3024", b[3:], b[:3]) for k, b in enumerate(boxes)])
