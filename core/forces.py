@@ -432,12 +432,20 @@ def _work_words(subject: str) -> str:
     return f"the {PROGRAM_WORK:,} solver iterations {subject} given (about two minutes)"
 
 
+#: Seconds a stopped run waits for the solver to stop (:func:`_run`).
+STOP_WAIT_S = 0.2
+
+
 def _run(h) -> None:
     """Run the HiGHS object ``h``.  Where a stop signal has a Python handler (the command
     line's SIGTERM, in its main thread), in a worker thread while this one waits in Python,
     so that the signal raises here at once and the solver is told to stop (HiGHS's user
-    interrupt) instead of finishing a program that may run for minutes.  Elsewhere (inside
-    FreeCAD, where a Qt event loop owns the main thread, or in a worker) in this thread."""
+    interrupt) instead of finishing a program that may run for minutes; the solver gets
+    :data:`STOP_WAIT_S` to stop (it looks at the interrupt between iterations only, and a
+    phase of its may take seconds: 3.3 s on FreeCAD 1.0's Python), and is left running
+    after that, as the command line ends its process without waiting for threads
+    (:mod:`core.__main__`).  Elsewhere (inside FreeCAD, where a Qt event loop owns the main
+    thread, or in a worker) in this thread."""
     if (threading.current_thread() is not threading.main_thread()
             or not callable(signal.getsignal(signal.SIGTERM))):
         h.run()
@@ -449,7 +457,7 @@ def _run(h) -> None:
             worker.join(0.05)
     except BaseException:
         h.cancelSolve()
-        worker.join(5.0)
+        worker.join(STOP_WAIT_S)
         raise
 
 
