@@ -78,7 +78,7 @@ from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
 from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _summed_volume, cover_matrix,
-                               fitting_boxes)
+                               fitting_boxes, more_time)
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -621,7 +621,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                 columns, values = np.append(columns, marks[p]), np.append(values, 1.0)
             h.addRow(lower, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
         cuts += len(added)
-        h.setOptionValue("time_limit", max(left, 0.05))
+        more_time(h, max(left, 0.05))
     optimal = objective is not None and (status == highspy.HighsModelStatus.kOptimal
                                          or bound >= objective)
     if optimal:
@@ -787,8 +787,12 @@ def _certified(h: highspy.Highs) -> int:
     y = np.asarray(h.getSolution().row_dual)
     if len(y) != lp.num_row_:
         return 0
-    a = sparse.csc_matrix((np.asarray(lp.a_matrix_.value_), np.asarray(lp.a_matrix_.index_),
-                           np.asarray(lp.a_matrix_.start_)), shape=(lp.num_row_, lp.num_col_))
+    stored = (np.asarray(lp.a_matrix_.value_), np.asarray(lp.a_matrix_.index_),
+              np.asarray(lp.a_matrix_.start_))
+    shape = (lp.num_row_, lp.num_col_)
+    a = (sparse.csr_matrix(stored, shape=shape)
+         if lp.a_matrix_.format_ == highspy.MatrixFormat.kRowwise
+         else sparse.csc_matrix(stored, shape=shape))
     found = _dual_bound(a, y, np.asarray(lp.row_lower_), np.asarray(lp.row_upper_),
                         np.asarray(lp.col_upper_))
     return max(0, int(np.ceil(found - 1e-6)))
@@ -830,7 +834,7 @@ def _relaxed_degree_cuts(h: highspy.Highs, boxes: np.ndarray, filled: np.ndarray
             columns, values = np.append(q, p), np.append(np.ones(len(q)), -2.0)
             h.addRow(0.0, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
             added.append((columns, values))
-        h.setOptionValue("time_limit", max(deadline - time.perf_counter(), 0.01))
+        more_time(h, deadline - time.perf_counter())
         h.run()
         if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
             break

@@ -254,6 +254,13 @@ def _highs(time_limit_s: float, **options) -> highspy.Highs:
     return h
 
 
+def more_time(h: highspy.Highs, seconds: float) -> None:
+    """Let ``h`` run for ``seconds`` more from now: HiGHS holds its time limit against its
+    run time summed over all its runs, so a limit of ``seconds`` alone would stop a solve
+    again at once after a first one took that long."""
+    h.setOptionValue("time_limit", h.getRunTime() + max(float(seconds), 0.01))
+
+
 def certified_bound(indptr, rows, y: np.ndarray) -> float:
     """A lower bound on the LP (hence on the cover) from any row prices ``y``.
 
