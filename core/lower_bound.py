@@ -129,17 +129,31 @@ def _fits(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray | None:
 
 def cover_matrix(boxes: np.ndarray, cell_index: np.ndarray, m: int) -> sparse.coo_matrix:
     """The (cells x placements) 0/1 matrix of which placement covers which cell: ``boxes``
-    (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them)."""
-    cols, rows = [], []
-    for (sx, sy, sz) in np.unique(boxes[:, 3:], axis=0):
-        sel = np.flatnonzero((boxes[:, 3] == sx) & (boxes[:, 4] == sy) & (boxes[:, 5] == sz))
-        di, dj, dk = np.meshgrid(np.arange(sx), np.arange(sy), np.arange(sz), indexing="ij")
-        cells = cell_index[boxes[sel, 0, None] + di.ravel(), boxes[sel, 1, None] + dj.ravel(),
-                           boxes[sel, 2, None] + dk.ravel()]
-        cols.append(np.repeat(sel, cells.shape[1]))
-        rows.append(cells.ravel())
-    cols, rows = np.concatenate(cols), np.concatenate(rows)
+    (n, 6) placements, ``cell_index`` each covered cell's row (all ``m`` of them).  Its
+    entries come column by column, each column's cells in x, y, z order."""
+    boxes = np.ascontiguousarray(boxes, dtype=np.int64)
+    rows, cols = _cover_entries(boxes, np.ascontiguousarray(cell_index, dtype=np.int64))
     return sparse.coo_matrix((np.ones(cols.size), (rows, cols)), shape=(m, len(boxes)))
+
+
+@njit(cache=True)
+def _cover_entries(boxes: np.ndarray, cell_index: np.ndarray):
+    """The (row, column) pairs of :func:`cover_matrix`."""
+    total = 0
+    for p in range(boxes.shape[0]):
+        total += boxes[p, 3] * boxes[p, 4] * boxes[p, 5]
+    rows = np.empty(total, np.int64)
+    cols = np.empty(total, np.int64)
+    k = 0
+    for p in range(boxes.shape[0]):
+        x, y, z, sx, sy, sz = boxes[p]
+        for i in range(x, x + sx):
+            for j in range(y, y + sy):
+                for c in range(z, z + sz):
+                    rows[k] = cell_index[i, j, c]
+                    cols[k] = p
+                    k += 1
+    return rows, cols
 
 
 def relaxed_cover(filled: np.ndarray, shapes: list[tuple[int, int, int]],
