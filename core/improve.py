@@ -129,7 +129,7 @@ class Effort:
 #: ``normal``'s mip_columns 700 -> 500, which keeps its windows' branch and bound short), on
 #: 18 models x 3 seeds: bricks 7,283 -> 6,698, weak points 47 -> 23, seconds 121 -> 207.
 #: ``best``'s windows of up to 300 cells go to branch and bound up to 700 placements (2,500
-#: with 1,000 nodes took 430 s on the soap holder, 34 s now), and it tries at most 600.
+#: with 1,000 nodes took 430 s on the soap holder, 34 s now).
 NEAREST = (16, 16, 9)
 
 #: ``normal`` ends, while weak points remain, by trying up to this many windows as ``best``
@@ -162,7 +162,7 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
-    "best": Effort(0.15, 150, 600, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
+    "best": Effort(2.0, 150, 6000, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
                    relaxed_start=True),
 }
 
@@ -176,6 +176,15 @@ EFFORT_LEVELS = {
 #: shared among the starts (8 -> 4 + 4, 3 -> 2 + 2): on 19 models 2,119 -> 2,092 bricks, none
 #: worse (VR headset 242 -> 229, OpenBot body STL 190 -> 179, charger stand 58 -> 56).
 BEST_STARTS = ((1_000, 8), (5_000, 3))
+
+#: ``best``'s last search, from the best of its seeds, tries 2 windows per cell (up to 6,000,
+#: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
+#: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
+#: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
+#: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
+#: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
+#: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
+#: (6 or 10 at 1,500 windows: 225) did no better for the time.
 
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
