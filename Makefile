@@ -83,7 +83,7 @@ test-freecad1: freecad1-root
 
 bench: examples/build/hmd.step
 	$(PY) bench/bench.py
-	$(PY) bench/bench_improve.py
+	$(PY) bench/bench_improve.py --best --time-limit 60
 	$(PY) bench/bench_printed.py
 	$(PY) bench/bench_forces.py
 	$(PY) bench/bench_grid_fit.py
