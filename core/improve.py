@@ -29,8 +29,8 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
    first; most windows' is integral and so optimal, the others go to
    branch and bound (up to a size) with the current bricks as the start.
 3. **Keep it** only when the whole layout improves on the key (components,
-   failing joints, weak points that are not thin, weak points, bricks), compared
-   lexicographically (:func:`quality`).  While weak points count, a re-cover that is not kept
+   failing joints, weak points, bricks), compared lexicographically
+   (:func:`quality`).  While weak points count, a re-cover that is not kept
    is solved again with its new bricks that were weak points priced higher:
    the program sees leaves, not articulation points, and this shows it the
    ones its first answer made.
@@ -210,7 +210,7 @@ SEAM_COST = 0.02
 WEAK_RETRIES = 2
 WEAK_COST = 1.5
 
-Key = tuple[int, int, int, int, int]
+Key = tuple[int, int, int, int]
 
 #: What the window program returns when its LP relaxation is fractional and it has more
 #: placements than branch and bound may take: the window is shrunk and tried again.
@@ -323,7 +323,7 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
     :meth:`_Search.sites` orders them), while ``search``'s layout has weak points, those on
     one-cell-thin features (:func:`thin_weak_points`) too; kept on the key."""
     def none_weak() -> bool:
-        return search.key[3] == 0
+        return search.key[2] == 0
 
     if not level.weak_windows or none_weak():
         return
@@ -334,18 +334,15 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
 
 def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
     """The lexicographic key the improvement lowers: (components of the brick graph,
-    failing joints, weak points (articulation points) that are not thin, weak points,
-    bricks).  A thin weak point (:func:`thin_weak_points`) holds leaf bricks on one-cell-thin
-    features only, which the shape forces more often than not; so a layout never trades a
-    thin weak point for one that is not, even for fewer bricks.
+    failing joints, weak points (articulation points), bricks).
 
     Bricks are joined where one sits on another with overlapping footprints
     (:func:`core.stability.brick_graph`).  ``failing_joints`` counts the
     joints a force model finds failing; None counts 0.
     """
     n = len(layout.bricks)
-    comps, weak, thin, _, _ = _graph_key(layout.labels(), n, 0)
-    return comps, int(failing_joints(layout)) if failing_joints else 0, weak - thin, weak, n
+    comps, weak, _, _ = _graph_key(layout.labels(), n, 0)
+    return comps, int(failing_joints(layout)) if failing_joints else 0, weak, n
 
 
 #: Time limit of the lower bound when it is asked for (``--lower-bound``).
@@ -379,16 +376,16 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
 
     timings = timings or {}
     before, after = quality(greedy, failing_joints), quality(layout, failing_joints)
-    names = ("components", "failing_joints", "weak_points_not_thin", "weak_points", "bricks")
+    names = ("components", "failing_joints", "weak_points", "bricks")
     spent = float(timings.get("layout", 0.0)) + float(timings.get("improve", 0.0))
     seconds = {"layout": timings.get("layout"), "improve": timings.get("improve")}
     if "layout_relaxed" in timings:
         seconds["layout_relaxed"] = timings["layout_relaxed"]
         spent += float(timings["layout_relaxed"])
     block = {
-        "bricks": after[4], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
-        "components": after[0], "weak_points": after[3],
-        "weak_points_thin": after[3] - after[2],
+        "bricks": after[3], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
+        "components": after[0], "weak_points": after[2],
+        "weak_points_thin": len(thin_weak_points(layout)),
         "greedy": dict(zip(names, before)), "improved": dict(zip(names, after)),
         "failing_joints_counted": failing_joints is not None,
     }
@@ -401,12 +398,12 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
         block["lower_bound"] = {
             "bound": bound, "time_limit_s": limit, "proven": bool(found["optimal"]),
             "status": found["status"], "variables": found["variables"],
-            "ratio": round(after[4] / bound, 4) if bound else None,
-            "greedy_ratio": round(before[4] / bound, 4) if bound else None}
+            "ratio": round(after[3] / bound, 4) if bound else None,
+            "greedy_ratio": round(before[3] / bound, 4) if bound else None}
         seconds["lower_bound"] = found["seconds"]
         if lower_bound:
             block["lower_bound"]["one_piece"] = one_piece_bound(
-                layout, parts, block["components"] == block["regions"], after[3],
+                layout, parts, block["components"] == block["regions"], after[2],
                 block["weak_points_thin"], limit)
             seconds["one_piece_bound"] = block["lower_bound"]["one_piece"]["seconds"]
     else:
@@ -667,7 +664,7 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
         lab[x:x + sx, y:y + sy, z:z + sz] = k
     cell_brick = lab[filled]                       # per cell (cover's row order): its brick
     region = labels[chosen_boxes[:, 0], chosen_boxes[:, 1], chosen_boxes[:, 2]]
-    indptr, indices, _ = _csr(lab, n)
+    indptr, indices = _csr(lab, n)
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     ncomp, comp = connected_components(graph, directed=False)
     per_region = np.bincount(np.unique(np.stack([region, comp], 1), axis=0)[:, 0])
@@ -728,7 +725,7 @@ def _degree_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarra
     lab = np.full(filled.shape, -1, dtype=np.int64)
     for k, (x, y, z, sx, sy, sz) in enumerate(chosen_boxes):
         lab[x:x + sx, y:y + sy, z:z + sz] = k
-    indptr, _, _ = _csr(lab, n)
+    indptr, _ = _csr(lab, n)
     out = []
     for k in np.flatnonzero((np.diff(indptr) < 2) & sociable[chosen]):
         q = _next_to(chosen_boxes[k], filled, cover, cell_index)
@@ -863,27 +860,30 @@ def thin_weak_points(layout: Layout) -> list[int]:
     the feature differently gives its leaf more neighbours.  A weak point that also holds
     a leaf touching two cells or more is the layout's doing, and not thin (the bound of
     :func:`one_piece_bound` forbids such leaves)."""
+    lab = layout.labels()
+    filled = np.asarray(layout.grid.filled, bool)
     n = len(layout.bricks)
-    indptr, indices, touching = _csr(layout.labels(), n)
+    indptr, indices = _csr(lab, n)
     art = articulation_points(indptr, indices, n)
-    thin = _thin(indptr, indices, art, touching)
-    return sorted(layout.bricks[b].id for b in np.flatnonzero(thin))
+    deg = np.diff(indptr)
+    thin, thick = set(), set()
+    for b, brick in enumerate(layout.bricks):
+        if deg[b] != 1:
+            continue
+        support = int(indices[indptr[b]])
+        if art[support]:
+            (thin if _contact_cells(filled, brick) <= 1 else thick).add(layout.bricks[support].id)
+    return sorted(thin - thick)
 
 
-def _thin(indptr: np.ndarray, indices: np.ndarray, art: np.ndarray,
-          touching: np.ndarray) -> np.ndarray:
-    """Mask of the thin weak points (:func:`thin_weak_points`) of a brick graph (CSR
-    ``indptr``, ``indices``; articulation mask ``art``; ``touching``: each brick's cells
-    touching another brick above or below)."""
-    leaves = np.flatnonzero(np.diff(indptr) == 1)
-    support = indices[indptr[leaves]]
-    on_weak = art[support]
-    leaves, support = leaves[on_weak], support[on_weak]
-    thin = np.zeros(art.shape, dtype=bool)
-    thick = np.zeros(art.shape, dtype=bool)
-    thin[support[touching[leaves] <= 1]] = True
-    thick[support[touching[leaves] > 1]] = True
-    return thin & ~thick
+def _contact_cells(filled: np.ndarray, brick: Brick) -> int:
+    """Filled cells directly below and above the brick's footprint."""
+    (x0, y0, z0), (sx, sy, sz) = brick.cell, brick.size
+    total = 0
+    for z in (z0 - 1, z0 + sz):
+        if 0 <= z < filled.shape[2]:
+            total += int(np.count_nonzero(filled[x0:x0 + sx, y0:y0 + sy, z]))
+    return total
 
 
 def _shapes(parts) -> list[tuple[tuple[int, int, int], str]]:
@@ -904,31 +904,27 @@ def _copy(layout: Layout, renumber: bool) -> Layout:
     return Layout(layout.grid, bricks)
 
 
-def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty), and
-    each brick's cells that touch another brick directly above or below."""
+def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty)."""
     lower = lab[:, :, :-1]
     upper = lab[:, :, 1:]
     touch = (lower >= 0) & (upper >= 0) & (lower != upper)
     a, b = lower[touch], upper[touch]
-    touching = np.bincount(np.concatenate([a, b]), minlength=n)
     key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
     a, b = key // n, key % n
     graph = sparse.csr_matrix((np.ones(2 * a.size, dtype=np.int8),
                                (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
-    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64), touching
+    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64)
 
 
 def _graph_key(lab: np.ndarray, n: int, dead: int):
-    """(components, weak points, thin weak points (:func:`thin_weak_points`), degree per
-    vertex, articulation mask) of the brick graph of ``lab`` with ``n`` vertices of which
-    ``dead`` are unused (isolated, not counted)."""
-    indptr, indices, touching = _csr(lab, n)
+    """(components, weak points, degree per vertex, articulation mask) of the brick graph of
+    ``lab`` with ``n`` vertices of which ``dead`` are unused (isolated, not counted)."""
+    indptr, indices = _csr(lab, n)
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     comps = connected_components(graph, directed=False)[0] - dead
     art = articulation_points(indptr, indices, n)
-    thin = int(np.count_nonzero(_thin(indptr, indices, art, touching)))
-    return int(comps), int(np.count_nonzero(art)), thin, np.diff(indptr), art
+    return int(comps), int(np.count_nonzero(art)), np.diff(indptr), art
 
 
 class _Search:
@@ -981,13 +977,12 @@ class _Search:
         self.key, self.deg, self.art = self._evaluate(self.lab, len(self.rec), self.dead)
 
     def _evaluate(self, lab, n, dead):
-        comps, weak, thin, deg, art = _graph_key(lab, n, dead)
-        if not self.weak_on:
-            weak = thin = 0
+        comps, weak, deg, art = _graph_key(lab, n, dead)
+        weak = weak if self.weak_on else 0
         failing = 0
         if self.failing is not None:
             failing = int(self.failing(self._layout_of(lab)))
-        return (comps, failing, weak - thin, weak, n - dead), deg, art
+        return (comps, failing, weak, n - dead), deg, art
 
     def _layout_of(self, lab) -> Layout:
         """The layout of a label grid (for a force model): bricks in index order; indices
@@ -1090,8 +1085,8 @@ class _Search:
                         if enough is not None and enough():
                             return
                     report(min(self.windows / total, 1.0),
-                           f"improve: window {self.windows}/{total}, {self.key[4]} bricks, "
-                           + (f"{self.key[3]} weak points" if self.weak_on else "compacting"))
+                           f"improve: window {self.windows}/{total}, {self.key[3]} bricks, "
+                           + (f"{self.key[2]} weak points" if self.weak_on else "compacting"))
             if not progressed:
                 return
 
@@ -1184,7 +1179,7 @@ class _Search:
                         continue
                     self.solve([ids[g] for g in group], wide, shapes)
                     done += 1
-                    report(1.0, f"improve: layer window {done}, {self.key[4]} bricks")
+                    report(1.0, f"improve: layer window {done}, {self.key[3]} bricks")
 
     def _try(self, ids: list[int], chosen: list[tuple], lo) -> tuple[bool, np.ndarray]:
         """Replace bricks ``ids`` by the boxes ``chosen`` (window coordinates from ``lo``)

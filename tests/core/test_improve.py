@@ -83,10 +83,10 @@ def test_best_starts_from_more_seeds_on_small_layouts():
 
 def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
     """``best`` goes on from the best of ``normal``'s searches from best_starts seeds (3
-    here, to keep the test short).  On this terraced shape (158 cells) seed 5 leaves fewer
+    here, to keep the test short).  On this terraced shape (142 cells) seed 5 leaves fewer
     weak points than seeds 3 and 4 do, and ``best`` from seed 3 is no worse than any of them."""
     monkeypatch.setattr(improve, "BEST_STARTS", ((1_000, 3),))
-    rng = np.random.default_rng(21)
+    rng = np.random.default_rng(15)
     heights = rng.integers(1, 9, size=(6, 5))
     grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
     start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
@@ -129,7 +129,7 @@ def test_layer_sweep_re_covers_a_whole_layer_across_the_plates():
                              None)
     search.sweep_layers(improve.EFFORT_LEVELS["normal"], lambda fraction, message: None)
     swept = search.layout(None, renumber=True)
-    assert covers_once(swept) and improve.quality(swept) == (1, 0, 0, 0, 8)
+    assert covers_once(swept) and improve.quality(swept) == (1, 0, 0, 8)
     assert sorted((b.part, tuple(b.size)) for b in swept.bricks) == \
         [("3007", (2, 8, 3))] * 4 + [("3034", (8, 2, 1))] * 4
 
@@ -176,7 +176,7 @@ def test_block_2x8_two_bricks_high_reaches_two_bricks():
     grid = grid_of(np.ones((2, 8, 6), bool))
     best = improve.improve(unit_plates(grid), catalog.CATALOG, "best", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (1, 0, 0, 0, 2)
+    assert improve.quality(best) == (1, 0, 0, 2)
     assert sorted(b.part for b in best.bricks) == ["3007", "3007"]
 
 
@@ -189,7 +189,7 @@ def test_l_sheet_reaches_two_plates():
     filled[0:2, :, 0] = True
     best = improve.improve(unit_plates(grid_of(filled)), catalog.CATALOG, "normal", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (2, 0, 0, 0, 2)
+    assert improve.quality(best) == (2, 0, 0, 2)
     assert sorted(b.part for b in best.bricks) == ["3034", "3795"]
 
 
@@ -208,7 +208,7 @@ def test_l_wall_reaches_fewest_bricks():
     assert covers_once(best)
     assert improve.quality(best)[0] == 1
     assert improve.quality(best) <= improve.quality(start)
-    assert improve.quality(best)[4] >= 4
+    assert improve.quality(best)[3] >= 4
 
 
 def test_ring_reaches_eight_bricks():
@@ -222,7 +222,7 @@ def test_ring_reaches_eight_bricks():
     start = layout_stage.lay_out(grid_of(filled), catalog.CATALOG, seed=0)
     best = improve.improve(start, catalog.CATALOG, "normal", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (1, 0, 0, 0, 8)
+    assert improve.quality(best) == (1, 0, 0, 8)
 
 
 def test_frozen_bricks_stay_and_new_ids_follow():
@@ -317,13 +317,6 @@ def test_thin_weak_point_on_a_one_cell_spike():
                                    Brick(3, "3004", (2, 1, 3), (0, 1, 3)),
                                    Brick(4, "3024", (1, 1, 1), (0, 0, 6))])
     assert improve.thin_weak_points(lay) == [2]
-    # the same cells as two 2x2 bricks and the plate: two bricks fewer, but a weak point
-    # that is the layout's doing, so the search's key ranks it below the thin one
-    bricks = Layout(lay.grid, [Brick(0, "3003", (2, 2, 3), (0, 0, 0)),
-                               Brick(1, "3003", (2, 2, 3), (0, 0, 3)),
-                               Brick(2, "3024", (1, 1, 1), (0, 0, 6))])
-    assert improve.quality(lay) == (1, 0, 0, 1, 5) and improve.quality(bricks) == (1, 0, 1, 1, 3)
-    assert improve.quality(lay) < improve.quality(bricks)
     block = improve.layout_quality(lay, lay, catalog.CATALOG, {"layout": 0.1, "improve": 0.0})
     assert block["weak_points"] == 1 and block["weak_points_thin"] == 1
     assert block["lower_bound"]["bound"] == 3 and block["lower_bound"]["proven"]
@@ -339,13 +332,13 @@ def test_thin_weak_point_on_a_one_cell_spike():
     stack = Layout(grid_of(filled), [Brick(0, "3003", (2, 2, 3), (0, 0, 0)),
                                      Brick(1, "3003", (2, 2, 3), (0, 0, 3)),
                                      Brick(2, "3024", (1, 1, 1), (0, 0, 6))])
-    assert improve.quality(stack)[2:] == (1, 1, 3) and improve.thin_weak_points(stack) == []
+    assert improve.quality(stack)[2:] == (1, 3) and improve.thin_weak_points(stack) == []
     assert improve.layout_quality(stack, stack, catalog.CATALOG,
                                   lower_bound=True)["lower_bound"]["one_piece"]["bound"] is None
     # a layout with a weak point that is not thin: no such bound holds for it
     apart = Layout(grid_of(filled[:, :, :6]), stack.bricks[:1] + [
         Brick(1, "3004", (1, 2, 3), (0, 0, 3)), Brick(2, "3004", (1, 2, 3), (1, 0, 3))])
-    assert improve.quality(apart)[2:4] == (1, 1) and not improve.thin_weak_points(apart)
+    assert improve.quality(apart)[2] == 1 and not improve.thin_weak_points(apart)
     other = improve.layout_quality(apart, apart, catalog.CATALOG, lower_bound=True)
     assert other["lower_bound"]["one_piece"]["bound"] is None
     assert "no bound of such layouts holds" in other["lower_bound"]["one_piece"]["why"]
@@ -389,7 +382,7 @@ def test_leaf_free_bound_of_a_column_is_the_hand_count():
     by_hand += [Brick(1 + 2 * k + side, "3003", (2, 2, 3), (0, 2 * side, 3 + 3 * k))
                 for k in range(3) for side in range(2)]
     assert covers_once(Layout(grid, by_hand))
-    assert improve.quality(Layout(grid, by_hand)) == (1, 0, 0, 0, 8)
+    assert improve.quality(Layout(grid, by_hand)) == (1, 0, 0, 8)
     # a 2x4 that fills a middle layer splits the column: without weak points, 8 exactly
     strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, no_weak_points=True)
     assert strict["bound"] == 8 and strict["optimal"]
@@ -569,7 +562,7 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     lay = improve.improve(layout_stage.lay_out(grid, catalog.CATALOG, seed=0), catalog.CATALOG,
                           "normal", 0)
     found = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10)
-    comps, _, _, weak, bricks = improve.quality(lay)
+    comps, _, weak, bricks = improve.quality(lay)
     regions = improve.layout_quality(lay, lay, catalog.CATALOG)["regions"]
     accepted = comps == regions and weak == len(improve.thin_weak_points(lay))
     if found["bound"] is None:
@@ -653,24 +646,19 @@ def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monke
     assert len(after.bricks) < len(before.bricks)
 
 
-def test_normal_tries_a_weak_point_on_a_thin_feature_too(monkeypatch):
+def test_normal_mends_a_weak_point_on_a_thin_feature_too(monkeypatch):
     """The soap dispenser holder, with ``normal``'s windows as they were (up to 200 cells,
     without the two largest boxes; 120 closing windows): its own windows leave one weak
-    point, which holds a leaf on a one-cell-thin feature; the closing windows run while it
-    is there (they would not, were only weak points that are not thin counted), and find
-    fewer bricks, with no weak point that is not thin (weak points counted by networkx
-    here).  Whether such a point can go depends on the window's luck: under the key that
-    counts thin weak points apart, the closing windows move this one, as they did not have
-    to before (then they removed it, at 87 bricks: a path through a layout with a weak
-    point that is not thin, which that key no longer takes)."""
+    point, which holds a leaf on a one-cell-thin feature; the closing windows try it too,
+    and cover the feature so that none is left, in one piece, with fewer bricks (counted by
+    networkx here)."""
     import dataclasses
     normal = improve.EFFORT_LEVELS["normal"]
     smaller = dataclasses.replace(normal, max_window_cells=200, shapes=improve.SHAPES[:5],
                                   max_columns=1500, mip_columns=500, weak_windows=120)
     after, before = _mended(monkeypatch, "soap_dispenser_holder.stl", smaller)
     assert _weak_points_by_networkx(before) == 1 and len(improve.thin_weak_points(before)) == 1
-    assert _weak_points_by_networkx(after) <= 1
-    assert len(improve.thin_weak_points(after)) == _weak_points_by_networkx(after)
+    assert _weak_points_by_networkx(after) == 0
     assert improve.quality(after)[0] == 1 and covers_once(after)
     assert len(after.bricks) < len(before.bricks)
 
