@@ -181,8 +181,7 @@ BEST_STARTS = ((1_000, 8), (5_000, 3))
 #: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
 #: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
 #: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
-#: Stanford bunny 471 -> 462 -> 460 -> 455 (461 once the key put weak points that are not
-#: thin first: 455 had one), drilling plate 277 -> 275; on small models,
+#: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
 #: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
 #: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
 #: (6 or 10 at 1,500 windows: 225) did no better for the time.
