@@ -159,6 +159,15 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 #: Stanford bunny 476 -> 480).  0.16 gave 2,136 bricks but 6 weak points (hw box 1 -> 3).
 #: (Presolving the windows' integer programs saved up to 1.4 s a model but changed which
 #: of equal re-covers is kept: the phone mount's proven fewest, 20, became 21.)
+#: The cover matrices compiled (same layouts, in less time), ``best``'s last search, from the
+#: best of its seeds, tries 2 windows per cell (up to 6,000,
+#: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
+#: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
+#: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
+#: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
+#: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
+#: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
+#: (6 or 10 at 1,500 windows: 225) did no better for the time.
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
@@ -176,15 +185,6 @@ EFFORT_LEVELS = {
 #: shared among the starts (8 -> 4 + 4, 3 -> 2 + 2): on 19 models 2,119 -> 2,092 bricks, none
 #: worse (VR headset 242 -> 229, OpenBot body STL 190 -> 179, charger stand 58 -> 56).
 BEST_STARTS = ((1_000, 8), (5_000, 3))
-
-#: ``best``'s last search, from the best of its seeds, tries 2 windows per cell (up to 6,000,
-#: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
-#: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
-#: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
-#: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
-#: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
-#: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
-#: (6 or 10 at 1,500 windows: 225) did no better for the time.
 
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
