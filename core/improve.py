@@ -209,7 +209,12 @@ SEAM_COST = 0.02
 WEAK_RETRIES = 2
 WEAK_COST = 1.5
 
-Key = tuple[int, int, int, int]
+Key = tuple[int, int, int, int, int]
+#: The key each window is kept on: (components, failing joints, weak points, bricks), weak
+#: points counted together (none while compacting).  Keeping windows on :func:`quality`
+#: instead closed paths the search takes through layouts with a weak point that is not thin:
+#: ``best`` on the VR headset 223 -> 240 bricks, on the 46 mm sphere 184 -> 191.
+SearchKey = tuple[int, int, int, int]
 
 #: What the window program returns when its LP relaxation is fractional and it has more
 #: placements than branch and bound may take: the window is shrunk and tried again.
@@ -294,26 +299,29 @@ def best_starts(cells: int) -> int:
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
            apart, failing_joints, next_id) -> Layout:
-    """One effort level's search from ``layout``: compaction, then the full key; from
-    ``layout`` again on the full key should that end worse than ``layout``; then the sweep
-    of the layers.  (So ``best``'s ``normal`` stages are ``normal`` itself, and ``best`` is
-    never worse than ``normal``.)"""
+    """One effort level's search from ``layout``: compaction, then the full key, back to
+    the best layout on :func:`quality` it held; from ``layout`` again on the full key
+    should none be better than ``layout``; then the sweep of the layers and the weak points'
+    windows, and back to the best again.  (So ``best``'s ``normal`` stages are ``normal``
+    itself, and ``best`` is never worse than ``normal``.)"""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
     # the effort stays seconds (the 1 m cube's 22,652 bricks: 1,000 windows took 121 s)
     budget = min(budget, max(1, int(MAX_WORK / max(len(layout.bricks), 1))))
     search = _Search(layout, parts, seed, frozen, apart, failing_joints)
-    start = search.key
+    start = search.strict
     search.count_weak(False)
     search.run(level, int(budget * level.compact_share), report, budget)
     search.count_weak(True)
     search.run(level, budget, report, budget)
-    if search.key > start:
+    search.restore_best()
+    if not search.strict < start:
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
         search.run(level, budget - int(budget * level.compact_share), report, budget)
     search.sweep_layers(level, report)
     _repair_weak(search, level, report)
+    search.restore_best()
     return search.layout(next_id, renumber=False)
 
 
@@ -333,15 +341,20 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
 
 def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
     """The lexicographic key the improvement lowers: (components of the brick graph,
-    failing joints, weak points (articulation points), bricks).
+    failing joints, weak points (articulation points) that are not thin, weak points,
+    bricks).  A thin weak point (:func:`thin_weak_points`) holds leaf bricks on
+    one-cell-thin features only, which the shape forces more often than not; so of two
+    layouts, one that traded a thin weak point for one that is not, even for fewer bricks,
+    is the worse.  (The search's windows are kept on the coarser :data:`SearchKey`, which
+    counts weak points together; :meth:`_Search.restore_best` judges on this one.)
 
     Bricks are joined where one sits on another with overlapping footprints
     (:func:`core.stability.brick_graph`).  ``failing_joints`` counts the
     joints a force model finds failing; None counts 0.
     """
     n = len(layout.bricks)
-    comps, weak, _, _ = _graph_key(layout.labels(), n, 0)
-    return comps, int(failing_joints(layout)) if failing_joints else 0, weak, n
+    comps, weak, thin, _, _ = _graph_key(layout.labels(), n, 0)
+    return comps, int(failing_joints(layout)) if failing_joints else 0, weak - thin, weak, n
 
 
 #: Time limit of the lower bound when it is asked for (``--lower-bound``).
@@ -375,16 +388,16 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
 
     timings = timings or {}
     before, after = quality(greedy, failing_joints), quality(layout, failing_joints)
-    names = ("components", "failing_joints", "weak_points", "bricks")
+    names = ("components", "failing_joints", "weak_points_not_thin", "weak_points", "bricks")
     spent = float(timings.get("layout", 0.0)) + float(timings.get("improve", 0.0))
     seconds = {"layout": timings.get("layout"), "improve": timings.get("improve")}
     if "layout_relaxed" in timings:
         seconds["layout_relaxed"] = timings["layout_relaxed"]
         spent += float(timings["layout_relaxed"])
     block = {
-        "bricks": after[3], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
-        "components": after[0], "weak_points": after[2],
-        "weak_points_thin": len(thin_weak_points(layout)),
+        "bricks": after[4], "regions": regions(np.asarray(layout.grid.filled, bool))[1],
+        "components": after[0], "weak_points": after[3],
+        "weak_points_thin": after[3] - after[2],
         "greedy": dict(zip(names, before)), "improved": dict(zip(names, after)),
         "failing_joints_counted": failing_joints is not None,
     }
@@ -397,12 +410,12 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
         block["lower_bound"] = {
             "bound": bound, "time_limit_s": limit, "proven": bool(found["optimal"]),
             "status": found["status"], "variables": found["variables"],
-            "ratio": round(after[3] / bound, 4) if bound else None,
-            "greedy_ratio": round(before[3] / bound, 4) if bound else None}
+            "ratio": round(after[4] / bound, 4) if bound else None,
+            "greedy_ratio": round(before[4] / bound, 4) if bound else None}
         seconds["lower_bound"] = found["seconds"]
         if lower_bound:
             block["lower_bound"]["one_piece"] = one_piece_bound(
-                layout, parts, block["components"] == block["regions"], after[2],
+                layout, parts, block["components"] == block["regions"], after[3],
                 block["weak_points_thin"], limit)
             seconds["one_piece_bound"] = block["lower_bound"]["one_piece"]["seconds"]
     else:
@@ -663,7 +676,7 @@ def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.nd
         lab[x:x + sx, y:y + sy, z:z + sz] = k
     cell_brick = lab[filled]                       # per cell (cover's row order): its brick
     region = labels[chosen_boxes[:, 0], chosen_boxes[:, 1], chosen_boxes[:, 2]]
-    indptr, indices = _csr(lab, n)
+    indptr, indices, _ = _csr(lab, n)
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     ncomp, comp = connected_components(graph, directed=False)
     per_region = np.bincount(np.unique(np.stack([region, comp], 1), axis=0)[:, 0])
@@ -724,7 +737,7 @@ def _degree_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarra
     lab = np.full(filled.shape, -1, dtype=np.int64)
     for k, (x, y, z, sx, sy, sz) in enumerate(chosen_boxes):
         lab[x:x + sx, y:y + sy, z:z + sz] = k
-    indptr, _ = _csr(lab, n)
+    indptr, _, _ = _csr(lab, n)
     out = []
     for k in np.flatnonzero((np.diff(indptr) < 2) & sociable[chosen]):
         q = _next_to(chosen_boxes[k], filled, cover, cell_index)
@@ -855,34 +868,31 @@ def thin_weak_points(layout: Layout) -> list[int]:
     other leaf: a leaf (a brick with a single neighbour) that touches the rest of the model,
     above and below, through one cell only (a spike, pin or tip) hangs on it, and every
     leaf that hangs on it does so.  Such a point is often the shape's doing rather than the
-    layout's, so report.json counts it apart; the search still removes one where covering
-    the feature differently gives its leaf more neighbours.  A weak point that also holds
-    a leaf touching two cells or more is the layout's doing, and not thin (the bound of
-    :func:`one_piece_bound` forbids such leaves)."""
-    lab = layout.labels()
-    filled = np.asarray(layout.grid.filled, bool)
+    layout's, so report.json counts it apart, and :func:`quality` ranks it after one that
+    is not; the search still removes one where covering the feature differently gives its
+    leaf more neighbours.  A weak point that also holds a leaf touching two cells or more
+    is the layout's doing, and not thin (the bound of :func:`one_piece_bound` forbids such
+    leaves)."""
     n = len(layout.bricks)
-    indptr, indices = _csr(lab, n)
+    indptr, indices, touching = _csr(layout.labels(), n)
     art = articulation_points(indptr, indices, n)
-    deg = np.diff(indptr)
-    thin, thick = set(), set()
-    for b, brick in enumerate(layout.bricks):
-        if deg[b] != 1:
-            continue
-        support = int(indices[indptr[b]])
-        if art[support]:
-            (thin if _contact_cells(filled, brick) <= 1 else thick).add(layout.bricks[support].id)
-    return sorted(thin - thick)
+    return sorted(layout.bricks[b].id for b in np.flatnonzero(_thin(indptr, indices, art, touching)))
 
 
-def _contact_cells(filled: np.ndarray, brick: Brick) -> int:
-    """Filled cells directly below and above the brick's footprint."""
-    (x0, y0, z0), (sx, sy, sz) = brick.cell, brick.size
-    total = 0
-    for z in (z0 - 1, z0 + sz):
-        if 0 <= z < filled.shape[2]:
-            total += int(np.count_nonzero(filled[x0:x0 + sx, y0:y0 + sy, z]))
-    return total
+def _thin(indptr: np.ndarray, indices: np.ndarray, art: np.ndarray,
+          touching: np.ndarray) -> np.ndarray:
+    """Mask of the thin weak points (:func:`thin_weak_points`) of a brick graph (CSR
+    ``indptr``, ``indices``; articulation mask ``art``; ``touching``: each brick's cells
+    that touch another brick directly above or below)."""
+    leaves = np.flatnonzero(np.diff(indptr) == 1)
+    support = indices[indptr[leaves]]
+    on_weak = art[support]
+    leaves, support = leaves[on_weak], support[on_weak]
+    thin = np.zeros(art.shape, dtype=bool)
+    thick = np.zeros(art.shape, dtype=bool)
+    thin[support[touching[leaves] <= 1]] = True
+    thick[support[touching[leaves] > 1]] = True
+    return thin & ~thick
 
 
 def _shapes(parts) -> list[tuple[tuple[int, int, int], str]]:
@@ -903,27 +913,31 @@ def _copy(layout: Layout, renumber: bool) -> Layout:
     return Layout(layout.grid, bricks)
 
 
-def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty)."""
+def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty), and
+    each brick's cells that touch another brick directly above or below."""
     lower = lab[:, :, :-1]
     upper = lab[:, :, 1:]
     touch = (lower >= 0) & (upper >= 0) & (lower != upper)
     a, b = lower[touch], upper[touch]
+    touching = np.bincount(np.concatenate([a, b]), minlength=n)
     key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
     a, b = key // n, key % n
     graph = sparse.csr_matrix((np.ones(2 * a.size, dtype=np.int8),
                                (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
-    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64)
+    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64), touching
 
 
 def _graph_key(lab: np.ndarray, n: int, dead: int):
-    """(components, weak points, degree per vertex, articulation mask) of the brick graph of
-    ``lab`` with ``n`` vertices of which ``dead`` are unused (isolated, not counted)."""
-    indptr, indices = _csr(lab, n)
+    """(components, weak points, thin weak points (:func:`thin_weak_points`), degree per
+    vertex, articulation mask) of the brick graph of ``lab`` with ``n`` vertices of which
+    ``dead`` are unused (isolated, not counted)."""
+    indptr, indices, touching = _csr(lab, n)
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     comps = connected_components(graph, directed=False)[0] - dead
     art = articulation_points(indptr, indices, n)
-    return int(comps), int(np.count_nonzero(art)), np.diff(indptr), art
+    thin = int(np.count_nonzero(_thin(indptr, indices, art, touching)))
+    return int(comps), int(np.count_nonzero(art)), thin, np.diff(indptr), art
 
 
 class _Search:
@@ -955,7 +969,8 @@ class _Search:
             self._add(tuple(b.cell) + tuple(b.size), b.part, b, b.id in frozen or b.kind != "lego")
         self.dead = 0
         self.weak_on = True
-        self.key, self.deg, self.art = self._evaluate(self.lab, len(self.rec), 0)
+        self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec), 0)
+        self.best = (self.strict, np.flatnonzero(self.alive))
         self.windows = 0
         self.accepted = 0
 
@@ -973,15 +988,18 @@ class _Search:
     def count_weak(self, on: bool) -> None:
         """Count weak points in the key (the lexicographic search) or not (compaction)."""
         self.weak_on = on
-        self.key, self.deg, self.art = self._evaluate(self.lab, len(self.rec), self.dead)
+        self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
+                                                                    self.dead)
 
-    def _evaluate(self, lab, n, dead):
-        comps, weak, deg, art = _graph_key(lab, n, dead)
-        weak = weak if self.weak_on else 0
+    def _evaluate(self, lab, n, dead) -> tuple[SearchKey, Key, np.ndarray, np.ndarray]:
+        """(the search's key, the :func:`quality` key, degrees, articulation mask) of the
+        label grid ``lab`` of ``n`` records of which ``dead`` are removed."""
+        comps, weak, thin, deg, art = _graph_key(lab, n, dead)
         failing = 0
         if self.failing is not None:
             failing = int(self.failing(self._layout_of(lab)))
-        return (comps, failing, weak, n - dead), deg, art
+        strict = (comps, failing, weak - thin, weak, n - dead)
+        return (comps, failing, weak if self.weak_on else 0, n - dead), strict, deg, art
 
     def _layout_of(self, lab) -> Layout:
         """The layout of a label grid (for a force model): bricks in index order; indices
@@ -1196,7 +1214,7 @@ class _Search:
             self._pending[i] = (int(gx), int(gy), int(gz), sx, sy, sz)
             self._pending_part[i] = part_of[(sx, sy, sz)]
         dead = self.dead + len(ids)
-        key, deg, art = self._evaluate(lab, n + len(chosen), dead)
+        key, strict, deg, art = self._evaluate(lab, n + len(chosen), dead)
         if key >= self.key:
             return False, art
         for i in ids:
@@ -1204,8 +1222,31 @@ class _Search:
         for i in sorted(self._pending):
             self._add(self._pending[i], self._pending_part[i], None, False)
         assert np.array_equal(self.lab, lab)
-        self.dead, self.key, self.deg, self.art = dead, key, deg, art
+        self.dead, self.key, self.strict, self.deg, self.art = dead, key, strict, deg, art
+        if strict < self.best[0]:
+            self.best = (strict, np.flatnonzero(self.alive))
         return True, art
+
+    def restore_best(self) -> None:
+        """Go back to the layout that is best on :func:`quality` of all the search has held
+        (its start and every kept window), where that is better than the current one.
+
+        Windows are kept on the search's key, which counts weak points together: a path
+        through a layout with a weak point that is not thin often leads to fewer bricks, but
+        it can also end there, having traded a thin weak point for one that is not."""
+        strict, alive = self.best
+        if not strict < self.strict:
+            return
+        keep = np.zeros(len(self.rec), dtype=bool)
+        keep[alive] = True
+        self.alive = keep.tolist()
+        self.lab.fill(-1)
+        for i in alive:
+            x, y, z, sx, sy, sz = self.rec[i]
+            self.lab[x:x + sx, y:y + sy, z:z + sz] = i
+        self.dead = len(self.rec) - len(alive)
+        self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
+                                                                    self.dead)
 
     def layout(self, next_id: int | None, renumber: bool) -> Layout:
         """The current bricks as a Layout: kept bricks first (in their order), then new ones."""
