@@ -303,9 +303,9 @@ def test_failing_joints_counted_before_weak_points():
 
 def test_search_goes_back_from_a_trade_of_a_thin_weak_point():
     """The spike of the next test laid as crossing 1x2 bricks (5 bricks, a thin weak point):
-    a window that re-covers the tower as two 2x2 bricks is kept on the search's key (the
-    same weak points, two bricks fewer), but its weak point is not thin, so the search goes
-    back to the crossing bricks, which :func:`quality` ranks first."""
+    while weak points count, a window that re-covers the tower as two 2x2 bricks (two
+    bricks fewer, a weak point that is not thin) is not kept; while compacting it is, and
+    the search goes back to the crossing bricks, which :func:`quality` ranks first."""
     filled = np.zeros((2, 2, 7), bool)
     filled[:, :, :6] = True
     filled[0, 0, 6] = True
@@ -314,9 +314,12 @@ def test_search_goes_back_from_a_trade_of_a_thin_weak_point():
                                    Brick(2, "3004", (2, 1, 3), (0, 0, 3)),
                                    Brick(3, "3004", (2, 1, 3), (0, 1, 3)),
                                    Brick(4, "3024", (1, 1, 1), (0, 0, 6))])
+    towers = [(0, 0, 0, 2, 2, 3), (0, 0, 3, 2, 2, 3)]
     search = improve._Search(lay, catalog.CATALOG, 0, set(), None, None)
-    kept, _ = search._try([0, 1, 2, 3], [(0, 0, 0, 2, 2, 3), (0, 0, 3, 2, 2, 3)], (0, 0, 0))
-    assert kept and search.key == (1, 0, 1, 3) and search.strict == (1, 0, 1, 1, 3)
+    assert search.key == (1, 0, 1, 0, 5) and not search._try([0, 1, 2, 3], towers, (0, 0, 0))[0]
+    search.count_weak(False)
+    kept, _ = search._try([0, 1, 2, 3], towers, (0, 0, 0))
+    assert kept and search.key == (1, 0, 0, 0, 3) and search.strict == (1, 0, 1, 1, 3)
     search.restore_best()
     back = search.layout(None, renumber=False)
     assert search.strict == improve.quality(lay) == (1, 0, 0, 1, 5) and covers_once(back)
@@ -676,19 +679,19 @@ def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monke
     assert len(after.bricks) < len(before.bricks)
 
 
-def test_normal_mends_a_weak_point_on_a_thin_feature_too(monkeypatch):
-    """The soap dispenser holder, with ``normal``'s windows as they were (up to 200 cells,
-    without the two largest boxes; 120 closing windows): its own windows leave one weak
-    point, which holds a leaf on a one-cell-thin feature; the closing windows try it too,
-    and cover the feature so that none is left, in one piece, with fewer bricks (counted by
-    networkx here)."""
+def test_normal_tries_a_weak_point_on_a_thin_feature_too(monkeypatch):
+    """The Utah teapot, with 120 closing windows: ``normal``'s own windows leave one weak
+    point, which holds a leaf on a one-cell-thin feature; the closing windows run while it
+    is there (they would not, were only weak points that are not thin tried), and find
+    fewer bricks, still in one piece with that one thin weak point (counted by networkx
+    here).  (On the soap holder, with smaller windows, they once removed such a point;
+    since windows whose relaxation is fractional are solved over the placements it uses,
+    its own windows leave none there.)"""
     import dataclasses
-    normal = improve.EFFORT_LEVELS["normal"]
-    smaller = dataclasses.replace(normal, max_window_cells=200, shapes=improve.SHAPES[:5],
-                                  max_columns=1500, mip_columns=500, weak_windows=120)
-    after, before = _mended(monkeypatch, "soap_dispenser_holder.stl", smaller)
+    more = dataclasses.replace(improve.EFFORT_LEVELS["normal"], weak_windows=120)
+    after, before = _mended(monkeypatch, "utah_teapot_open.stl", more)
     assert _weak_points_by_networkx(before) == 1 and len(improve.thin_weak_points(before)) == 1
-    assert _weak_points_by_networkx(after) == 0
+    assert _weak_points_by_networkx(after) == 1 and len(improve.thin_weak_points(after)) == 1
     assert improve.quality(after)[0] == 1 and covers_once(after)
     assert len(after.bricks) < len(before.bricks)
 
