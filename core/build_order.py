@@ -632,13 +632,16 @@ class _Spots:
         """Prop sets to try, in order, so that ``step`` (to become step ``number``, with the
         bricks ``present`` in place) stands: one prop under the brick that reaches furthest
         out, then one under each brick that can have one, among the step's bricks; failing
-        that, among the placed bricks they touch, then the placed bricks those touch.  A
-        prop goes only where the air at its foot joins the air around the build (a hand
-        can put it there)."""
+        that, among the placed bricks they touch, then the placed bricks those touch, and so
+        on outwards until a ring of bricks has one.  (Three rings, the step's bricks and two
+        more, left 8 steps of the phone charger stand's 58-brick layout tipping; its prop is
+        on the fourth.)  A prop
+        goes only where the air at its foot joins the air around the build (a hand can put
+        it there)."""
         ring = set(step.bricks)
         seen = set(ring)
         outside = self.open_air(present)
-        for _ in range(3):
+        while ring:
             found = [(b, c) for b in sorted(ring) if (c := self.best(b)) is not None
                      and outside[c[0], c[1]] and self.layout.bricks[self.index[b]].kind != "printed"]
             if found:
