@@ -301,19 +301,25 @@ def test_failing_joints_counted_before_weak_points():
     assert improve.quality(better, one_by_ones) <= improve.quality(start, one_by_ones)
 
 
+def _crossing_spike() -> Layout:
+    """A 2x2 tower two bricks tall with a 1x1 plate on its corner, laid as two courses of 1x2
+    bricks crossing each other, the plate on brick 2."""
+    filled = np.zeros((2, 2, 7), bool)
+    filled[:, :, :6] = True
+    filled[0, 0, 6] = True
+    return Layout(grid_of(filled), [Brick(0, "3004", (1, 2, 3), (0, 0, 0)),
+                                    Brick(1, "3004", (1, 2, 3), (1, 0, 0)),
+                                    Brick(2, "3004", (2, 1, 3), (0, 0, 3)),
+                                    Brick(3, "3004", (2, 1, 3), (0, 1, 3)),
+                                    Brick(4, "3024", (1, 1, 1), (0, 0, 6))])
+
+
 def test_search_goes_back_from_a_trade_of_a_thin_weak_point():
     """The spike of the next test laid as crossing 1x2 bricks (5 bricks, a thin weak point):
     while weak points count, a window that re-covers the tower as two 2x2 bricks (two
     bricks fewer, a weak point that is not thin) is not kept; while compacting it is, and
     the search goes back to the crossing bricks, which :func:`quality` ranks first."""
-    filled = np.zeros((2, 2, 7), bool)
-    filled[:, :, :6] = True
-    filled[0, 0, 6] = True
-    lay = Layout(grid_of(filled), [Brick(0, "3004", (1, 2, 3), (0, 0, 0)),
-                                   Brick(1, "3004", (1, 2, 3), (1, 0, 0)),
-                                   Brick(2, "3004", (2, 1, 3), (0, 0, 3)),
-                                   Brick(3, "3004", (2, 1, 3), (0, 1, 3)),
-                                   Brick(4, "3024", (1, 1, 1), (0, 0, 6))])
+    lay = _crossing_spike()
     towers = [(0, 0, 0, 2, 2, 3), (0, 0, 3, 2, 2, 3)]
     search = improve._Search(lay, catalog.CATALOG, 0, set(), None, None)
     assert search.key == (1, 0, 1, 0, 5) and not search._try([0, 1, 2, 3], towers, (0, 0, 0))[0]
@@ -334,14 +340,8 @@ def test_thin_weak_point_on_a_one_cell_spike():
     under the plate holds no other leaf: its weak point is thin.  Laid as two 2x2 bricks, the
     upper one also holds the lower one, a leaf that touches it through four cells: that
     weak point is the layout's doing, not thin."""
-    filled = np.zeros((2, 2, 7), bool)
-    filled[:, :, :6] = True
-    filled[0, 0, 6] = True
-    lay = Layout(grid_of(filled), [Brick(0, "3004", (1, 2, 3), (0, 0, 0)),
-                                   Brick(1, "3004", (1, 2, 3), (1, 0, 0)),
-                                   Brick(2, "3004", (2, 1, 3), (0, 0, 3)),
-                                   Brick(3, "3004", (2, 1, 3), (0, 1, 3)),
-                                   Brick(4, "3024", (1, 1, 1), (0, 0, 6))])
+    lay = _crossing_spike()
+    filled = np.asarray(lay.grid.filled)
     assert improve.thin_weak_points(lay) == [2]
     # the same cells as two 2x2 bricks and the plate: two bricks fewer, but a weak point
     # that is the layout's doing, so the key ranks it below the thin one
