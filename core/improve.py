@@ -169,18 +169,23 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 #: (Presolving the windows' integer programs saved up to 1.4 s a model but changed which
 #: of equal re-covers is kept: the phone mount's proven fewest, 20, became 21.)
 #: The cover matrices compiled (same layouts, in less time), ``best``'s last search, from the
-#: best of its seeds, tries 2 windows per cell (up to 6,000,
+#: best of its seeds, tried 2 windows per cell (up to 6,000,
 #: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
 #: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
 #: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
 #: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
 #: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
 #: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
-#: (6 or 10 at 1,500 windows: 225) did no better for the time.
+#: (6 or 10 at 1,500 windows: 225) did no better for the time.  Since windows whose relaxation
+#: is fractional are solved over the placements it uses (their branch and bound takes longer
+#: than shrinking them did), 1 window per cell (up to 3,000) finds as few bricks in less time:
+#: seed 0, two runs side by side, 2 -> 1.5 -> 1: VR headset 223 (66 s alone) -> 221 -> 223
+#: (43 s), Stanford bunny 452 (51 s alone) -> 456 -> 453 (41 s), drilling plate 271 -> 271 ->
+#: 270 (27 s), soap holder 83 -> 83 -> 83 (69 s; its 8 seeds of ``normal`` take most of it).
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
-    "best": Effort(2.0, 150, 6000, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
+    "best": Effort(1.0, 150, 3000, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
                    relaxed_start=True),
 }
 
