@@ -635,9 +635,8 @@ class _Spots:
         that, among the placed bricks they touch, then the placed bricks those touch, and so
         on outwards until a ring of bricks has one.  (Three rings, the step's bricks and two
         more, left 8 steps of the phone charger stand's 58-brick layout tipping; its prop is
-        on the fourth.)  A prop
-        goes only where the air at its foot joins the air around the build (a hand can put
-        it there)."""
+        on the fourth.)  A prop goes only where the air at its foot joins the air around the
+        build (a hand can put it there)."""
         ring = set(step.bricks)
         seen = set(ring)
         outside = self.open_air(present)

@@ -34,7 +34,8 @@ window, after Kollsker & Malaguti's MIP repair of a constructive layout:
 3. **Keep it** only when the whole layout improves on the key (components,
    failing joints, weak points, weak points not on a one-cell-thin feature, bricks),
    compared lexicographically (:data:`SearchKey`; at the end the search goes back to the
-   best layout it held on :func:`quality`, which puts the second kind of weak point first).  While weak points count, a re-cover that is not kept
+   best layout it held on :func:`quality`, which puts the second kind of weak point
+   first).  While weak points count, a re-cover that is not kept
    is solved again with its new bricks that were weak points priced higher:
    the program sees leaves, not articulation points, and this shows it the
    ones its first answer made.
@@ -1529,8 +1530,7 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
                and np.abs(x - np.round(x)).max(initial=0.0) < 1e-7)
     if not lp_done and n > level.mip_columns:
         keep = x > 1e-6
-        index = {tuple(int(v) for v in box): i for i, box in enumerate(boxes)}
-        keep[[index[box] for box in map(tuple, current) if box in index]] = True
+        keep[[i for i in _rows_of(boxes, current) if i is not None]] = True
         if np.count_nonzero(keep) > level.mip_columns:
             return TOO_LARGE
         # the placements the relaxation uses and the current bricks: the same relaxation,
@@ -1561,10 +1561,8 @@ def _start_solution(boxes, current, a, n, n_cols, m, upper):
 
     ``upper`` are the right-hand sides of the leaf rows ``sum x - y <= upper``.
     """
-    index = {tuple(int(v) for v in b): i for i, b in enumerate(boxes)}
     x = np.zeros(n_cols)
-    for box in current:
-        i = index.get(tuple(int(v) for v in box))
+    for i in _rows_of(boxes, current):
         if i is None:
             return None
         x[i] = 1.0
@@ -1576,3 +1574,9 @@ def _start_solution(boxes, current, a, n, n_cols, m, upper):
         np.maximum.at(y, aux.col, need[aux.row])
         x[n:] = np.clip(y, 0.0, 1.0)
     return x
+
+
+def _rows_of(boxes: np.ndarray, current) -> list[int | None]:
+    """The row of ``boxes`` of each box of ``current`` (None where it is not a placement)."""
+    index = {tuple(int(v) for v in b): i for i, b in enumerate(boxes)}
+    return [index.get(tuple(int(v) for v in box)) for box in current]
