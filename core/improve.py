@@ -59,7 +59,8 @@ Should the result still be worse than the input on the full key, the full
 key is searched from the input instead, so the result is never worse.
 ``best`` runs ``normal``'s search from several seeds (:func:`best_starts`: 8 up to
 1,000 cells, 3 up to 5,000, else one) and continues from the best of them with
-more windows of the same sizes.
+more windows of the same sizes, all within a number of simplex iterations
+(:attr:`Effort.work`, :data:`SEED_WORK_SHARE`).
 
 The work is counted in windows, not seconds, so the result is the same for
 the same layout, parts, effort and seed (HiGHS runs single-threaded; its
@@ -110,7 +111,10 @@ class Effort:
     ``weak_windows``: while weak points remain, the most windows (as ``best`` tries them)
     tried at the end (:func:`_repair_weak`); ``relaxed_start``: the search also runs from the
     layout whose brick layers the exact cover's relaxation chooses, where that is cheap
-    (:func:`core.layout.relaxed_brick_groups`, the ``others`` of :func:`improve`).
+    (:func:`core.layout.relaxed_brick_groups`, the ``others`` of :func:`improve`);
+    ``work``: the most simplex iterations (HiGHS's, over all window programs) the whole
+    effort spends, ``normal``'s searches from several seeds included (0: no such limit;
+    :func:`improve`).
     """
 
     windows_per_cell: float
@@ -127,6 +131,7 @@ class Effort:
     layer_sweeps: int
     weak_windows: int = 0
     relaxed_start: bool = False
+    work: int = 0
 
 
 #: The first window box tried at every site: so large that the bricks nearest the site fill
@@ -183,11 +188,15 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 #: seed 0, two runs side by side, 2 -> 1.5 -> 1: VR headset 223 (66 s alone) -> 221 -> 223
 #: (43 s), Stanford bunny 452 (51 s alone) -> 456 -> 453 (41 s), drilling plate 271 -> 271 ->
 #: 270 (27 s), soap holder 83 -> 83 -> 83 (69 s; its 8 seeds of ``normal`` take most of it).
+#: ``best``'s work: the seconds it took, two runs side by side, were those of its simplex
+#: iterations at 58-78 us each (teapot 807,000 in 46 s, soap holder 868,000 in 68 s, hw box
+#: 1,165,000 in 78 s, VR headset 681,000 in 43 s, Stanford bunny 649,000 in 46 s); at most
+#: 750,000 keeps the VR headset's and the bunny's as they were, and the others near 50 s.
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
     "best": Effort(1.0, 150, 3000, 300, SHAPES, 0.4, 2500, 700, 200, 20.0, 300, 4,
-                   relaxed_start=True),
+                   relaxed_start=True, work=750_000),
 }
 
 #: ``best`` runs ``normal``'s search from several seeds (the seed, then the next ones) and
@@ -200,6 +209,12 @@ EFFORT_LEVELS = {
 #: shared among the starts (8 -> 4 + 4, 3 -> 2 + 2): on 19 models 2,119 -> 2,092 bricks, none
 #: worse (VR headset 242 -> 229, OpenBot body STL 190 -> 179, charger stand 58 -> 56).
 BEST_STARTS = ((1_000, 8), (5_000, 3))
+
+#: The share of ``best``'s work (:attr:`Effort.work`) its searches from several seeds may
+#: spend: a seed's search starts only while the seeds so far, one more time on average, stay
+#: within it (the first always runs, and the seeds take turns between the starts).  Its last
+#: search gets the rest, and never less than the remaining share.
+SEED_WORK_SHARE = 0.6
 
 #: Windows times bricks one improvement may spend (each window judges the whole layout).
 MAX_WORK = 2_500_000
@@ -279,20 +294,33 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     extra = tuple(others) if level.relaxed_start else ()
     starts = {name: _starts(name, effort, layout, 1 + len(extra))
               for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
-    total = sum(starts.values()) + len(extra) * starts.get("normal", 0)
-    done = 0
+    planned = [count * (1 + (len(extra) if name == "normal" else 0))
+               for name, count in starts.items()]
+    total = sum(planned)
+    done, spent = 0, 0
     current = layout
-    for name, count in starts.items():
+    for (name, count), stage_count in zip(starts.items(), planned):
         found = []
-        begins = [(begin, seed + k) for begin in (current,) + (extra if name == "normal" else ())
-                  for k in range(count)]
-        for begin, begin_seed in begins:
+        # the seeds take turns between the starts; of equal results the first start's wins
+        begins = [(j, begin, seed + k) for k in range(count)
+                  for j, begin in enumerate((current,) + (extra if name == "normal" else ()))]
+        last = name == effort
+        for _, begin, begin_seed in begins:
+            if (level.work and not last and found
+                    and spent * (len(found) + 1) / len(found) > SEED_WORK_SHARE * level.work):
+                break
+
             def share(fraction, message, done=done):
                 report((done + fraction) / total, message)
-            found.append(_stage(begin, parts, EFFORT_LEVELS[name], begin_seed, share, frozen_ids,
-                                apart, failing_joints, next_id))
+            work = max(level.work - spent, int((1.0 - SEED_WORK_SHARE) * level.work)) \
+                if level.work and last else None
+            better, iterations = _stage(begin, parts, EFFORT_LEVELS[name], begin_seed, share,
+                                        frozen_ids, apart, failing_joints, next_id, work)
+            found.append(better)
+            spent += iterations
             done += 1
-        keys = [quality(f, failing_joints) for f in found]
+        done = sum(planned[:list(starts).index(name) + 1])
+        keys = [(quality(f, failing_joints), j, k) for f, (j, _, k) in zip(found, begins)]
         current = found[keys.index(min(keys))]
     report(1.0, "improve: done")
     return _copy(current, renumber=not frozen_ids)
@@ -315,12 +343,15 @@ def best_starts(cells: int) -> int:
 
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
-           apart, failing_joints, next_id) -> Layout:
+           apart, failing_joints, next_id, work: int | None = None) -> tuple[Layout, int]:
     """One effort level's search from ``layout``: compaction, then the full key, back to
     the best layout on :func:`quality` it held; from ``layout`` again on the full key
     should none be better than ``layout``; then the sweep of the layers and the weak points'
     windows, and back to the best again.  (So ``best``'s ``normal`` stages are ``normal``
-    itself, and ``best`` is never worse than ``normal``.)"""
+    itself, and ``best`` is never worse than ``normal``.)  The windows stop at the level's
+    number or once they have spent ``work`` simplex iterations (None: no such limit),
+    compaction at its share of either.  Returns the layout and the simplex iterations
+    spent."""
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
@@ -329,17 +360,21 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     search = _Search(layout, parts, seed, frozen, apart, failing_joints)
     start = search.strict
     search.count_weak(False)
-    search.run(level, int(budget * level.compact_share), report, budget)
+    search.run(level, int(budget * level.compact_share), report, budget,
+               work=None if work is None else int(work * level.compact_share))
     search.count_weak(True)
-    search.run(level, budget, report, budget)
+    search.run(level, budget, report, budget, work=work)
     search.restore_best()
+    spent = 0
     if not search.strict < start:
+        spent = search.iterations
         search = _Search(layout, parts, seed, frozen, apart, failing_joints)
-        search.run(level, budget - int(budget * level.compact_share), report, budget)
+        search.run(level, budget - int(budget * level.compact_share), report, budget,
+                   work=None if work is None else max(work - spent, 0))
     search.sweep_layers(level, report)
     _repair_weak(search, level, report)
     search.restore_best()
-    return search.layout(next_id, renumber=False)
+    return search.layout(next_id, renumber=False), spent + search.iterations
 
 
 def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
@@ -990,6 +1025,7 @@ class _Search:
         self.best = (self.strict, np.flatnonzero(self.alive))
         self.windows = 0
         self.accepted = 0
+        self.iterations = 0
 
     def _add(self, box, part, orig, fixed) -> int:
         i = len(self.rec)
@@ -1093,17 +1129,22 @@ class _Search:
     # -- the search ----------------------------------------------------------
 
     def run(self, level: Effort, budget: int, report: Progress, total: int,
-            enough: Callable[[], bool] | None = None) -> None:
+            enough: Callable[[], bool] | None = None, work: int | None = None) -> None:
         """Try windows, shape by shape, sites in order of promise, until ``budget`` windows
-        have been tried in all (or, after a window is kept, ``enough()`` says so); progress
-        is reported as a share of the ``total`` windows of the whole stage."""
+        have been tried in all, or the windows' simplex iterations (:attr:`iterations`) have
+        reached ``work`` (None: no such limit), or, after a window is kept, ``enough()`` says
+        so; progress is reported as a share of the ``total`` windows of the whole stage."""
         tried: set[tuple] = set()
         report(min(self.windows / total, 1.0), "improve: windows")
-        while self.windows < budget:
+
+        def spent() -> bool:
+            return self.windows >= budget or (work is not None and self.iterations >= work)
+
+        while not spent():
             progressed = False
             for shape, anchor in ((s, a) for s in level.shapes for a in (1, 2, 0)):
                 for site in self.sites():
-                    if self.windows >= budget:
+                    if spent():
                         return
                     if not self.alive[site]:
                         continue
@@ -1154,7 +1195,8 @@ class _Search:
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
             window = (boxes, free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
                       current, self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
-            chosen = _solve_window(*window)
+            chosen, spent = _solve_window(*window)
+            self.iterations += spent
             if chosen is not TOO_LARGE:
                 break
             if len(ids) <= 2:
@@ -1174,7 +1216,8 @@ class _Search:
                 return False
             for box in weak:
                 penalty[box] = penalty.get(box, 0.0) + WEAK_COST
-            chosen = _solve_window(*window, penalty)
+            chosen, spent = _solve_window(*window, penalty)
+            self.iterations += spent
             if chosen is TOO_LARGE:
                 return False
         return False
@@ -1450,7 +1493,8 @@ def _fixed_leaf_targets(free, filled, lab):
 def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cost: float,
                   penalty: dict | None = None):
     """The best re-cover of the ``free`` cells of a local box by the placements ``boxes``
-    (:func:`_placements`), as a list of boxes, or None.
+    (:func:`_placements`), as a list of boxes, or None; with the simplex iterations HiGHS
+    spent on it (a count of work that, unlike seconds, is the same on every run).
 
     ``lab`` holds the fixed bricks' indices (-1 on freed and empty cells);
     the box has a margin of one cell around the freed cells where the grid
@@ -1461,7 +1505,7 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     """
     n = len(boxes)
     if n == 0:
-        return None
+        return None, 0
     cell_index = np.full(free.shape, -1, dtype=np.int64)
     cell_index[free] = np.arange(int(free.sum()))
     m = int(free.sum())
@@ -1525,6 +1569,7 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     h.passModel(lp)
     # The LP relaxation first: most windows' are integral, and then it is the optimum.
     h.run()
+    spent = max(h.getInfo().simplex_iteration_count, 0)
     x = np.asarray(h.getSolution().col_value)[:n]
     lp_done = (h.getModelStatus() == highspy.HighsModelStatus.kOptimal and len(x) == n
                and np.abs(x - np.round(x)).max(initial=0.0) < 1e-7)
@@ -1532,11 +1577,12 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
         keep = x > 1e-6
         keep[[i for i in _rows_of(boxes, current) if i is not None]] = True
         if np.count_nonzero(keep) > level.mip_columns:
-            return TOO_LARGE
+            return TOO_LARGE, spent
         # the placements the relaxation uses and the current bricks: the same relaxation,
         # small enough for branch and bound
-        return _solve_window(boxes[keep], free, filled, lab, current, rng, level, leaf_cost,
-                             penalty)
+        chosen, more = _solve_window(boxes[keep], free, filled, lab, current, rng, level,
+                                     leaf_cost, penalty)
+        return chosen, spent + more
     if not lp_done:
         h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
                                 np.full(n, highspy.HighsVarType.kInteger))
@@ -1547,13 +1593,14 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
             sol.value_valid = True
             h.setSolution(sol)
         h.run()
+        spent += max(h.getInfo().simplex_iteration_count, 0)
         if h.getInfo().primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
-            return None
+            return None, spent
     x = np.asarray(h.getSolution().col_value)[:n]
     chosen = boxes[x > 0.5]
     if int((chosen[:, 3] * chosen[:, 4] * chosen[:, 5]).sum()) != m:
-        return None
-    return [tuple(int(v) for v in b) for b in chosen]
+        return None, spent
+    return [tuple(int(v) for v in b) for b in chosen], spent
 
 
 def _start_solution(boxes, current, a, n, n_cols, m, upper):

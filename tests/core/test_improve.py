@@ -3,6 +3,8 @@ and the hand-computed optimum on small shapes."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings, strategies as st
@@ -96,6 +98,61 @@ def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
               for k in range(improve.best_starts(grid.count))]
     assert min(normal) < normal[0]
     assert improve.quality(best) <= min(normal)
+
+
+def test_best_spends_its_seeds_within_its_work(monkeypatch):
+    """``best`` starts another seed's search only while the seeds so far, one more on
+    average, stay within its share of the work.  On the terraced shape of the test above,
+    with the work of ``best`` itself all 3 seeds run; with a work of one simplex iteration
+    only the first (``normal`` itself, so ``best`` is still no worse than ``normal``), its
+    last search has none left for windows, and the progress still only rises, to 1."""
+    monkeypatch.setattr(improve, "BEST_STARTS", ((1_000, 3),))
+    rng = np.random.default_rng(15)
+    heights = rng.integers(1, 9, size=(6, 5))
+    grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
+    start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
+    stages, windows = [], []
+    stage, run = improve._stage, improve._Search.run
+
+    def counted_stage(layout, parts, level, seed, *rest):
+        stages.append((level.windows_per_cell, seed))
+        return stage(layout, parts, level, seed, *rest)
+
+    def counted_run(search, level, budget, *rest, **options):
+        before = search.windows
+        run(search, level, budget, *rest, **options)
+        if options.get("work") is not None:
+            windows.append(search.windows - before)
+
+    monkeypatch.setattr(improve, "_stage", counted_stage)
+    monkeypatch.setattr(improve._Search, "run", counted_run)
+    improve.improve(start, catalog.CATALOG, "best", 3)
+    normal, best = (improve.EFFORT_LEVELS[name].windows_per_cell for name in ("normal", "best"))
+    assert stages == [(normal, 3), (normal, 4), (normal, 5), (best, 3)]
+    assert sum(windows) > 0
+    stages.clear()
+    windows.clear()
+    monkeypatch.setitem(improve.EFFORT_LEVELS, "best",
+                        dataclasses.replace(improve.EFFORT_LEVELS["best"], work=1))
+    seen = []
+    tight = improve.improve(start, catalog.CATALOG, "best", 3,
+                            progress=lambda fraction, message: seen.append(fraction))
+    assert stages == [(normal, 3), (best, 3)] and sum(windows) == 0
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    assert improve.quality(tight) <= improve.quality(improve.improve(start, catalog.CATALOG,
+                                                                     "normal", 3))
+
+
+def test_windows_stop_once_they_have_spent_their_work():
+    """A search's windows stop once their simplex iterations reach ``work``: with a work of
+    one iteration, from 1x1 plates on a 6 x 6 x 3 block, one window (which takes more);
+    without, more."""
+    grid = grid_of(np.ones((6, 6, 3), dtype=bool))
+    search = improve._Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
+    search.run(improve.EFFORT_LEVELS["normal"], 50, lambda fraction, message: None, 50, work=1)
+    assert search.windows == 1 and search.iterations >= 1
+    search.run(improve.EFFORT_LEVELS["normal"], 50, lambda fraction, message: None, 50)
+    assert search.windows > 1
 
 
 def test_the_first_window_follows_a_thin_wall():
