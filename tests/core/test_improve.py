@@ -155,6 +155,24 @@ def test_windows_stop_once_they_have_spent_their_work():
     assert search.windows > 1
 
 
+def test_the_weak_point_windows_at_last_start_at_weak_bricks_only():
+    """The second round of weak-point windows starts at weak bricks only: of the greedy
+    layout of the terraced shape, the sites are exactly its weak points and leaves
+    (networkx), in the order all sites have them."""
+    import networkx as nx
+    rng = np.random.default_rng(15)
+    heights = rng.integers(1, 9, size=(6, 5))
+    grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
+    start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
+    search = improve._Search(start, catalog.CATALOG, 0, set(), None, None)
+    graph = _graph_by_networkx(start)
+    weak = set(nx.articulation_points(graph)) | {n for n in graph if graph.degree(n) <= 1}
+    order = search.sites()
+    chosen = improve._Search(start, catalog.CATALOG, 0, set(), None, None).sites(weak_only=True)
+    assert weak and len(weak) < len(order)
+    assert chosen == [i for i in order if i in weak]
+
+
 def test_the_first_window_follows_a_thin_wall():
     """On a wall one stud thick (40 studs long, 3 plates tall, 1x1 plates), the first window
     at a site in its middle frees the whole wall 16 studs along it (48 cells), and with a
