@@ -64,9 +64,9 @@ key is searched from the input instead, so the result is never worse.
 more windows of the same sizes, all within a number of simplex iterations
 (:attr:`Effort.work`, :data:`SEED_WORK_SHARE`).
 
-The work is counted in windows, not seconds, so the result is the same for
-the same layout, parts, effort and seed (HiGHS runs single-threaded; its
-time limit is only a safety net that ordinary windows never reach).
+The work is counted in windows (and, for ``best``, simplex iterations), not seconds,
+so the result is the same for the same layout, parts, effort and seed (HiGHS runs
+single-threaded; its time limit is only a safety net that ordinary windows never reach).
 """
 
 from __future__ import annotations
@@ -301,7 +301,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     total = sum(planned)
     done, spent = 0, 0
     current = layout
-    for (name, count), stage_count in zip(starts.items(), planned):
+    for index, (name, count) in enumerate(starts.items()):
         found = []
         # the seeds take turns between the starts; of equal results the first start's wins
         begins = [(j, begin, seed + k) for k in range(count)
@@ -321,7 +321,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
             found.append(better)
             spent += iterations
             done += 1
-        done = sum(planned[:list(starts).index(name) + 1])
+        done = sum(planned[:index + 1])
         keys = [(quality(f, failing_joints), j, k) for f, (j, _, k) in zip(found, begins)]
         current = found[keys.index(min(keys))]
     report(1.0, "improve: done")
@@ -397,6 +397,7 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
 
     if not level.weak_windows or none_weak():
         return
+
     def said(fraction, message):
         report(1.0, message.replace("improve: window", "improve: weak point window"))
 
