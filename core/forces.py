@@ -352,10 +352,12 @@ class _Program:
         primal simplex (re-solved after bound changes from the previous basis: on the
         prefixes of a 209-brick build 6x faster than the dual)."""
         import highspy
+
+        from core.lower_bound import INTERIOR_POINT
         h = highspy.Highs()
         h.setOptionValue("output_flag", False)
         h.setOptionValue("threads", 1)
-        h.setOptionValue("solver", "simplex" if simplex else "ipm")
+        h.setOptionValue("solver", "simplex" if simplex else INTERIOR_POINT)
         # the interior point's own answer is enough (a vertex is not needed): crossover to
         # one took 40 % of the time on a 1,474-brick layout
         h.setOptionValue("run_crossover", "choose")
@@ -583,10 +585,11 @@ class _Warm:
         interior point with a crossover to a basis for the next warm start: on a 454-brick
         build's first whole program 1.9 s instead of the cold primal simplex's 4.6 s.
         Whether it reached the optimum."""
+        from core.lower_bound import INTERIOR_POINT
         h = self.highs
         if cold:
             h.clearSolver()
-            h.setOptionValue("solver", "ipm")
+            h.setOptionValue("solver", INTERIOR_POINT)
             h.setOptionValue("run_crossover", "on")
         _run(h)
         self.work += solver_work(h.getInfo(), self.nnz)

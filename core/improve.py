@@ -586,12 +586,12 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     passes is the fewest bricks any such layout has; a cover that does not pass also gets
     the cuts of :func:`_degree_cuts` (two neighbours or more for every brick in a region of
     three bricks or more, but a leaf on a one-cell-thin feature where thin weak points
-    are allowed).  Programs of more than :data:`LP_CUT_VARIABLES` placements first get
-    degree cuts in their relaxation (:func:`_relaxed_degree_cuts`), which the integer
-    program keeps.  With ``connected`` and ``most_weak``
-    (and not ``no_weak_points``) it bounds the layouts that also have at most ``most_weak``
-    weak points: the weak-point cuts of :func:`_connection_cuts` hold for every brick but
-    those the program marks as weak, at most ``most_weak`` of them.
+    are allowed).  Programs of more than :data:`LP_CUT_VARIABLES` placements solve their
+    relaxation with the leaf rows it breaks and degree cuts, added round by round
+    (:func:`_relaxed_cuts`); the integer program keeps the degree cuts.  With ``connected``
+    and ``most_weak`` (and not ``no_weak_points``) it bounds the layouts that also have at
+    most ``most_weak`` weak points: the weak-point cuts of :func:`_connection_cuts` hold for
+    every brick but those the program marks as weak, at most ``most_weak`` of them.
     Returns ``{"bound", "optimal", "objective", "status", "seconds", "variables", "rounds",
     "cuts", "cover"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
     relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
@@ -643,37 +643,29 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                               (np.concatenate([np.arange(len(cand)), t]),
                                np.concatenate([cand, q]))), shape=(len(cand), n))
     leaf.data[:] = 1.0
-    a = sparse.vstack([cover, leaf]).tocsc()
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, a.shape[0]
-    lp.col_cost_ = np.ones(n)
-    lp.col_lower_ = np.zeros(n)
-    lp.col_upper_ = np.where(island, 0.0, 1.0)
-    lp.row_lower_ = np.concatenate([np.ones(m), np.full(len(cand), -highspy.kHighsInf)])
-    lp.row_upper_ = np.ones(a.shape[0])
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = a.indices.astype(np.int32)
-    lp.a_matrix_.value_ = a.data.astype(np.float64)
+    lp = _leaf_free_lp(sparse.vstack([cover, leaf]).tocsc(), m, island)
     # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, did
-    # not finish a 1,636-cell model's in 10 s), its bound certified by weak duality
-    h = _highs(0.5 * time_limit_s, random_seed=0, solver="ipm", run_crossover="off",
-               presolve="off")
-    h.passModel(lp)
+    # not finish a 1,636-cell model's in 10 s), its bound certified by weak duality; a large
+    # one without the leaf rows, which it gets as they are broken (:func:`_relaxed_cuts`)
+    large = n > LP_CUT_VARIABLES
+    h = _highs((LP_CUT_SHARE if large else 0.5) * time_limit_s, random_seed=0, solver="ipm",
+               run_crossover="off", presolve="off")
+    h.passModel(_leaf_free_lp(cover.tocsc(), m, island) if large else lp)
     h.run()
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
         return result(None, True, None, "infeasible")
     bound = _certified(h)
     degree_rows = []
-    if n > LP_CUT_VARIABLES:
-        degree_rows = _relaxed_degree_cuts(h, boxes, filled, cover, cell_index, sociable,
-                                           start + LP_CUT_SHARE * time_limit_s)
+    if large:
+        found, degree_rows = _relaxed_cuts(h, leaf, boxes, filled, cover, cell_index,
+                                           sociable, start + LP_CUT_SHARE * time_limit_s)
         if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
             return result(None, True, None, "infeasible")
-        bound = max(bound, _certified(h))
+        bound = max(bound, found)
     lp.integrality_ = [highspy.HighsVarType.kInteger] * n
+    # a large program's presolve does not watch the clock (the drilling plate's took 80 s)
     h = _highs(max(time_limit_s - (time.perf_counter() - start), 0.05), random_seed=0,
-               mip_abs_gap=1.0 - 1e-3)
+               mip_abs_gap=1.0 - 1e-3, presolve="off" if large else "choose")
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
     for columns, values in degree_rows:
@@ -730,6 +722,25 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     if optimal:
         bound = objective
     return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+
+
+def _leaf_free_lp(a: sparse.csc_matrix, m: int, island: np.ndarray) -> highspy.HighsLp:
+    """The relaxation of :func:`leaf_free_bound`'s program: fewest placements (columns of
+    ``a``), its first ``m`` rows (the cells) covered exactly once, every further row (a leaf
+    row) at most 1, no placement marked ``island`` chosen."""
+    n = a.shape[1]
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = n, a.shape[0]
+    lp.col_cost_ = np.ones(n)
+    lp.col_lower_ = np.zeros(n)
+    lp.col_upper_ = np.where(island, 0.0, 1.0)
+    lp.row_lower_ = np.concatenate([np.ones(m), np.full(a.shape[0] - m, -highspy.kHighsInf)])
+    lp.row_upper_ = np.ones(a.shape[0])
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = a.indices.astype(np.int32)
+    lp.a_matrix_.value_ = a.data.astype(np.float64)
+    return lp
 
 
 def _connection_cuts(chosen_boxes: np.ndarray, chosen: np.ndarray, filled: np.ndarray,
@@ -901,36 +912,49 @@ def _certified(h: highspy.Highs) -> int:
     return max(0, int(np.ceil(found - 1e-6)))
 
 
-#: Programs of more placements than this get degree cuts in their relaxation first
-#: (:func:`_relaxed_degree_cuts`), for up to this share of the time limit, at most this many
-#: cuts a round: their integer program's first round seldom ends in 20 s, so its lazy cuts
-#: never come.  The bound in one piece without weak points in 20 s: VR headset 190 -> 194,
-#: HMD body 150 -> 154, OpenBot body STL 167 -> 168; on smaller programs the cuts took the
-#: integer program's time (the lens mount's proof of 32: 9.6 -> 18 s; phone mount 20 -> 19).
+#: Programs of more placements than this solve their relaxation without the leaf rows of
+#: :func:`leaf_free_bound` and get those it breaks, and degree cuts, a round at a time
+#: (:func:`_relaxed_cuts`), until this share of the time limit, at most this many degree cuts
+#: a round: their integer program's first round seldom ends in the time, so its lazy cuts
+#: never come, and with all leaf rows the relaxation itself did not (the drilling plate's
+#: 26,912 took it past 120 s; the 148 it breaks, 42 s).  Degree cuts: the bound in one piece
+#: without weak points in 20 s: VR headset 190 -> 194, HMD body 150 -> 154, OpenBot body
+#: STL 167 -> 168; on smaller programs the cuts took the integer program's time (the lens
+#: mount's proof of 32: 9.6 -> 18 s; phone mount 20 -> 19).
 LP_CUT_VARIABLES = 10_000
-LP_CUT_SHARE = 0.5
+LP_CUT_SHARE = 0.8
 LP_CUTS = 4000
 
 
-def _relaxed_degree_cuts(h: highspy.Highs, boxes: np.ndarray, filled: np.ndarray,
-                         cover: sparse.csr_matrix, cell_index: np.ndarray, sociable: np.ndarray,
-                         deadline: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Degree cuts (:func:`_degree_cuts`) for the relaxation ``h`` (solved): while it has a
-    solution that breaks some and ``deadline`` (a ``time.perf_counter`` time) is ahead, the
-    ``LP_CUTS`` most broken are added to ``h`` and it is solved again.  Returns the cuts
-    added, as (columns, values) of rows ``>= 0``, for the integer program."""
+def _relaxed_cuts(h: highspy.Highs, leaf: sparse.csr_matrix, boxes: np.ndarray,
+                  filled: np.ndarray, cover: sparse.csr_matrix, cell_index: np.ndarray,
+                  sociable: np.ndarray, deadline: float) -> tuple[int, list]:
+    """Leaf rows and degree cuts (:func:`_degree_cuts`) for the relaxation ``h`` (solved):
+    while its solution breaks some and ``deadline`` (a ``time.perf_counter`` time) is ahead,
+    the rows of ``leaf`` (one per row of the program, ``<= 1``) it breaks and the ``LP_CUTS``
+    most broken degree cuts are added to ``h`` and it is solved again.  Every row holds for
+    every layout the bound is of, so every round's certified bound (:func:`_certified`) is
+    one.  Returns the largest of those and the degree cuts added, as (columns, values) of
+    rows ``>= 0``, for the integer program (which has all the leaf rows)."""
+    best = _certified(h)
+    taken = np.zeros(leaf.shape[0], dtype=bool)
     added = []
     while time.perf_counter() < deadline:
         x = np.asarray(h.getSolution().col_value)
         if len(x) != len(boxes):
             break
+        rows = np.flatnonzero((leaf @ x > 1.0 + 1e-4) & ~taken)
+        taken[rows] = True
+        for r in rows:
+            row = leaf.getrow(r)
+            h.addRow(-highspy.kHighsInf, 1.0, row.nnz, row.indices.astype(np.int32), row.data)
         found = []
         for p in np.flatnonzero(sociable & (x > 1e-6)):
             q = _next_to(boxes[p], filled, cover, cell_index)
             short = 2.0 * x[p] - x[q].sum()
             if short > 1e-4:
                 found.append((short, p, q))
-        if not found:
+        if not found and not len(rows):
             break
         found.sort(key=lambda cut: -cut[0])
         for _, p, q in found[:LP_CUTS]:
@@ -941,7 +965,8 @@ def _relaxed_degree_cuts(h: highspy.Highs, boxes: np.ndarray, filled: np.ndarray
         h.run()
         if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
             break
-    return added
+        best = max(best, _certified(h))
+    return best, added
 
 
 def thin_weak_points(layout: Layout) -> list[int]:
