@@ -92,8 +92,8 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, regions
 from core.errors import InputError
-from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _summed_volume, cover_matrix,
-                               fitting_boxes, more_time)
+from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
+                               _summed_volume, cover_matrix, fitting_boxes, more_time)
 from core.model import Brick, Layout
 from core.request import EFFORTS
 
@@ -726,20 +726,11 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
 
 def _leaf_free_lp(a: sparse.csc_matrix, m: int, island: np.ndarray) -> highspy.HighsLp:
     """The relaxation of :func:`leaf_free_bound`'s program: fewest placements (columns of
-    ``a``), its first ``m`` rows (the cells) covered exactly once, every further row (a leaf
-    row) at most 1, no placement marked ``island`` chosen."""
-    n = a.shape[1]
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, a.shape[0]
-    lp.col_cost_ = np.ones(n)
-    lp.col_lower_ = np.zeros(n)
+    ``a``, a 0/1 matrix), its first ``m`` rows (the cells) covered exactly once, every
+    further row (a leaf row) at most 1, no placement marked ``island`` chosen."""
+    lp = _set_partitioning_lp(a.indptr, a.indices, a.shape[0])
     lp.col_upper_ = np.where(island, 0.0, 1.0)
     lp.row_lower_ = np.concatenate([np.ones(m), np.full(a.shape[0] - m, -highspy.kHighsInf)])
-    lp.row_upper_ = np.ones(a.shape[0])
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = a.indices.astype(np.int32)
-    lp.a_matrix_.value_ = a.data.astype(np.float64)
     return lp
 
 
@@ -934,9 +925,10 @@ def _relaxed_cuts(h: highspy.Highs, leaf: sparse.csr_matrix, boxes: np.ndarray,
     the rows of ``leaf`` (one per row of the program, ``<= 1``) it breaks and the ``LP_CUTS``
     most broken degree cuts are added to ``h`` and it is solved again.  Every row holds for
     every layout the bound is of, so every round's certified bound (:func:`_certified`) is
-    one.  Returns the largest of those and the degree cuts added, as (columns, values) of
-    rows ``>= 0``, for the integer program (which has all the leaf rows)."""
-    best = _certified(h)
+    one.  Returns the largest of those of the rounds it solved (0 without any; the caller
+    has ``h``'s own) and the degree cuts added, as (columns, values) of rows ``>= 0``, for
+    the integer program (which has all the leaf rows)."""
+    best = 0
     taken = np.zeros(leaf.shape[0], dtype=bool)
     added = []
     while time.perf_counter() < deadline:
