@@ -243,6 +243,37 @@ def test_best_from_another_start_is_no_worse_and_deterministic(monkeypatch):
     assert [(b.part, b.cell) for b in aside.bricks] == [(b.part, b.cell) for b in alone.bricks]
 
 
+def test_merge_takes_each_regions_fewest_bricks_from_either_layout():
+    """Two blocks of 2 x 8 studs, two bricks high, apart.  Each block is one piece with no
+    weak point either as two 2x8 bricks stacked (the fewest: 96 cells, the largest part holds
+    48) or as two 2x4 bricks under two 1x8 bricks side by side (each 1x8 on both 2x4s: a
+    cycle of four).  One layout has the first way in the first block, the other in the
+    second; the merge of the two is the fewest of both, 4 bricks, with the first layout's
+    ids where its bricks stay and new ids above all others."""
+    grid = grid_of(np.pad(np.ones((2, 8, 6), bool), ((0, 3), (0, 0), (0, 0)))
+                   | np.pad(np.ones((2, 8, 6), bool), ((3, 0), (0, 0), (0, 0))))
+
+    def fewest(x):
+        return [("3007", (2, 8, 3), (x, 0, 0)), ("3007", (2, 8, 3), (x, 0, 3))]
+
+    def four(x):
+        return [("3001", (2, 4, 3), (x, 0, 0)), ("3001", (2, 4, 3), (x, 4, 0)),
+                ("3008", (1, 8, 3), (x, 0, 3)), ("3008", (1, 8, 3), (x + 1, 0, 3))]
+
+    def laid(bricks):
+        return Layout(grid, [Brick(n, part, size, cell) for n, (part, size, cell)
+                             in enumerate(bricks)])
+    first, second = laid(fewest(0) + four(3)), laid(four(0) + fewest(3))
+    assert improve.quality(first) == improve.quality(second) == (2, 0, 0, 0, 6)
+    assert _weak_points_by_networkx(first) == 0
+    merged = improve._merged([first, second], first, first, catalog.CATALOG, None, None)
+    assert covers_once(merged) and improve.quality(merged) == (2, 0, 0, 0, 4)
+    assert sorted((b.id, b.part, b.cell) for b in merged.bricks) == [
+        (0, "3007", (0, 0, 0)), (1, "3007", (0, 0, 3)), (6, "3007", (3, 0, 0)),
+        (7, "3007", (3, 0, 3))]
+    assert improve._merged([first], first, first, catalog.CATALOG, None, None) is None
+
+
 def test_block_2x8_two_bricks_high_reaches_two_bricks():
     """A 2 x 8 stud block six plates (two bricks) high: two 2x8 bricks 3007 stacked are the
     fewest parts (96 cells, the largest part holds 48), one piece, no weak point (a graph of
