@@ -67,7 +67,7 @@ which removes weak points again, usually at the cost of some bricks.
 Should the result still be worse than the input on the full key, the full
 key is searched from the input instead, so the result is never worse.
 ``best`` runs ``normal``'s search from several seeds (:func:`best_starts`: 8 up to
-1,000 cells, 3 up to 5,000, else one) and continues from the best of them with
+1,000 cells, 3 up to 5,000, 2 up to 30,000, else one) and continues from the best of them with
 more windows of the same sizes, all within a number of simplex iterations
 (:attr:`Effort.work`, :data:`SEED_WORK_SHARE`).  After each of its stages the layouts
 found so far, where they are two or more, are **merged** (:func:`_merged`): the exact program of :func:`leaf_free_bound`
@@ -223,7 +223,11 @@ EFFORT_LEVELS = {
 #: Where :func:`improve` gets another start (``others``: the relaxed layout), the seeds are
 #: shared among the starts (8 -> 4 + 4, 3 -> 2 + 2): on 19 models 2,119 -> 2,092 bricks, none
 #: worse (VR headset 242 -> 229, OpenBot body STL 190 -> 179, charger stand 58 -> 56).
-BEST_STARTS = ((1_000, 8), (5_000, 3))
+#: Since the layouts found are merged (:func:`_merged`), two seeds up to 30,000 cells, one
+#: before: drilling plate (5,601 cells) 269 -> 265 bricks, 25 -> 32 s; sphere of 100 mm
+#: (23,439) 1,572 -> 1,561, 47 s; the Stanford bunny (5,074) stays at 452, as its first
+#: seed's work leaves the second none.
+BEST_STARTS = ((1_000, 8), (5_000, 3), (30_000, 2))
 
 #: The share of ``best``'s work (:attr:`Effort.work`) its searches from several seeds may
 #: spend: a seed's search starts only while the seeds so far, one more time on average, stay

@@ -79,8 +79,9 @@ def test_deterministic_for_a_seed(filled, seed):
 
 
 def test_best_starts_from_more_seeds_on_small_layouts():
-    """8 seeds up to 1,000 cells, 3 up to 5,000, one above."""
-    assert [improve.best_starts(n) for n in (1, 1_000, 1_001, 5_000, 5_001)] == [8, 8, 3, 3, 1]
+    """8 seeds up to 1,000 cells, 3 up to 5,000, 2 up to 30,000, one above."""
+    assert [improve.best_starts(n) for n in (1, 1_000, 1_001, 5_000, 5_001, 30_000, 30_001)] \
+        == [8, 8, 3, 3, 2, 2, 1]
 
 
 def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
@@ -331,11 +332,14 @@ def test_ring_reaches_eight_bricks():
     assert improve.quality(best) == (1, 0, 0, 0, 8)
 
 
-def test_frozen_bricks_stay_and_new_ids_follow():
+@pytest.mark.parametrize("effort", ["normal", "best"])
+def test_frozen_bricks_stay_and_new_ids_follow(effort):
+    """``best`` too: its seeds' searches, the merge of what they found
+    (:func:`core.improve._merged`) and its longer search all keep the frozen bricks."""
     grid = grid_of(np.ones((2, 8, 6), bool))
     start = unit_plates(grid)
     frozen = {b.id for b in start.bricks if b.cell[2] == 0}
-    best = improve.improve(start, catalog.CATALOG, "normal", 0, frozen=frozen, next_id=1000)
+    best = improve.improve(start, catalog.CATALOG, effort, 0, frozen=frozen, next_id=1000)
     kept = {b.id: b for b in best.bricks if b.id in frozen}
     assert set(kept) == frozen
     assert all(kept[b.id].to_json() == b.to_json() for b in start.bricks if b.id in frozen)
