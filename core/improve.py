@@ -70,10 +70,11 @@ key is searched from the input instead, so the result is never worse.
 1,000 cells, 3 up to 5,000, 2 up to 30,000, else one) and continues from the best of them with
 more windows of the same sizes, all within a number of simplex iterations
 (:attr:`Effort.work`, :data:`SEED_WORK_SHARE`).  After each of its stages the layouts
-found so far, where they are two or more, are **merged** (:func:`_merged`): the exact program of :func:`leaf_free_bound`
-with its cuts, over only the bricks those layouts have, gives the fewest of them that make
-a layout of the same kind (one piece per region, no weak point or only thin ones); one
-block may come from one search and the next from another.  On 18 models, seed 0: 2,058
+found so far, where they are two or more, are **merged** (:func:`_merged`): the exact
+program of :func:`leaf_free_bound` with its cuts, over only the bricks those layouts
+have, gives the fewest of them that make a layout of the same kind (one piece per region,
+no weak point or only thin ones); one block may come from one search and the next from
+another.  On 18 models, seed 0: 2,058
 -> 2,053 bricks, none more (OpenBot body STL 178 -> 176, HMD body 160 -> 158, VR headset
 221 -> 220), 484 -> 491 s; each merge took under a second.
 
@@ -350,7 +351,9 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
 
 
 #: Seconds :func:`_merged`'s program may take; where its fewest cover is not proven by
-#: then, the merge is dropped (so that the result does not hang on the clock).
+#: then, the merge is dropped rather than keeping a cover that a faster machine would have
+#: bettered (the merges measured took under a second, so their result is the machine's
+#: only where one takes about this long).
 MERGE_S = 30.0
 
 
@@ -374,6 +377,7 @@ def _merged(layouts: list[Layout], best: Layout, source: Layout, parts: tuple[Pa
                             connected=True, most_weak=key[3] or None, placements=boxes)
     if not found["optimal"] or found["cover"] is None:
         return None
+
     def box(brick):
         return tuple(brick.cell) + tuple(brick.size)
     kept = {box(b): b for b in source.bricks}

@@ -334,8 +334,9 @@ def test_ring_reaches_eight_bricks():
 
 @pytest.mark.parametrize("effort", ["normal", "best"])
 def test_frozen_bricks_stay_and_new_ids_follow(effort):
-    """``best`` too: its seeds' searches, the merge of what they found
-    (:func:`core.improve._merged`) and its longer search all keep the frozen bricks."""
+    """``best`` too: its seeds' searches and its longer search keep the frozen bricks (the
+    merge of what they found, :func:`core.improve._merged`, is tried; here it finds no
+    layout better than the best of them)."""
     grid = grid_of(np.ones((2, 8, 6), bool))
     start = unit_plates(grid)
     frozen = {b.id for b in start.bricks if b.cell[2] == 0}
