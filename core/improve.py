@@ -368,18 +368,18 @@ def _merged(layouts: list[Layout], best: Layout, source: Layout, parts: tuple[Pa
     joints included).  Its bricks are ``source``'s (the layout the improvement started
     from) where they are the same, with their ids; the others get ids above every id of
     ``source`` and ``layouts`` (and from ``next_id``)."""
+    def box(brick):
+        return tuple(brick.cell) + tuple(brick.size)
+
     key = quality(best, failing_joints)
     if key[0] != regions(np.asarray(best.grid.filled, bool))[1] or key[2]:
         return None
-    boxes = np.unique(np.array([tuple(b.cell) + tuple(b.size) for lay in layouts
-                                for b in lay.bricks], dtype=np.int64), axis=0)
+    boxes = np.unique(np.array([box(b) for lay in layouts for b in lay.bricks],
+                               dtype=np.int64), axis=0)
     found = leaf_free_bound(best.grid, parts, MERGE_S, no_weak_points=key[3] == 0,
                             connected=True, most_weak=key[3] or None, placements=boxes)
     if not found["optimal"] or found["cover"] is None:
         return None
-
-    def box(brick):
-        return tuple(brick.cell) + tuple(brick.size)
     kept = {box(b): b for b in source.bricks}
     known = {box(b): b for lay in list(layouts) + [best] for b in lay.bricks}
     start = max([b.id + 1 for lay in [source] + list(layouts) for b in lay.bricks]
