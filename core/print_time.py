@@ -50,7 +50,7 @@ import numpy as np
 import trimesh
 from scipy.optimize import nnls
 
-from core import output_dir, slicer_profile
+from core import output_dir, slice_cache, slicer_profile
 from core.errors import InputError
 
 #: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
@@ -183,6 +183,8 @@ class PrintEstimate:
     ``supports`` says whether the time includes supports, ``pose`` names
     the pose :func:`print_time` turned the mesh into (several meshes'
     joined by ", "), None when every mesh came in its print pose.
+    ``cached`` says the slicer's answer came from :mod:`core.slice_cache`
+    (the same plate sliced before; no G-code then).
     """
 
     seconds: float
@@ -190,6 +192,7 @@ class PrintEstimate:
     gcode_path: str | None
     supports: bool = False
     pose: str | None = None
+    cached: bool = False
 
 
 @dataclass
@@ -670,7 +673,9 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     supports"``), ``supports`` says whether they include supports.  Raises
     _SlicerFailed with a one-line reason when a part exceeds the build
     volume, the parts do not fit the bed together, the slicer fails (also
-    with every retry setting) or exceeds SLICER_TIMEOUT_S.
+    with every retry setting) or exceeds SLICER_TIMEOUT_S.  A plate sliced before (the
+    same meshes on the bed, settings and binary: :mod:`core.slice_cache`) is not sliced
+    again: its stored answer comes back, ``cached`` and without G-code.
     """
     slicer = slicer or slicer_path()
     if not slicer:
@@ -690,6 +695,11 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     if supports is None:
         supports = plate_supports(parts, support_threshold(config))
     attempts = RETRY_SETTINGS[1:] if supports else RETRY_SETTINGS
+    slice_key = slice_cache.key(parts, config_text(config), attempts, slicer)
+    known = slice_cache.get(slice_key)
+    if known is not None:
+        return PrintEstimate(float(known["seconds"]), str(known["method"]), None,
+                             supports=bool(known["supports"]), cached=True)
     Path(workdir).mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix="slice-", dir=workdir)).resolve()
     for attempt, (label, settings) in enumerate(attempts):
@@ -723,8 +733,11 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     name = f"prusa-slicer {version[1]}" if version else Path(slicer).name
     needed = "".join(f"; {text}" for text in (label, "slicer still warns of empty layers" if needs_support else "")
                      if text)
-    return PrintEstimate(seconds, f"{name} ({profile_label(config)}{needed})", str(gcode),
-                         supports=settings.get("support_material") == "1")
+    result = PrintEstimate(seconds, f"{name} ({profile_label(config)}{needed})", str(gcode),
+                           supports=settings.get("support_material") == "1")
+    slice_cache.put(slice_key, {"seconds": result.seconds, "method": result.method,
+                                "supports": result.supports})
+    return result
 
 
 def dying_with_us(command: list[str]) -> list[str]:

@@ -30,3 +30,11 @@ def _bug_logs_in_tmp(tmp_path, monkeypatch):
     """Bug logs of the runs a test makes (core.errors.log_bug) go under its tmp_path,
     not into the user's ~/.local/state."""
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+
+
+@pytest.fixture(autouse=True)
+def _no_slice_cache(monkeypatch):
+    """Each test slices afresh (core.slice_cache off), so what it checks comes from the
+    slicer itself and never from an earlier test's answer; a test of the cache sets
+    FABRICKATOR_CACHE to a folder of its own."""
+    monkeypatch.setenv("FABRICKATOR_CACHE", "none")

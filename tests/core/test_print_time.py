@@ -529,3 +529,40 @@ def test_the_fastest_pose_needs_no_supports_when_that_is_faster(tmp_path):
     assert pose.name == result.pose and not pose.supports
     assert pose.slicer_s == pytest.approx(result.seconds, rel=SAME_SLICE)
     assert pose.cost == pose.slicer_s
+
+
+@needs_slicer
+def test_an_unchanged_plate_is_sliced_once_and_a_changed_one_again(tmp_path, monkeypatch):
+    monkeypatch.setenv("FABRICKATOR_CACHE", str(tmp_path / "cache"))
+    runs = []
+    real_run = subprocess.run
+
+    def counting(command, *args, **kwargs):
+        if any("prusa-slicer" in str(part) for part in command):
+            runs.append(command)
+        return real_run(command, *args, **kwargs)
+
+    monkeypatch.setattr(pt.subprocess, "run", counting)
+    cube = trimesh.creation.box((20, 20, 20))
+    first = pt.slice_plate([cube], tmp_path / "a")
+    again = pt.slice_plate([cube.copy()], tmp_path / "b")
+    assert len(runs) == 1 and not first.cached and again.cached
+    assert (again.seconds, again.method, again.supports) == (first.seconds, first.method, first.supports)
+    assert again.gcode_path is None
+    taller = trimesh.creation.box((20, 20, 24))
+    other = pt.slice_plate([taller], tmp_path / "c")
+    assert len(runs) == 2 and not other.cached and other.seconds > first.seconds
+    supported = pt.slice_plate([cube], tmp_path / "d", supports=True)
+    assert len(runs) == 3 and not supported.cached
+
+
+def test_the_slice_cache_is_off_when_told_and_survives_a_broken_entry(tmp_path, monkeypatch):
+    from core import slice_cache
+    monkeypatch.setenv("FABRICKATOR_CACHE", "none")
+    assert slice_cache.folder() is None and slice_cache.get("x") is None
+    slice_cache.put("x", {"seconds": 1.0})
+    monkeypatch.setenv("FABRICKATOR_CACHE", str(tmp_path))
+    slice_cache.put("k", {"seconds": 5.0, "method": "m", "supports": False})
+    assert slice_cache.get("k")["seconds"] == 5.0
+    (tmp_path / "slices" / "k.json").write_text("{not json")
+    assert slice_cache.get("k") is None
