@@ -101,8 +101,8 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
 
 def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
            slicer: str | None = "auto") -> list[list[tuple[int, trimesh.Trimesh, Pose]]]:
-    """The parts laid flat (:func:`lay_flat`, ``profile`` and ``slicer`` as there) and
-    packed on as few beds as this simple rule gives.
+    """The parts laid flat (:func:`lay_flat`, ``profile`` and ``slicer`` as there; two
+    parts' pose searches at a time) and packed on as few beds as this simple rule gives.
 
     ``bed`` is the printable (x, y) in mm (default: the profile's,
     :func:`core.print_time.build_volume`).  Shelf packing: each part is
@@ -120,8 +120,8 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
                       print_time.build_volume(print_time.load_profile(profile, slicer))[:2],
                       dtype=float)
     laid = []
-    for index, part in enumerate(parts):
-        mesh, pose = lay_flat(part, profile, slicer)
+    flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer), parts, 2)
+    for index, (mesh, pose) in enumerate(flat):
         extent = mesh.extents[:2]
         if (extent[0] < extent[1]) == (size[0] > size[1]) and np.all(extent[::-1] <= size - 2 * SPACING_MM):
             turn = trimesh.transformations.rotation_matrix(math.pi / 2, [0, 0, 1])

@@ -284,7 +284,8 @@ def check_effort(effort: str) -> str:
 def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "normal",
             seed: int = 0, progress: Progress | None = None, frozen: Iterable[int] | None = None,
             apart: np.ndarray | None = None, failing_joints: FailingJoints | None = None,
-            next_id: int | None = None, others: tuple[Layout, ...] = ()) -> Layout:
+            next_id: int | None = None, others: tuple[Layout, ...] = (),
+            bound: dict | None = None) -> Layout:
     """A layout of the same cells that is at least as good as ``layout`` on :func:`quality`.
 
     Promises: the result covers exactly the filled cells of ``layout.grid``
@@ -302,6 +303,8 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     (``seed`` first) from ``layout`` and from each of ``others``, so it is
     never worse on the key.  ``failing_joints(layout)``
     counts the joints a force model finds failing (None: not counted).
+    ``bound`` is :func:`early_bound` of ``layout``'s cells: a layout already at the best
+    key there can be (:func:`at_best`) is returned as it is, as no window can better it.
     ``progress(fraction, message)`` is called after every window; an
     exception it raises (a cancel) propagates.  ``layout`` is not changed.
     Raises InputError for an unknown ``effort``.
@@ -309,7 +312,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     level = EFFORT_LEVELS[check_effort(effort)]
     report = progress or _silent
     frozen_ids = set(frozen or ())
-    if level.max_windows == 0 or not layout.bricks:
+    if level.max_windows == 0 or not layout.bricks or at_best(layout, bound, failing_joints):
         return _copy(layout, renumber=False)
     extra = tuple(others) if level.relaxed_start else ()
     starts = {name: _starts(name, effort, layout, 1 + len(extra))
@@ -506,9 +509,35 @@ LOWER_BOUND_S = 20.0
 CHEAP_VARIABLES = 10_000
 
 
+#: Placement variables up to which :func:`early_bound` solves the lower bound before the
+#: search (a few hundredths of a second), and the seconds it may take.
+EARLY_VARIABLES = 3_000
+EARLY_BOUND_S = 1.0
+
+
+def early_bound(grid, parts: tuple[Part, ...] = CATALOG) -> dict | None:
+    """:func:`core.lower_bound.brick_lower_bound` of ``grid`` when its program is small
+    (:data:`EARLY_VARIABLES`), within :data:`EARLY_BOUND_S`; None otherwise."""
+    from core import lower_bound as lb_stage
+
+    if lb_stage.placement_count(grid, parts, stop_above=EARLY_VARIABLES) > EARLY_VARIABLES:
+        return None
+    return lb_stage.brick_lower_bound(grid, parts, time_limit_s=EARLY_BOUND_S)
+
+
+def at_best(layout: Layout, bound: dict | None, failing_joints: FailingJoints | None = None) -> bool:
+    """Whether ``layout`` has the best :func:`quality` key any layout of its cells can have:
+    one component per region, no failing joint and no weak point, and as few bricks as
+    ``bound`` (a lower bound proven optimal) says any cover has."""
+    if bound is None or not bound.get("optimal") or bound.get("bound") is None:
+        return False
+    best = (regions(np.asarray(layout.grid.filled, bool))[1], 0, 0, 0, bound["bound"])
+    return quality(layout, failing_joints) == best
+
+
 def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CATALOG,
                    timings: dict | None = None, lower_bound: bool = False,
-                   failing_joints: FailingJoints | None = None) -> dict:
+                   failing_joints: FailingJoints | None = None, bound: dict | None = None) -> dict:
     """The ``layout_quality`` block of report.json for the greedy and improved layouts.
 
     ``bricks``, ``regions``, ``components``, ``weak_points`` (articulation
@@ -522,7 +551,8 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     ``ratio`` bricks / bound.  The bound is computed when ``lower_bound`` is
     asked for (:data:`LOWER_BOUND_S`), else only when the program is small
     (:data:`CHEAP_VARIABLES`) and then within the seconds the layout took;
-    otherwise it is None with the reason.  When asked for, ``lower_bound.one_piece`` is
+    otherwise it is None with the reason.  A ``bound`` already proven optimal
+    (:func:`early_bound`) is taken as it is.  When asked for, ``lower_bound.one_piece`` is
     :func:`one_piece_bound` too.
     """
     from core import lower_bound as lb_stage
@@ -545,8 +575,11 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     variables = lb_stage.placement_count(layout.grid, parts,
                                          stop_above=None if lower_bound else CHEAP_VARIABLES)
     if lower_bound or variables <= CHEAP_VARIABLES:
-        limit = LOWER_BOUND_S if lower_bound else max(round(spent, 3), 0.05)
-        found = lb_stage.brick_lower_bound(layout.grid, parts, time_limit_s=limit)
+        if bound is not None and bound.get("optimal"):
+            limit, found = EARLY_BOUND_S, bound
+        else:
+            limit = LOWER_BOUND_S if lower_bound else max(round(spent, 3), 0.05)
+            found = lb_stage.brick_lower_bound(layout.grid, parts, time_limit_s=limit)
         bound = found["bound"]
         block["lower_bound"] = {
             "bound": bound, "time_limit_s": limit, "proven": bool(found["optimal"]),

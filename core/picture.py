@@ -14,11 +14,7 @@ draws over everything while the part is being inserted.
 
 from __future__ import annotations
 
-import contourpy
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import PolyCollection
-from matplotlib.figure import Figure
 
 #: Picture directions: screen right and screen down of a model vector (mm).
 SQ2, SQ6 = np.sqrt(2.0), np.sqrt(6.0)
@@ -229,6 +225,10 @@ def outline(mesh, origin, res_mm: float = OUTLINE_RES_MM) -> str:
     lo = tri.reshape(-1, 2).min(axis=0) - 3 * res_mm
     hi = tri.reshape(-1, 2).max(axis=0) + 3 * res_mm
     w, h = (np.ceil((hi - lo) / res_mm)).astype(int)
+    import contourpy                       # drawing libraries: only where a part has an outline
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
     fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100)
     canvas = FigureCanvasAgg(fig)
     ax = fig.add_axes((0, 0, 1, 1))

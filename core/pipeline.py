@@ -204,6 +204,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
 
+    slicing = _Slicing.start(req, model.mesh, bool(regions or req.high_res_bricks))
     given = regions
     fit = diff = hollowing = None
     if before is None:
@@ -262,11 +263,13 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         relaxed = timed("layout_relaxed", 0.77, layout_stage.relaxed_layout, grid, cells, chosen,
                         req.seed)
         others = () if relaxed is None else (relaxed,)
+    bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, chosen)
     layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
-                   next_id=None if plan is None else plan.next_id, others=others)
-    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound)
+                   next_id=None if plan is None else plan.next_id, others=others, bound=bound)
+    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound,
+                                           bound=bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
     if before is None:
@@ -294,6 +297,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         layout = printed_stage.apply(layout, made)
     if made:
         clamp = printed_stage.clamp_masks(layout, made)
+        again = None if reprint is None else {r["id"] for r in reprint if r["reprint"]}
+        slicing = slicing.with_parts([p for p in made if again is None or p.id in again])
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     settings = _slicer_settings(req) if made else None
     if reinforced is not None and not made and reinforced.layout is layout:
@@ -327,7 +332,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
                       forces=force, reinforced=reinforced, hollowing=hollowing,
                       layout_quality=quality)
     if fab.to_print and req.slice_parts:
-        fab = timed("print_time", 0.85, print_times, fab)
+        fab = timed("print_time", 0.85, print_times, fab, slicing)
         fab.timings_s.update(timings)
     return fab
 
@@ -404,10 +409,58 @@ def _edited(layout: Layout, groups: list[list[int]], part_edits) -> list[list[in
     return groups
 
 
-def print_times(fab: Fabrication) -> Fabrication:
+@dataclass(frozen=True)
+class _Slicing:
+    """The slices :func:`run` started early, in the background: the whole model's time
+    (``full``) and the printed parts' plates with their times (``parts``), each a Future
+    or None when not started.  ``slicer`` is the binary they were started with."""
+
+    slicer: str | None = None
+    profile: str | None = None
+    full: object = None
+    parts: object = None
+
+    @classmethod
+    def start(cls, req: Request, mesh, likely: bool) -> "_Slicing":
+        """The whole model's slicing started now, when ``req`` slices, a slicer is
+        installed and printed parts are ``likely`` (regions are marked)."""
+        binary = print_time_stage.slicer_path() if req.slice_parts and likely else None
+        if binary is None:
+            return cls()
+        return cls(binary, req.profile,
+                   print_time_stage.in_background(_full_time, mesh.copy(), req.profile, binary))
+
+    def with_parts(self, printing: list) -> "_Slicing":
+        """This, with the plates of the parts ``printing`` being posed and sliced too."""
+        if self.slicer is None or not printing:
+            return self
+        return dataclasses.replace(self, parts=print_time_stage.in_background(
+            _plates_time, printing, self.profile, self.slicer))
+
+
+def _full_time(mesh, profile, slicer) -> print_time_stage.PrintEstimate:
+    """The whole model's print time in its fastest pose (the speed-up's baseline)."""
+    with output_dir.scratch("slice") as work:
+        return print_time_stage.print_time([mesh], work, profile=profile, slicer=slicer)
+
+
+def _plates_time(printing: list, profile, slicer) -> tuple[list, list]:
+    """The plates of the printed parts ``printing`` (:func:`core.export.plates`) and
+    each plate's print time, two plates at a time."""
+    from core.export import plates
+    beds = plates(printing, profile=profile, slicer=slicer)
+    with output_dir.scratch("slice") as work:
+        results = print_time_stage.in_parallel(lambda items: print_time_stage.print_time(
+            [m for _, m, _ in items], work, profile=profile, slicer=slicer), beds, 2)
+    return beds, results
+
+
+def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabrication:
     """``fab`` with print times: the whole model (the baseline) and the plates of the
     printed parts to print (:func:`core.export.plates`: one plate unless they do not
     fit the bed) sliced, two at a time; the parts' time is the plates' sum.
+    ``started`` holds what :func:`run` already set slicing in the background (the
+    same slices, begun while the other stages ran); the rest is sliced now.
 
     The returned Fabrication keeps the plates in ``plates`` (for
     :func:`write_outputs`, which writes them as they were timed).  A part's
@@ -416,14 +469,13 @@ def print_times(fab: Fabrication) -> Fabrication:
     without a slicer), so the parts' times add up to the plates'.  ``fab``
     itself is not changed.
     """
-    from core.export import plates
+    started = started or _Slicing()
     printing = fab.to_print
-    beds = plates(printing, profile=fab.profile)
-    profile = {} if fab.profile is None else {"profile": fab.profile}
-    with output_dir.scratch("slice") as work:
-        full = print_time_stage.print_time([fab.model.mesh], work, **profile)
-        results = print_time_stage.in_parallel(lambda items: print_time_stage.print_time(
-            [m for _, m, _ in items], work, **profile), beds, 2)
+    slicer = started.slicer or "auto"
+    full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile, slicer)
+    beds, results = (started.parts.result() if started.parts is not None
+                     else _plates_time(printing, fab.profile, slicer))
+    full = full.result()
     methods = sorted({r.method for r in results})
     parts = print_time_stage.PrintEstimate(
         sum(r.seconds for r in results),

@@ -40,8 +40,9 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -710,7 +711,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
         command = [slicer, "--loglevel", "1", "--dont-arrange", "--export-gcode", "--output", str(gcode),
                    str(plate)]
         try:
-            run = subprocess.run(dying_with_us(command), cwd=folder, capture_output=True, text=True,
+            run = subprocess.run(dying_with_us(yielding(command)), cwd=folder, capture_output=True, text=True,
                                  timeout=SLICER_TIMEOUT_S, stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             raise _SlicerFailed(f"{Path(slicer).name} timed out after {SLICER_TIMEOUT_S:.0f} s") from None
@@ -751,6 +752,17 @@ def dying_with_us(command: list[str]) -> list[str]:
     return [setpriv, "--pdeathsig", "KILL", "--", *command] if setpriv else command
 
 
+#: Niceness of the slicer's processes: slicing runs beside the layout stages, which
+#: decide how soon a run ends, so it takes the cores they leave idle.
+SLICER_NICENESS = 10
+
+
+def yielding(command: list[str]) -> list[str]:
+    """``command`` run at :data:`SLICER_NICENESS` (through ``nice`` where it is installed)."""
+    nice = shutil.which("nice")
+    return [nice, "-n", str(SLICER_NICENESS), *command] if nice else command
+
+
 def in_parallel(fn, items, workers: int) -> list:
     """``[fn(item) for item in items]``, ``workers`` at a time in threads.  When the caller
     is interrupted (Ctrl-C, a failure) it does not wait for the running calls: the pool is
@@ -764,6 +776,24 @@ def in_parallel(fn, items, workers: int) -> list:
         raise
     pool.shutdown(wait=True)
     return results
+
+
+def in_background(fn, *args) -> Future:
+    """A Future of ``fn(*args)`` computed in a daemon thread: the caller goes on meanwhile
+    and takes the answer (or the exception) with ``result()``.  A run that ends without
+    asking does not wait for it (a slicer it started dies with the process,
+    :func:`dying_with_us`)."""
+    future: Future = Future()
+
+    def work() -> None:
+        if future.set_running_or_notify_cancel():
+            try:
+                future.set_result(fn(*args))
+            except BaseException as exc:      # handed to whoever asks for the result
+                future.set_exception(exc)
+
+    threading.Thread(target=work, name="fabrickator-slicing", daemon=True).start()
+    return future
 
 
 def bed_rectangle(config: dict[str, str]) -> np.ndarray:
