@@ -79,7 +79,8 @@ def print_pose(mesh: trimesh.Trimesh, studs: bool = True, clamping: bool = True,
 
 
 def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | None = None,
-             slicer: str | None = "auto") -> tuple[trimesh.Trimesh, Pose]:
+             slicer: str | None = "auto",
+             workdir: str | os.PathLike | None = None) -> tuple[trimesh.Trimesh, Pose]:
     """A copy of the part's mesh in its :func:`print_pose`, min corner at the origin, and the pose.
 
     For a PrintedPart the studs rule applies when it has studs, the
@@ -87,7 +88,8 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
     above and below) and the engraving rule when its id is engraved; a
     bare mesh is treated as a part with studs and no engraving.  The copy is marked posed
     (:func:`core.print_time.posed`), so :func:`core.print_time.print_time`
-    slices it as it stands, with the supports its pose needs.
+    slices it as it stands, with the supports its pose needs.  The poses are sliced
+    under ``workdir`` (a temporary folder when None).
     """
     if isinstance(part, PrintedPart):
         mesh, studs = part.mesh, bool(part.complete_studs)
@@ -95,14 +97,16 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
         normal = part.engraving["normal"] if part.engraved and isinstance(part.engraving, dict) else None
     else:
         mesh, studs, clamping, normal = part, True, True, None
-    pose = print_pose(mesh, studs, clamping, normal, profile=profile, slicer=slicer)
+    pose = print_pose(mesh, studs, clamping, normal, profile=profile, slicer=slicer, workdir=workdir)
     return print_time.posed(mesh, pose), pose
 
 
 def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
-           slicer: str | None = "auto") -> list[list[tuple[int, trimesh.Trimesh, Pose]]]:
-    """The parts laid flat (:func:`lay_flat`, ``profile`` and ``slicer`` as there; two
-    parts' pose searches at a time) and packed on as few beds as this simple rule gives.
+           slicer: str | None = "auto",
+           workdir: str | os.PathLike | None = None) -> list[list[tuple[int, trimesh.Trimesh, Pose]]]:
+    """The parts laid flat (:func:`lay_flat`, ``profile``, ``slicer`` and ``workdir`` as
+    there; two parts' pose searches at a time) and packed on as few beds as this simple
+    rule gives.
 
     ``bed`` is the printable (x, y) in mm (default: the profile's,
     :func:`core.print_time.build_volume`).  Shelf packing: each part is
@@ -120,7 +124,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
                       print_time.build_volume(print_time.load_profile(profile, slicer))[:2],
                       dtype=float)
     laid = []
-    flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer), parts, 2)
+    flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer, workdir), parts, 2)
     for index, (mesh, pose) in enumerate(flat):
         extent = mesh.extents[:2]
         if (extent[0] < extent[1]) == (size[0] > size[1]) and np.all(extent[::-1] <= size - 2 * SPACING_MM):

@@ -54,6 +54,9 @@ from core.errors import InputError
 PIPELINE_MARKERS = ("report.json", "layout.json")
 #: System folders whose files the kernel makes up: no place for an output.
 SYSTEM_FOLDERS = ("/proc", "/sys", "/dev")
+#: Tries at removing a scratch folder that files still appear in (a thread of the run
+#: writing into it as the run ends).
+SCRATCH_REMOVALS = 5
 #: Longest output name used whole in the names of its temporary folders and lock.
 TAG_CHARS = 64
 #: Errors of the place written to (not of Fabrickator): reported in one line.
@@ -393,7 +396,10 @@ def scratch(kind: str):
     try:
         yield folder
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        for _ in range(SCRATCH_REMOVALS):      # a thread still writing in it empties it late
+            shutil.rmtree(folder, ignore_errors=True)
+            if not os.path.lexists(folder):
+                break
 
 
 def clean_stale_scratch(prefix: str, where: str | os.PathLike | None = None) -> list[Path]:

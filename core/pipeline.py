@@ -11,6 +11,7 @@ before the run starts).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -168,7 +169,15 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     layout covers every filled cell once.
     """
     req = as_request(job, **settings)
-    progress = progress or _noop
+    with output_dir.scratch("slice") as scratch:
+        return _stages(req, progress or _noop, os.path.join(scratch, "run"))
+
+
+def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
+    """:func:`run`'s stages for ``req``; what is sliced in the background is sliced under
+    ``work``, a folder made when first sliced into, in a scratch folder the caller
+    removes after the run however it ends (a slice still running then fails, and
+    makes neither again)."""
     timings: dict[str, float] = {}
 
     def timed(name: str, fraction: float, fn, *args, **kwargs):
@@ -204,7 +213,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
 
-    slicing = _Slicing.start(req, model.mesh, bool(regions or req.high_res_bricks))
+    slicing = _Slicing.start(req, model.mesh, bool(regions or req.high_res_bricks), work)
     given = regions
     fit = diff = hollowing = None
     if before is None:
@@ -413,45 +422,54 @@ def _edited(layout: Layout, groups: list[list[int]], part_edits) -> list[list[in
 class _Slicing:
     """The slices :func:`run` started early, in the background: the whole model's time
     (``full``) and the printed parts' plates with their times (``parts``), each a Future
-    or None when not started.  ``slicer`` is the binary they were started with."""
+    or None when not started.  ``slicer`` is the binary they were started with, ``work``
+    the folder they slice under."""
 
     slicer: str | None = None
     profile: str | None = None
+    work: str | None = None
     full: object = None
     parts: object = None
 
     @classmethod
-    def start(cls, req: Request, mesh, likely: bool) -> "_Slicing":
-        """The whole model's slicing started now, when ``req`` slices, a slicer is
-        installed and printed parts are ``likely`` (regions are marked)."""
+    def start(cls, req: Request, mesh, likely: bool, work: str) -> "_Slicing":
+        """The whole model's slicing started now under ``work``, when ``req`` slices, a
+        slicer is installed and printed parts are ``likely`` (regions are marked)."""
         binary = print_time_stage.slicer_path() if req.slice_parts and likely else None
         if binary is None:
-            return cls()
-        return cls(binary, req.profile,
-                   print_time_stage.in_background(_full_time, mesh.copy(), req.profile, binary))
+            return cls(work=work)
+        return cls(binary, req.profile, work,
+                   print_time_stage.in_background(_full_time, mesh.copy(), req.profile, binary, work))
 
     def with_parts(self, printing: list) -> "_Slicing":
         """This, with the plates of the parts ``printing`` being posed and sliced too."""
         if self.slicer is None or not printing:
             return self
         return dataclasses.replace(self, parts=print_time_stage.in_background(
-            _plates_time, printing, self.profile, self.slicer))
+            _plates_time, printing, self.profile, self.slicer, self.work))
 
 
-def _full_time(mesh, profile, slicer) -> print_time_stage.PrintEstimate:
-    """The whole model's print time in its fastest pose (the speed-up's baseline)."""
-    with output_dir.scratch("slice") as work:
-        return print_time_stage.print_time([mesh], work, profile=profile, slicer=slicer)
+def _sliced_under(work: str | None):
+    """``work`` for a ``with`` block, or a scratch folder of its own when None."""
+    return contextlib.nullcontext(work) if work is not None else output_dir.scratch("slice")
 
 
-def _plates_time(printing: list, profile, slicer) -> tuple[list, list]:
+def _full_time(mesh, profile, slicer, work: str | None = None) -> print_time_stage.PrintEstimate:
+    """The whole model's print time in its fastest pose (the speed-up's baseline),
+    sliced under ``work`` (a scratch folder when None)."""
+    with _sliced_under(work) as folder:
+        return print_time_stage.print_time([mesh], folder, profile=profile, slicer=slicer)
+
+
+def _plates_time(printing: list, profile, slicer, work: str | None = None) -> tuple[list, list]:
     """The plates of the printed parts ``printing`` (:func:`core.export.plates`) and
-    each plate's print time, two plates at a time."""
+    each plate's print time, two plates at a time, sliced under ``work`` (a scratch
+    folder when None)."""
     from core.export import plates
-    beds = plates(printing, profile=profile, slicer=slicer)
-    with output_dir.scratch("slice") as work:
+    with _sliced_under(work) as folder:
+        beds = plates(printing, profile=profile, slicer=slicer, workdir=folder)
         results = print_time_stage.in_parallel(lambda items: print_time_stage.print_time(
-            [m for _, m, _ in items], work, profile=profile, slicer=slicer), beds, 2)
+            [m for _, m, _ in items], folder, profile=profile, slicer=slicer), beds, 2)
     return beds, results
 
 
@@ -472,9 +490,10 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
     started = started or _Slicing()
     printing = fab.to_print
     slicer = started.slicer or "auto"
-    full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile, slicer)
+    full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile,
+                                                          slicer, started.work)
     beds, results = (started.parts.result() if started.parts is not None
-                     else _plates_time(printing, fab.profile, slicer))
+                     else _plates_time(printing, fab.profile, slicer, started.work))
     full = full.result()
     methods = sorted({r.method for r in results})
     parts = print_time_stage.PrintEstimate(

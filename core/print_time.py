@@ -701,7 +701,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     if known is not None:
         return PrintEstimate(float(known["seconds"]), str(known["method"]), None,
                              supports=bool(known["supports"]), cached=True)
-    Path(workdir).mkdir(parents=True, exist_ok=True)
+    Path(workdir).mkdir(exist_ok=True)      # not its parents: a run's removed folder stays so
     folder = Path(tempfile.mkdtemp(prefix="slice-", dir=workdir)).resolve()
     for attempt, (label, settings) in enumerate(attempts):
         last = attempt == len(attempts) - 1
