@@ -13,7 +13,7 @@ DEMO_OUT := demo-out
 # the demo's high-res regions: the two lens mounts of examples/hmd.py (model mm)
 DEMO_HIGH_RES := --high-res=-54,25,25.5,-9,36,70.5 --high-res=9,25,25.5,54,36,70.5
 
-.PHONY: all setup demo test bench clean
+.PHONY: all setup demo test bench bench-check clean
 
 all: demo
 
@@ -81,7 +81,13 @@ test-freecad1: freecad1-root
 	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 's=0; $(FREECAD1_MAKE) test-core || s=1; \
 	  $(FREECAD1_MAKE) test-app || s=1; $(FREECAD1_MAKE) test-gui || s=1; exit $$s'
 
+# the quick benchmark rows against their targets (bench/targets.py), about 3 minutes;
+# prints each row over its target with the stage that grew
+bench-check: examples/build/hmd.step
+	$(PY) bench/check.py
+
 bench: examples/build/hmd.step
+	$(PY) bench/check.py --all || true
 	$(PY) bench/bench.py
 	$(PY) bench/bench_improve.py --best --time-limit 60
 	$(PY) bench/bench_printed.py
