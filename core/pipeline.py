@@ -283,7 +283,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     reinforced = None
     if before is None:
         reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, chosen, req.ground,
-                           req.loads, req.clutch_n, cells, req.seed)
+                           req.loads, req.clutch_n, cells, req.seed,
+                           checked_again=bool(cells.any() or req.high_res_bricks))
         layout = reinforced.layout
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
@@ -310,7 +311,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         slicing = slicing.with_parts([p for p in made if again is None or p.id in again])
     stab = timed("stability", 0.8, stability_stage.analyse, layout, clamp)
     settings = _slicer_settings(req) if made else None
-    if reinforced is not None and not made and reinforced.layout is layout:
+    if reinforced is not None and reinforced.forces is not None and not made and reinforced.layout is layout:
         force = reinforced.forces            # the same check of this very layout, made there
     else:
         force = timed("forces", 0.81, forces_stage.analyse, layout, req.ground, req.loads, made,

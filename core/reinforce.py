@@ -64,7 +64,7 @@ def _summary(f: forces_stage.Forces, st: stability_stage.Stability, bricks: int)
 
 def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "table",
               loads=(), clutch_n: float = forces_stage.CLUTCH_N, frozen: np.ndarray | None = None,
-              seed: int = 0) -> Reinforced:
+              seed: int = 0, checked_again: bool = False) -> Reinforced:
     """``layout`` re-merged around its failing and most loaded bricks (see the module).
 
     ``frozen`` (a grid-shaped bool array, e.g. the cells to print) keeps the
@@ -72,20 +72,31 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
     once with parts of ``parts``; it is never worse than ``layout`` on the
     key (components, not standing, worst utilisation, weak points, bricks);
     ``layout`` is not changed; the same input gives the same result.
+    ``forces`` is the full force check of the result, except that with
+    ``checked_again`` (the caller checks the final build anew, e.g. with printed
+    parts in it) a layout that stands below :data:`LOADED` is judged on the
+    verdict alone and comes back as it is with ``forces`` None.
     """
-    def judge(candidate: Layout):
-        f = forces_stage.analyse(candidate, ground, loads, clutch_n=clutch_n)
+    def judge(candidate: Layout, detail: bool = True):
+        f = forces_stage.analyse(candidate, ground, loads, clutch_n=clutch_n, detail=detail)
         st = stability_stage.analyse(candidate)
         worst = f.max_utilisation if math.isfinite(f.max_utilisation) else 1e9
         key = (st.components, not f.stable, round(worst, 6), len(st.weak_points), len(candidate.bricks))
         return key, f, st
 
-    key, f, st = judge(layout)
+    key, f, st = judge(layout, detail=not checked_again)
     before = _summary(f, st, len(layout.bricks))
     if f.unchecked or f.bands:
         # in height bands every brick has only its band's worst: no joint to work around,
-        # and each judgement of a candidate would be another minute of bands
+        # and each judgement of a candidate would be another minute of bands (the same
+        # verdict with or without the detail)
         return Reinforced(layout, before, before, 0, 0, f)
+    if checked_again:
+        if f.stable and f.max_utilisation <= LOADED:
+            # no brick above the worst, so none is a site
+            return Reinforced(layout, before, before, 0, 0, None)
+        key, f, st = judge(layout)
+        before = _summary(f, st, len(layout.bricks))
     best = layout
     attempts = kept = 0
     frozen = np.zeros(layout.grid.shape, bool) if frozen is None else np.asarray(frozen, bool)
@@ -101,6 +112,11 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
                     if candidate is None:
                         continue
                     attempts += 1
+                    # the verdict alone first: its key is never above the full one's (the
+                    # same worst; a build that stands may yet tip in the detail), so a
+                    # candidate it does not keep, the full check would not keep either
+                    if not judge(candidate, detail=False)[0] < key:
+                        continue
                     new_key, new_f, new_st = judge(candidate)
                     if new_key < key:
                         key, f, st, best = new_key, new_f, new_st, candidate

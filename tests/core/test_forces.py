@@ -561,6 +561,20 @@ def test_reinforce_re_merges_around_the_failing_joint():
     assert len({b.id for b in result.layout.bricks}) == len(result.layout.bricks)
 
 
+def test_the_verdict_alone_never_judges_a_layout_worse_than_the_detail():
+    """reinforce screens candidates on the verdict alone (detail=False): it has the same
+    worst utilisation as the detail, and stands whenever the detail does."""
+    from core import reinforce
+    load = ["72,0,28.8,80,8,40:45"]
+    layout = arm_of_plates()
+    for candidate in (layout, reinforce.reinforce(layout, ground="baseplate", loads=load).layout):
+        for loads in ((), load):
+            alone = forces.analyse(candidate, ground="baseplate", loads=loads, detail=False)
+            full = forces.analyse(candidate, ground="baseplate", loads=loads)
+            assert alone.max_utilisation == pytest.approx(full.max_utilisation, rel=1e-9)
+            assert alone.stable >= full.stable
+
+
 def test_reinforce_leaves_a_standing_layout_alone():
     from core import reinforce
     layout = arm_of_plates()
