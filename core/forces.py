@@ -650,6 +650,14 @@ class BuildChecker:
     all (:attr:`work`; None: :data:`BUILD_BUDGET`; :attr:`why` then says so).  The work is
     counted in the solver's iterations, not in seconds, so the same build gets the same
     answers on a busy machine as on an idle one.
+
+    A set that holds the last set found standing at most :data:`FRAGILE` and adds to it
+    only LEGO bricks borne on full columns (every cell under them filled by bricks of
+    the set, down to the ground; :meth:`_borne`) needs no program either: the forces that
+    held the smaller set still hold, and each new brick's weight goes straight down its
+    columns in compression, through every body on the way at the same stud axis (no force
+    or moment left over on them, nor any bending).  It gets the smaller set's utilisation,
+    an upper bound of its own.
     """
 
     def __init__(self, layout: Layout, ground: str = "table", printed=(), clamp=None,
@@ -710,6 +718,10 @@ class BuildChecker:
         self._sub: tuple[_Warm, np.ndarray] | None = None
         # the last set found joined to the ground (the next is usually it and one step more)
         self._held_last = np.zeros(n, dtype=bool)
+        # the last set found standing at most FRAGILE without props, and its utilisation;
+        # per brick, the bricks of its full columns (or None: it is not borne on them)
+        self._proven: tuple[np.ndarray, float] | None = None
+        self._columns: dict[int, np.ndarray | None] = {}
 
     def stands(self, present, props=None) -> tuple[bool, float]:
         """(stands, worst utilisation) of the bricks ``present`` (a bool per brick of the
@@ -736,11 +748,58 @@ class BuildChecker:
                         + _GRAPH_ONLY)
         if not self.programs:
             return True, math.nan
+        if propped is None:
+            bound = self._borne_bound(present)
+            if bound is not None:
+                self._proven = (present.copy(), bound)
+                return True, bound
         start = time.perf_counter()
         try:
-            return self._programs(present, propped)
+            ok, worst = self._programs(present, propped)
         finally:
             self.seconds += time.perf_counter() - start
+        if propped is None and ok and worst <= FRAGILE:
+            self._proven = (present.copy(), worst)
+        return ok, worst
+
+    def _borne_bound(self, present: np.ndarray) -> float | None:
+        """The last proven set's utilisation where ``present`` is it and bricks borne on full
+        columns of ``present`` whose own weight bends them less (see the class); else None."""
+        if self._proven is None:
+            return None
+        base, worst = self._proven
+        if np.any(base & ~present):
+            return None
+        for b in np.flatnonzero(present & ~base).tolist():
+            under = self._borne(b)
+            if under is None or not present[under].all() or self._own_bending(b) > worst:
+                return None
+        return worst
+
+    def _borne(self, b: int) -> np.ndarray | None:
+        """The bricks (by position) under every cell of LEGO brick ``b`` down to the ground,
+        if that column is full and ``b`` is a body of its own that carries nothing more than
+        its weight; else None."""
+        if b not in self._columns:
+            m = self.model
+            (x, y, z), (sx, sy, _) = m.corners[b], m.sizes[b]
+            below = m.lab[x:x + sx, y:y + sy, :z]
+            lone = np.count_nonzero(m.body_of == m.body_of[b]) == 1
+            plain = (not m.printed_brick[b] and lone and b not in m.point_masses
+                     and not np.any(m.extra[m.body_of[b]]))
+            self._columns[b] = np.unique(below) if plain and np.all(below >= 0) else None
+        return self._columns[b]
+
+    def _own_bending(self, b: int) -> float:
+        """An upper bound of brick ``b``'s bending utilisation under its own weight alone,
+        borne at its studs: the weight at mid-span of its length, held at its ends."""
+        m = self.model
+        sx, sy, layers = (int(v) for v in m.sizes[b])
+        if max(sx, sy) < 2:
+            return 0.0
+        span_mm = max(sx, sy) * float(m.layout.grid.cell[0])
+        moment = m.mass_g[m.body_of[b]] * G / 1000.0 * span_mm / 4.0
+        return moment / bending_capacity_nmm(min(sx, sy), layers, m.layout.grid.cell)
 
     @property
     def work(self) -> int:

@@ -626,6 +626,39 @@ def test_given_seconds_a_build_beyond_the_bodies_is_solved_whole_as_the_hand_cal
             forces.analyse(staircase(2), seconds=bad)
 
 
+@pytest.mark.parametrize("ground", ["table", "baseplate"])
+def test_a_step_borne_on_full_columns_keeps_what_the_programs_say(ground):
+    """Built step by step, a staircase (which needs programs) with a tower beside it and
+    bricks on the staircase's own columns: a step that adds only bricks borne on full
+    columns is answered without a program, as it stands, with at most the last proven
+    set's utilisation, at least the program's own; every other step as the program."""
+    stair = staircase(6).bricks
+    tower = [Brick(10 + n, "3001", (4, 2, 3), (20, 0, 3 * n)) for n in range(5)]
+    on_stair = [Brick(20, "3003", (2, 2, 3), (0, 0, 3)), Brick(21, "3022", (2, 2, 1), (0, 0, 6))]
+    layout = layout_of(stair + tower + on_stair)
+    order = [b.id for b in stair[:2]] + [b.id for b in tower] + [20, 21] + [b.id for b in stair[2:]]
+    index = {b.id: n for n, b in enumerate(layout.bricks)}
+    checker = forces.BuildChecker(layout, ground=ground)
+    exact = forces.BuildChecker(layout, ground=ground)
+    monkey = pytest.MonkeyPatch()
+    monkey.setattr(exact, "_borne_bound", lambda present: None)
+    present = np.zeros(len(layout.bricks), dtype=bool)
+    shortcuts = 0
+    for brick in order:
+        present[index[brick]] = True
+        solves = checker.solves
+        ok, worst = checker.stands(present.copy())
+        ok_exact, worst_exact = exact.stands(present.copy())
+        assert ok == ok_exact
+        if checker.solves == solves and not checker._supported(present):
+            shortcuts += 1
+            assert worst_exact - 1e-9 <= worst <= forces.FRAGILE
+        else:
+            assert worst == pytest.approx(worst_exact, rel=1e-6, abs=1e-9)
+    monkey.undo()
+    assert shortcuts == 7          # the five tower bricks and the two on the first stair
+
+
 def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
     """The checker keeps 'every present cell rests on a present cell' up to date brick by
     brick; asked in any order (prefixes, trials taken back, random sets), its answer is the
