@@ -1109,26 +1109,76 @@ def _copy(layout: Layout, renumber: bool) -> Layout:
     return Layout(layout.grid, bricks)
 
 
+#: A pair of bricks' key in the brick graph: the lower index shifted by this, or the other.
+_KEY_BITS = 32
+
+
+def _vertical_pairs(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) brick of every cell of a label grid (-1 empty) directly over a cell of
+    another brick, once per such cell."""
+    lower, upper = lab[:, :, :-1], lab[:, :, 1:]
+    touch = (lower >= 0) & (upper >= 0) & (lower != upper)
+    return lower[touch], upper[touch]
+
+
+def _pair_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return (np.minimum(a, b) << _KEY_BITS) | np.maximum(a, b)
+
+
+def _contacts_of(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The brick graph of a label grid: its pairs' keys (sorted), the cells each pair touches
+    at, and each of the ``n`` bricks' cells that touch another brick above or below."""
+    a, b = _vertical_pairs(lab)
+    keys, counts = np.unique(_pair_keys(a, b), return_counts=True)
+    return keys, counts.astype(np.int64), np.bincount(np.concatenate([a, b]), minlength=n)
+
+
+def _changed_contacts(keys: np.ndarray, counts: np.ndarray, added: np.ndarray,
+                      removed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_contacts_of`'s keys and counts with the touching cells of pairs ``added`` (one
+    key per cell) counted in and those of ``removed`` counted out."""
+    delta, inv = np.unique(np.concatenate([added, removed]), return_inverse=True)
+    signs = np.concatenate([np.ones(len(added)), -np.ones(len(removed))])
+    change = np.rint(np.bincount(inv, weights=signs, minlength=len(delta))).astype(np.int64)
+    delta, change = delta[change != 0], change[change != 0]
+    pos = np.searchsorted(keys, delta)
+    hit = pos < len(keys)
+    hit[hit] = keys[pos[hit]] == delta[hit]
+    counts = counts.copy()
+    counts[pos[hit]] += change[hit]
+    keys = np.insert(keys, pos[~hit], delta[~hit])
+    counts = np.insert(counts, pos[~hit], change[~hit])
+    kept = counts > 0
+    return keys[kept], counts[kept]
+
+
+def _csr_of(keys: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR (indptr, indices, neighbours sorted) of the undirected graph of pair ``keys`` on
+    ``n`` vertices."""
+    mask = (1 << _KEY_BITS) - 1
+    both = np.sort(np.concatenate([keys, ((keys & mask) << _KEY_BITS) | (keys >> _KEY_BITS)]))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(both >> _KEY_BITS, minlength=n), out=indptr[1:])
+    return indptr, both & mask
+
+
 def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSR (indptr, indices) of the brick graph of a grid of brick indices (-1 empty), and
     each brick's cells that touch another brick directly above or below."""
-    lower = lab[:, :, :-1]
-    upper = lab[:, :, 1:]
-    touch = (lower >= 0) & (upper >= 0) & (lower != upper)
-    a, b = lower[touch], upper[touch]
-    touching = np.bincount(np.concatenate([a, b]), minlength=n)
-    key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
-    a, b = key // n, key % n
-    graph = sparse.csr_matrix((np.ones(2 * a.size, dtype=np.int8),
-                               (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
-    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64), touching
+    keys, _, touching = _contacts_of(lab, n)
+    return (*_csr_of(keys, n), touching)
 
 
 def _graph_key(lab: np.ndarray, n: int, dead: int):
     """(components, weak points, thin weak points (:func:`thin_weak_points`), degree per
     vertex, articulation mask) of the brick graph of ``lab`` with ``n`` vertices of which
     ``dead`` are unused (isolated, not counted)."""
-    indptr, indices, touching = _csr(lab, n)
+    return _key_of_graph(*_csr(lab, n), n, dead)
+
+
+def _key_of_graph(indptr: np.ndarray, indices: np.ndarray, touching: np.ndarray, n: int,
+                  dead: int):
+    """:func:`_graph_key` of the brick graph given as CSR, with its bricks' touching cells."""
     graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
     comps = connected_components(graph, directed=False)[0] - dead
     art = articulation_points(indptr, indices, n)
@@ -1165,6 +1215,8 @@ class _Search:
             self._add(tuple(b.cell) + tuple(b.size), b.part, b, b.id in frozen or b.kind != "lego")
         self.dead = 0
         self.weak_on = True
+        # the brick graph, kept up to date window by window (:meth:`_try`)
+        self.keys, self.counts, self.touching = _contacts_of(self.lab, len(self.rec))
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec), 0)
         self.best = (self.strict, np.flatnonzero(self.alive))
         self.windows = 0
@@ -1188,10 +1240,12 @@ class _Search:
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
                                                                     self.dead)
 
-    def _evaluate(self, lab, n, dead) -> tuple[SearchKey, Key, np.ndarray, np.ndarray]:
+    def _evaluate(self, lab, n, dead, graph=None) -> tuple[SearchKey, Key, np.ndarray, np.ndarray]:
         """(the search's key, the :func:`quality` key, degrees, articulation mask) of the
-        label grid ``lab`` of ``n`` records of which ``dead`` are removed."""
-        comps, weak, thin, deg, art = _graph_key(lab, n, dead)
+        label grid ``lab`` of ``n`` records of which ``dead`` are removed, whose brick graph
+        is ``graph`` (pair keys and touching cells; None: the search's own)."""
+        keys, touching = (self.keys, self.touching) if graph is None else graph
+        comps, weak, thin, deg, art = _key_of_graph(*_csr_of(keys, n), touching, n, dead)
         failing = 0
         if self.failing is not None:
             failing = int(self.failing(self._layout_of(lab)))
@@ -1328,21 +1382,21 @@ class _Search:
         shapes = self.shapes if shapes is None else shapes
         limit = level.max_columns
         while True:
-            free = np.zeros(self.grid.shape, dtype=bool)
-            for i in ids:
-                x, y, z, sx, sy, sz = self.rec[i]
-                free[x:x + sx, y:y + sy, z:z + sz] = True
-            lo = np.maximum(np.argwhere(free).min(axis=0) - 1, 0)
-            hi = np.minimum(np.argwhere(free).max(axis=0) + 2, self.grid.shape)
+            recs = np.array([self.rec[i] for i in ids], dtype=np.int64)
+            lo = np.maximum(recs[:, :3].min(axis=0) - 1, 0)
+            hi = np.minimum((recs[:, :3] + recs[:, 3:]).max(axis=0) + 1, self.grid.shape)
             sl = tuple(slice(a, b) for a, b in zip(lo, hi))
-            boxes = _placements(free[sl], None, shapes)
+            free = np.zeros(tuple(hi - lo), dtype=bool)
+            for x, y, z, sx, sy, sz in recs - np.concatenate([lo, np.zeros(3, np.int64)]):
+                free[x:x + sx, y:y + sy, z:z + sz] = True
+            boxes = _placements(free, None, shapes)
             if len(ids) > 2 and len(boxes) > limit:
                 ids = ids[:max(2, (len(ids) * 4) // 5)]
                 continue
             if self.apart is not None:
-                boxes = _placements(free[sl], self.apart[sl], shapes)
+                boxes = _placements(free, self.apart[sl], shapes)
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
-            window = (boxes, free[sl], self.filled[sl], np.where(free[sl], -1, self.lab[sl]),
+            window = (boxes, free, self.filled[sl], np.where(free, -1, self.lab[sl]),
                       current, self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
             chosen, spent = _solve_window(*window)
             self.iterations += spent
@@ -1416,26 +1470,40 @@ class _Search:
         :meth:`solve` passes only boxes other than the current ones): (whether it did, the
         trial's articulation mask, whose rows from the current number of records on are the
         boxes of ``chosen``)."""
-        lab = self.lab.copy()
         n = len(self.rec)
+        freed = np.array([self.rec[i] for i in ids], dtype=np.int64)
+        lo_z = max(int(freed[:, 2].min()) - 1, 0)
+        hi_z = min(int((freed[:, 2] + freed[:, 5]).max()) + 1, self.lab.shape[2])
+        # the cells whose vertical contacts the change can touch: the freed ones and a
+        # layer above and below
+        sl = (slice(int(freed[:, 0].min()), int((freed[:, 0] + freed[:, 3]).max())),
+              slice(int(freed[:, 1].min()), int((freed[:, 1] + freed[:, 4]).max())),
+              slice(lo_z, hi_z))
+        before = self.lab[sl].copy()
         self._pending = {}
         self._pending_part = {}
         part_of = dict((s, p) for s, p in self.shapes)
         for j, (x, y, z, sx, sy, sz) in enumerate(chosen):
             i = n + j
             gx, gy, gz = x + lo[0], y + lo[1], z + lo[2]
-            lab[gx:gx + sx, gy:gy + sy, gz:gz + sz] = i
+            self.lab[gx:gx + sx, gy:gy + sy, gz:gz + sz] = i
             self._pending[i] = (int(gx), int(gy), int(gz), sx, sy, sz)
             self._pending_part[i] = part_of[(sx, sy, sz)]
+        gone, come = _vertical_pairs(before), _vertical_pairs(self.lab[sl])
+        keys, counts = _changed_contacts(self.keys, self.counts, _pair_keys(*come), _pair_keys(*gone))
+        touching = np.concatenate([self.touching, np.zeros(len(chosen), dtype=np.int64)])
+        np.add.at(touching, np.concatenate(come), 1)
+        np.subtract.at(touching, np.concatenate(gone), 1)
         dead = self.dead + len(ids)
-        key, strict, deg, art = self._evaluate(lab, n + len(chosen), dead)
+        key, strict, deg, art = self._evaluate(self.lab, n + len(chosen), dead, (keys, touching))
         if key > self.key or (key == self.key and self.weak_on):
+            self.lab[sl] = before
             return False, art
         for i in ids:
             self.alive[i] = False
         for i in sorted(self._pending):
             self._add(self._pending[i], self._pending_part[i], None, False)
-        assert np.array_equal(self.lab, lab)
+        self.keys, self.counts, self.touching = keys, counts, touching
         self.dead, self.key, self.strict, self.deg, self.art = dead, key, strict, deg, art
         if strict < self.best[0]:
             self.best = (strict, np.flatnonzero(self.alive))
@@ -1459,6 +1527,7 @@ class _Search:
             x, y, z, sx, sy, sz = self.rec[i]
             self.lab[x:x + sx, y:y + sy, z:z + sz] = i
         self.dead = len(self.rec) - len(alive)
+        self.keys, self.counts, self.touching = _contacts_of(self.lab, len(self.rec))
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
                                                                     self.dead)
 
