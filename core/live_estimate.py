@@ -2,7 +2,7 @@
 
 A brush stroke changes which bricks are printed and how they group into
 parts.  Cutting and slicing those parts takes seconds; :class:`Estimator`
-answers in milliseconds instead, from the last result (its layout, model
+answers in a fraction of a second instead, from the last result (its layout, model
 mesh, printed parts and their print times) and the painted bricks:
 
 * **Grouping.**  ``high-res``: a painted LEGO brick joins every printed
