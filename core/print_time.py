@@ -385,10 +385,15 @@ def estimate_features(meshes) -> np.ndarray:
     over all parts (per-layer travel and retraction between parts).
     """
     parts = as_meshes(meshes)
-    volume = sum(abs(float(m.volume)) for m in parts)
-    area = sum(float(m.area) for m in parts)
-    heights = np.array([float(m.extents[2]) for m in parts]) / ESTIMATE_LAYER_MM
-    return np.array([volume, area, heights.max(), heights.sum(), 1.0])
+    return plate_features([abs(float(m.volume)) for m in parts], [float(m.area) for m in parts],
+                          [float(m.extents[2]) for m in parts])
+
+
+def plate_features(volumes, areas, heights) -> np.ndarray:
+    """The estimate's inputs (as :func:`estimate_features`) of one plate whose parts have
+    these volumes (mm^3), surface areas (mm^2) and heights on the bed (mm), one each."""
+    layers = np.asarray(heights, dtype=float) / ESTIMATE_LAYER_MM
+    return np.array([float(np.sum(volumes)), float(np.sum(areas)), layers.max(), layers.sum(), 1.0])
 
 
 def estimate_seconds(meshes, coeffs=ESTIMATE_COEFFS) -> float:

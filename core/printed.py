@@ -323,11 +323,13 @@ def clamp_masks(layout: Layout, parts: list[PrintedPart]) -> tuple[np.ndarray, n
 
 def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelSolid,
                fit: Fit = Fit(), links: connectors_stage.Connectors | None = None,
-               connectors: bool = True, engrave: bool = True) -> PrintedPart:
+               connectors: bool = True, engrave: bool = True, thin: bool = True) -> PrintedPart:
     """The printed part made of ``bricks`` (one connected group of the layout).
 
     ``links`` are the connector cells of the layout's printed parts
     (:func:`core.connectors.find`; found for ``bricks`` alone when None).
+    Without ``engrave`` the id is not cut in; without ``thin`` its thin features
+    are not looked for (``thin`` stays empty).
     Promises: the result is one valid closed solid (its mesh watertight)
     that equals the model inside the envelope except for the studs, the
     sockets and the material that carries them (:func:`core.interfaces.plan`)
@@ -382,7 +384,8 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
                        envelope_mm3=engine.volume(envelope), joins=joins)
     if engrave:
         _engrave(part, bricks, grid, mine, other, fit, engine)
-    part.thin = thickness.thin_features(part.mesh)
+    if thin:
+        part.thin = thickness.thin_features(part.mesh)
     return part
 
 

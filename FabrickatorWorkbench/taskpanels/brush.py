@@ -6,6 +6,9 @@ within the brush radius (in studs) of the point under the cursor.  The
 preview updates as you paint: in high-res mode a painted LEGO brick is
 replaced by its exact shape (the brick intersected with the Source, as it
 will be printed), in the other modes painted bricks show as coloured boxes.
+Below the status, the print time and speed-up the painted change would give
+show next to the last recompute's (:mod:`core.live_estimate`: the calibrated
+estimate, marked as one), updated as the mouse pauses.
 OK applies the change and recomputes, as one undo step; Cancel drops it.
 The panel holds the painted bricks itself; the document only changes on OK
 (the preview object it shows meanwhile is removed again either way).
@@ -17,6 +20,7 @@ region's ``ShowAlways`` says otherwise (:func:`.high_res_region.show`).
 
 from __future__ import annotations
 
+import json
 import os
 
 import FreeCAD as App
@@ -27,7 +31,7 @@ from PySide import QtCore, QtGui
 
 from core import picking
 from FabrickatorWorkbench import log, make
-from FabrickatorWorkbench.objects import high_res_region
+from FabrickatorWorkbench.objects import fabricate, high_res_region
 from FabrickatorWorkbench.taskpanels.closing import close_dialog
 from FabrickatorWorkbench.taskpanels.titles import fitting_title
 
@@ -51,6 +55,10 @@ HELP = {"high-res": "Paint bricks that must be exact: they are printed.",
 
 #: Milliseconds the exact preview waits for the mouse to pause.
 PREVIEW_DELAY_MS = 120
+
+#: Milliseconds the live estimate waits for the mouse to pause (a drag's moves come
+#: closer together than this).
+ESTIMATE_DELAY_MS = 30
 
 UI = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                   "resources", "ui", "brush.ui")
@@ -94,6 +102,13 @@ class BrushPanel:
         self.timer = QtCore.QTimer()
         self.timer.setSingleShot(True)
         self.timer.timeout.connect(self.update_preview)
+        self.estimate_timer = QtCore.QTimer()
+        self.estimate_timer.setSingleShot(True)
+        self.estimate_timer.timeout.connect(self.show_estimate)
+        #: the live estimator (made on first use), or why there is none
+        self.estimator = None
+        self.estimate_failed: str | None = None
+        self.sliced = False
         self.view = Gui.ActiveDocument.ActiveView
         self.callbacks = [
             (coin.SoMouseButtonEvent.getClassTypeId(),
@@ -102,6 +117,7 @@ class BrushPanel:
              self.view.addEventCallbackPivy(coin.SoLocation2Event.getClassTypeId(), self.on_move)),
         ]
         self.show_status()
+        self.show_estimate()
 
     # --- modes and state ------------------------------------------------------------
 
@@ -228,6 +244,7 @@ class BrushPanel:
         self.preview.ViewObject.ShapeColor = MODES[self.mode]
         self.preview.ViewObject.Transparency = 0 if high_res else 40
         self.timer.start(PREVIEW_DELAY_MS)
+        self.estimate_timer.start(ESTIMATE_DELAY_MS)
         self.show_status()
 
     def update_preview(self) -> None:
@@ -246,6 +263,50 @@ class BrushPanel:
                 lo, hi = self.boxes[n]
                 pieces.append(Part.makeBox(*(hi - lo), App.Vector(*lo)))
         self.preview.Shape = Part.makeCompound(pieces) if pieces else Part.Shape()
+
+    # --- live estimate ---------------------------------------------------------------
+
+    def show_estimate(self) -> None:
+        """The estimate line: what the painted bricks would give next to the last result
+        (:func:`core.live_estimate.words`); "estimate unavailable" and a line in the
+        Report view when it cannot be made."""
+        from core import live_estimate
+
+        try:
+            if self.estimator is None:
+                self.estimator, self.sliced = self.new_estimator()
+            last = self.estimator.last()
+            changed = self.estimator.estimate(self.painted, self.mode) if self.painted else None
+            text = live_estimate.words(changed, last, self.sliced)
+        except Exception as exc:  # noqa: BLE001 - any failure only costs the estimate
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            if reason != self.estimate_failed:
+                log.warning(f"{self.fab.Label}: brush estimate unavailable: {reason}")
+            self.estimate_failed = reason
+            text = "Estimate unavailable (the Report view says why)."
+        self.form.estimate.setText(text)
+
+    def new_estimator(self):
+        """The live estimator of the Fabrication's stored result, and whether its print
+        times were sliced; raises (InputError, ValueError, OSError) when it has none."""
+        from core import live_estimate
+
+        if not self.fab.IterationState:
+            raise ValueError("the Fabrication has no stored result: recompute it")
+        report = json.loads(self.fab.ReportJson or "{}")
+        poses = {p["id"]: p.get("pose") for p in report.get("printed_parts", ())}
+        parts = make.printed_parts(self.fab)
+        last = [live_estimate.LastPart(p.PartId, tuple(int(i) for i in p.BrickIds),
+                                       float(p.PrintTime), live_estimate.up_of_pose(poses.get(p.PartId)))
+                for p in parts]
+        times = report.get("print_time_s") or {}
+        sliced = bool(times) and live_estimate.is_sliced(times.get("method")) and all(
+            live_estimate.is_sliced(p.PrintTimeMethod) for p in parts)
+        estimator = live_estimate.Estimator(
+            self.layout, live_estimate.snapshot_mesh(self.fab.IterationState), last,
+            times.get("full_model"), float(self.fab.SecondsPerBrick),
+            float(self.fab.SecondsPerPart), fabricate.fit(self.fab))
+        return estimator, sliced
 
     def painted_bricks(self) -> list:
         """The painted brick objects."""
@@ -300,6 +361,7 @@ class BrushPanel:
     def cleanup(self) -> None:
         """Stop listening to the mouse, undo the preview's changes, remove the preview."""
         self.timer.stop()
+        self.estimate_timer.stop()
         for kind, callback in self.callbacks:
             self.view.removeEventCallbackPivy(kind, callback)
         self.callbacks = []
