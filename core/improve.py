@@ -1845,5 +1845,15 @@ def _start_solution(boxes, current, a, n, n_cols, m, upper):
 
 def _rows_of(boxes: np.ndarray, current) -> list[int | None]:
     """The row of ``boxes`` of each box of ``current`` (None where it is not a placement)."""
-    index = {tuple(int(v) for v in b): i for i, b in enumerate(boxes)}
-    return [index.get(tuple(int(v) for v in box)) for box in current]
+    if len(current) == 0 or len(boxes) == 0:
+        return [None] * len(current)
+    boxes = np.asarray(boxes, dtype=np.int64).reshape(-1, 6)
+    cur = np.asarray(current, dtype=np.int64).reshape(-1, 6)
+    # each box as one number in the mixed radix of the boxes' and current bricks' ranges
+    top = np.maximum(boxes.max(axis=0, initial=0), cur.max(axis=0)) + 1
+    radix = np.concatenate([[1], np.cumprod(top[:-1])])
+    keys, wanted = boxes @ radix, cur @ radix
+    order = np.argsort(keys, kind="stable")
+    pos = np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)
+    found = keys[order][pos] == wanted
+    return [int(order[p]) if f else None for p, f in zip(pos.tolist(), found.tolist())]

@@ -879,3 +879,16 @@ def test_fixed_leaf_targets_of_a_hand_made_window():
     filled = free | (lab >= 0)
     targets = improve._fixed_leaf_targets(free, filled, lab)
     assert targets.tolist() == [[0, 0, 0, 0, 1], [3, 0, 3, 0, 1], [1, 0, 2, 0, 1]]
+
+
+def test_rows_of_finds_each_current_brick_among_the_placements_or_none():
+    """Against a dictionary of the placements: the row of every current brick that is one,
+    None for one that is not (a brick of another shape, or outside the window)."""
+    from core.improve import _rows_of
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        boxes = np.unique(rng.integers(0, 6, (int(rng.integers(0, 50)), 6)), axis=0).reshape(-1, 6)
+        current = [tuple(int(v) for v in boxes[i]) for i in rng.integers(0, len(boxes), 3)] if len(boxes) else []
+        current.append(tuple(int(v) for v in rng.integers(0, 7, 6)))
+        index = {tuple(int(v) for v in b): i for i, b in enumerate(boxes)}
+        assert _rows_of(boxes, current) == [index.get(box) for box in current]
