@@ -78,14 +78,16 @@ class LastPart:
 @dataclass(frozen=True)
 class Figures:
     """The printed parts' print time, the assembly and fabrication time (s), the
-    speed-up (the report's ``speedup``; None without a whole-model print time) and how
-    many printed parts there are."""
+    speed-up (the report's ``speedup``; None without a whole-model print time), how
+    many printed parts there are, and whether the whole model's time is this module's
+    estimate (the last result had none)."""
 
     print_s: float
     assembly_s: float
     fabrication_s: float
     speedup: float | None
     parts: int
+    whole_estimated: bool = False
 
 
 def up_of_pose(pose: dict | None) -> tuple[float, float, float]:
@@ -128,8 +130,9 @@ def snapshot_mesh(snapshot: str | os.PathLike) -> trimesh.Trimesh:
 class Estimator:
     """Live estimates for one last result: ``layout`` (bricks marked as printed by their
     parts), the model ``mesh`` (mm, the layout's frame), its printed ``parts``, the
-    whole model's print time ``full_s`` (None when unknown), the assembly settings and
-    the stud and socket ``fit`` the parts are cut with.
+    whole model's print time ``full_s`` (None when the last result has none, as before
+    any part is printed: then the calibrated estimate of the model printed upright), the
+    assembly settings and the stud and socket ``fit`` the parts are cut with.
 
     Raises InputError when the mesh is not a closed solid or a part's bricks are not
     the layout's.  It keeps the parts it cut for later strokes.
@@ -140,7 +143,8 @@ class Estimator:
                  fit: Fit = Fit()):
         self.layout = layout
         self.parts = {p.id: p for p in parts}
-        self.full_s = full_s
+        self.whole_estimated = full_s is None
+        self.full_s = print_time.estimate_seconds([mesh]) if full_s is None else float(full_s)
         self.seconds_per_brick = float(seconds_per_brick)
         self.seconds_per_part = float(seconds_per_part)
         model = LoadedModel(mesh, "the stored model", "ply", len(mesh.faces), bool(mesh.is_watertight))
@@ -265,20 +269,23 @@ class Estimator:
             dataclasses.replace(b, kind="printed", printed_part=owner[b.id]) if b.id in owner
             else dataclasses.replace(b, kind="lego", printed_part=None) for b in self.layout.bricks])
         build = SimpleNamespace(
-            print_full=None if self.full_s is None else print_time.PrintEstimate(self.full_s, "last", None),
+            print_full=print_time.PrintEstimate(self.full_s, "last", None),
             print_parts=print_time.PrintEstimate(print_s, "live estimate", None), iteration=None,
             layout=layout, seconds_per_brick=self.seconds_per_brick,
             seconds_per_part=self.seconds_per_part)
         gains = pipeline.speedups(build)
         return Figures(print_s, pipeline.assembly_seconds(build), pipeline.fabrication_seconds(build),
-                       None if gains is None else gains["fabrication"], len(groups))
+                       None if gains is None else gains["fabrication"], len(groups),
+                       self.whole_estimated)
 
 
 def words(estimate: Figures | None, last: Figures, sliced: bool) -> str:
     """The panel's line: the estimate with the painted changes (None: nothing painted)
     and the last result's figures, sliced or estimated."""
     def figures(f: Figures) -> str:
-        gain = "unknown (no whole-model print time yet)" if f.speedup is None else f"{f.speedup:.1f}x"
+        gain = "unknown" if f.speedup is None else f"{f.speedup:.1f}x"
+        if f.whole_estimated and f.speedup is not None:
+            gain += " against the whole model's estimate"
         return f"print {pipeline._hours(f.print_s)}, speed-up {gain}"
 
     then = f"last {'sliced' if sliced else 'run (estimated)'}: {figures(last)}"

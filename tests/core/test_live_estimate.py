@@ -171,11 +171,15 @@ def test_bad_input_says_what(fab):
     assert part.id == "P1"
 
 
-def test_without_a_whole_model_time_there_is_no_speed_up(fab):
+def test_without_a_whole_model_time_the_speed_up_is_against_the_models_estimate(fab):
+    """Before any part is printed the last result has no whole-model time: the speed-up is
+    then against print_time's calibrated estimate of the model itself, and says so."""
     est = live_estimate.Estimator(fab.layout, fab.model.mesh, [], None, 10.0, 30.0)
     got = est.estimate(lego_neighbours(fab, printed_ids(fab))[:1])
-    assert got.speedup is None and got.print_s > 0 and got.parts == 1
-    assert "unknown" in live_estimate.words(got, est.last(), sliced=False)
+    whole = print_time.estimate_seconds([fab.model.mesh])
+    assert got.print_s > 0 and got.parts == 1 and got.whole_estimated
+    assert got.speedup == pytest.approx(whole / got.fabrication_s, rel=1e-9)
+    assert "against the whole model's estimate" in live_estimate.words(got, est.last(), sliced=False)
 
 
 def test_the_words_say_estimate_and_last_figure():
