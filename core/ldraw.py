@@ -123,11 +123,10 @@ def _ref(color: int, pos, rot, name: str) -> str:
 def _triangles(mesh, origin_mm, shift_ldu) -> list[str]:
     """Line-type-3 lines of a trimesh in LDraw coordinates (one formatted block)."""
     tri = model_to_ldu(np.asarray(mesh.vertices)[np.asarray(mesh.faces)], origin_mm, shift_ldu)
-    flat = np.round(tri.reshape(-1, 9), 3)
-    text = np.char.mod("%.3f", flat)
-    text = np.char.rstrip(np.char.rstrip(text, "0"), ".")
-    text = np.where(text == "-0", "0", text)
-    return ["3 16 " + " ".join(row) for row in text.tolist()]
+    # to 3 decimals without trailing zeros (%g of the rounded value; + 0.0 makes -0 zero)
+    flat = np.round(tri.reshape(-1, 9), 3) + 0.0
+    row = "3 16 " + " ".join(["%.12g"] * 9)
+    return [row % tuple(values) for values in flat.tolist()]
 
 
 def _prop_lines(prop: dict, shift_ldu) -> list[str]:
