@@ -127,7 +127,9 @@ class Forces:
     ``max_utilisation``: the worst utilisation (inf when some body is
     unsupported).  ``utilisation``: brick id -> the utilisation of what
     holds that brick (the joints under it, or above it for a brick that
-    hangs; its own bending), inf for unsupported bricks.  ``failing_bricks``:
+    hangs; its own bending), inf for unsupported bricks; a build standing below
+    :data:`DARK_BELOW` (past :data:`EXACT_BODIES` bodies, :data:`DETAIL_ABOVE`) gives each
+    brick the worst, an upper bound.  ``failing_bricks``:
     ids whose utilisation is above 1, sorted; ``unsupported``: those no
     equilibrium holds.  ``failures``: one dict per failing brick with
     ``brick``, ``layer`` (from 1), ``cell``, ``utilisation`` (None when
@@ -1060,6 +1062,9 @@ DEEPER_LEVELS = (4, 12, 32)
 #: build's) are each given its worst (an upper bound; their own utilisations would cost a
 #: second program and stay in the dark range).
 DETAIL_ABOVE = 0.25
+#: Below this worst utilisation every brick of a build of any size is given the worst (an
+#: upper bound): on the stress picture's scale, dark 0 to red 1, each is dark either way.
+DARK_BELOW = 0.05
 
 #: How the verdict of a big build with hanging parts was found (:meth:`_Model._by_parts`).
 SUB_MEANS = ("the parts that hang (bricks with a cell over air, what rests on them and the "
@@ -1324,7 +1329,8 @@ class _Model:
         def each_worst() -> Forces:
             return self._forces(stable, worst, {b.id: worst for b in self.layout.bricks}, [], [], [])
 
-        if stable and self.nbody > EXACT_BODIES and (worst < DETAIL_ABOVE or self.nbody > MAX_BODIES):
+        if stable and (worst < DARK_BELOW or self.nbody > EXACT_BODIES
+                       and (worst < DETAIL_ABOVE or self.nbody > MAX_BODIES)):
             # each brick gets the worst (as a hanging part's do): phase 2 took 78 of the 125 s
             # of a 2,151-brick connecting rod standing at 0.009, and as long as phase 1 on a
             # 3,834-brick HMD shell
