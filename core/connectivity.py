@@ -1,6 +1,6 @@
 """Connectivity of cells and bricks: the graph kernels the layout and stability stages share.
 
-The kernels (:func:`component_labels`, :func:`articulation_points`) work on
+The kernels (:func:`pairs_csr`, :func:`component_labels`, :func:`articulation_points`) work on
 plain CSR arrays (``indptr``, ``indices``, ``n``) and are compiled with
 numba, so the layout stage can call them in its repair loop;
 :func:`regions` labels the connected regions of filled cells.
@@ -14,6 +14,26 @@ from scipy import ndimage
 
 #: 6-connectivity: cells touching by a face.
 FACE_STRUCTURE = ndimage.generate_binary_structure(3, 1)
+
+
+@njit(cache=True)
+def pairs_csr(a, b, n):
+    """CSR (indptr, indices) of the undirected graph on ``n`` vertices whose edges are the
+    pairs ``a[i]``-``b[i]`` (each once): a counting sort, neighbours in the pairs' order."""
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    for i in range(a.size):
+        indptr[a[i] + 1] += 1
+        indptr[b[i] + 1] += 1
+    for v in range(n):
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    indices = np.empty(2 * a.size, dtype=np.int64)
+    for i in range(a.size):
+        indices[fill[a[i]]] = b[i]
+        fill[a[i]] += 1
+        indices[fill[b[i]]] = a[i]
+        fill[b[i]] += 1
+    return indptr, indices
 
 
 @njit(cache=True)

@@ -97,7 +97,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
 from core.catalog import CATALOG, Part
-from core.connectivity import articulation_points, regions
+from core.connectivity import articulation_points, component_labels, pairs_csr, regions
 from core.errors import InputError
 from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
                                _summed_volume, cover_matrix, fitting_boxes, more_time)
@@ -1153,13 +1153,8 @@ def _changed_contacts(keys: np.ndarray, counts: np.ndarray, added: np.ndarray,
 
 
 def _csr_of(keys: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """CSR (indptr, indices, neighbours sorted) of the undirected graph of pair ``keys`` on
-    ``n`` vertices."""
-    mask = (1 << _KEY_BITS) - 1
-    both = np.sort(np.concatenate([keys, ((keys & mask) << _KEY_BITS) | (keys >> _KEY_BITS)]))
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(both >> _KEY_BITS, minlength=n), out=indptr[1:])
-    return indptr, both & mask
+    """CSR (indptr, indices) of the undirected graph of pair ``keys`` on ``n`` vertices."""
+    return pairs_csr(keys >> _KEY_BITS, keys & ((1 << _KEY_BITS) - 1), n)
 
 
 def _csr(lab: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1179,8 +1174,7 @@ def _graph_key(lab: np.ndarray, n: int, dead: int):
 def _key_of_graph(indptr: np.ndarray, indices: np.ndarray, touching: np.ndarray, n: int,
                   dead: int):
     """:func:`_graph_key` of the brick graph given as CSR, with its bricks' touching cells."""
-    graph = sparse.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr), shape=(n, n))
-    comps = connected_components(graph, directed=False)[0] - dead
+    comps = (int(component_labels(indptr, indices, n).max()) + 1 if n else 0) - dead
     art = articulation_points(indptr, indices, n)
     thin = int(np.count_nonzero(_thin(indptr, indices, art, touching)))
     return int(comps), int(np.count_nonzero(art)), thin, np.diff(indptr), art
