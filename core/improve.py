@@ -1,86 +1,33 @@
 """Improvement stage: a large neighbourhood search over the greedy layout.
 
-:func:`improve` takes a finished :class:`~core.model.Layout` (the greedy
-layout with its repairs, :mod:`core.layout`) and makes it better window by
-window, after Kollsker & Malaguti's MIP repair of a constructive layout:
+:func:`improve` takes a finished :class:`~core.model.Layout` (the greedy layout with its
+repairs, :mod:`core.layout`) and makes it better window by window, after Kollsker &
+Malaguti's MIP repair of a constructive layout:
 
-1. **Choose a window.**  Sites are bricks, the most promising first: weak
-   bricks (articulation points of the brick graph and leaves), then small
-   bricks, seeded ties.  The window is a box a few studs wide and a few
-   plate layers tall that starts, ends or is centred at the site; the
-   movable bricks it touches are freed, nearest first, up to a number of
-   cells and of placements, so the freed cells are a union of whole bricks.
-   The first box tried (:data:`NEAREST`) is so large that this limit, not
-   the box, shapes the window: the bricks nearest the site, along a thin
-   wall as well as in a solid block.
-2. **Solve the window exactly** as a small integer program (HiGHS): one
-   binary per catalog placement (every orientation of every allowed part
-   that lies wholly on freed cells, and never across the boundary of the
-   ``apart`` cells); every freed cell covered exactly once.  The objective
-   is bricks, plus a penalty for every brick that would hang from a single
-   neighbour (a leaf, whose neighbour becomes a weak point) -- also for the
-   fixed bricks around the window -- a penalty for a brick with nothing
-   above or below it (an island), and a small one for every side of a
-   brick that continues a seam of a fixed brick below or above it (seams
-   over seams).  Connection to the fixed surroundings: a placement with a
-   filled cell above or below always touches a brick there, so no brick is
-   loose on its own; that the window's bricks do not form a separate group
-   is checked afterwards on the whole layout.  The LP relaxation is solved
-   first; most windows' is integral and so optimal, the others go to
-   branch and bound (up to a size) with the current bricks as the start.  A larger
-   one goes to branch and bound over the placements its relaxation uses and the
-   current bricks (the same relaxation, a few hundred placements); only where
-   those are too many is the window shrunk.
-3. **Keep it** only when the whole layout improves on the key (components,
-   failing joints, weak points, weak points not on a one-cell-thin feature, bricks),
-   compared lexicographically (:data:`SearchKey`; at the end the search goes back to the
-   best layout it held on :func:`quality`, which puts the second kind of weak point
-   first).  While compacting, a re-cover that leaves the key as it is (another cover
-   with as many bricks, the program's optimum on its own objective) is kept too: the
-   search moves along a plateau of equal layouts instead of stopping at its edge.  On
-   18 models x 3 seeds ``normal`` went 6,429 -> 6,404 bricks, weak points that are not
-   thin 2 -> 0, all 16 -> 15; ``best`` (seed 0) 2,062 -> 2,055 (VR headset 223 -> 221,
-   Relativty hw box 134 -> 131; soap holder 83 -> 84).  Kept sideways in both phases it
-   did less (``best`` 2,059); in the full key's phase alone, worse (2,076).  While weak
-   points count, a re-cover that is not kept
-   is solved again with its new bricks that were weak points priced higher:
-   the program sees leaves, not articulation points, and this shows it the
-   ones its first answer made.
-
+1. **Choose a window.**  Sites are bricks, weak ones first (articulation points and leaves
+   of the brick graph), then small ones, seeded ties.  A box at the site frees the movable
+   bricks it touches, nearest first, up to a number of cells and placements, so the freed
+   cells are whole bricks; the first box (:data:`NEAREST`) is so large that this limit
+   shapes the window.
+2. **Solve it exactly** (:func:`_solve_window`, HiGHS): one binary per placement of an
+   allowed part wholly on freed cells (never across the boundary of the ``apart`` cells),
+   every freed cell covered once; the objective is bricks plus penalties for leaves (fixed
+   bricks around the window too), islands and seams over seams.  A placement with a filled
+   cell above or below always touches a brick there; that the window's bricks do not form
+   a separate group is checked on the whole layout.
+3. **Keep it** only when the whole layout improves on :data:`SearchKey` (lexicographic);
+   while compacting, an equal re-cover is kept too: the search moves along a plateau.
 4. **Sweep the layers** at the end of each search (:meth:`_Search.sweep_layers`): each
-   layer of bricks of one height, a few hundred studs at a time, re-covered
-   by parts of that height only, kept on the same key.  A window frees a few
-   hundred cells of a thick slab in all three directions, too few studs of
-   one layer for long bricks to fit again; a layer window's program is
-   two-dimensional, so it can be wide.
+   layer re-covered by parts of its own height, wide enough for long bricks to fit again.
+5. **Mend weak points** (``normal``, :func:`_repair_weak`): more windows at weak bricks.
 
-5. **Mend weak points** (``normal``, :func:`_repair_weak`): while weak points remain
-   (those on one-cell-thin features too: covering such a feature otherwise often gives
-   its leaf more neighbours), more windows are tried at the weak bricks first, up to
-   :data:`WEAK_WINDOWS`; kept on the full key, so they also save bricks.  Where weak
-   points are still left, up to as many again at weak bricks only, every window shape
-   at each.
-
-The search runs in two phases: first a compaction whose key leaves weak
-points out (it finds layouts near the fewest bricks), then the full key,
-which removes weak points again, usually at the cost of some bricks.
-Should the result still be worse than the input on the full key, the full
-key is searched from the input instead, so the result is never worse.
-``best`` runs ``normal``'s search from several seeds (:func:`best_starts`: 8 up to
-1,000 cells, 3 up to 5,000, 2 up to 30,000, else one) and continues from the best of them with
-more windows of the same sizes, all within a number of simplex iterations
-(:attr:`Effort.work`, :data:`SEED_WORK_SHARE`).  After each of its stages the layouts
-found so far, where they are two or more, are **merged** (:func:`_merged`): the exact
-program of :func:`leaf_free_bound` with its cuts, over only the bricks those layouts
-have, gives the fewest of them that make a layout of the same kind (one piece per region,
-no weak point or only thin ones); one block may come from one search and the next from
-another.  On 18 models, seed 0: 2,058
--> 2,053 bricks, none more (OpenBot body STL 178 -> 176, HMD body 160 -> 158, VR headset
-221 -> 220), 484 -> 491 s; each merge took under a second.
-
-The work is counted in windows (and, for ``best``, simplex iterations), not seconds,
-so the result is the same for the same layout, parts, effort and seed (HiGHS runs
-single-threaded; its time limit is only a safety net that ordinary windows never reach).
+The search runs in two phases, a compaction whose key leaves weak points out, then the full
+key, and goes back to the best layout it held on :func:`quality`; should that be worse than
+the input, the full key is searched from the input instead, so the result is never worse.
+``best`` runs ``normal``'s search from several seeds (:func:`best_starts`), goes on from the
+best within a budget of simplex iterations (:attr:`Effort.work`) and merges the layouts found
+(:func:`_merged`).  Work is counted in windows and simplex iterations, not seconds, so the
+same input, effort and seed give the same result (HiGHS runs single-threaded).
 """
 
 from __future__ import annotations
@@ -152,24 +99,12 @@ class Effort:
 
 #: The first window box tried at every site: so large that the bricks nearest the site fill
 #: the window up to its most freed cells, whatever the shape there.  On a wall one stud
-#: thick it reaches along the wall, where the smaller boxes free a few bricks.  With it (and
-#: ``normal``'s mip_columns 700 -> 500, which keeps its windows' branch and bound short), on
-#: 18 models x 3 seeds: bricks 7,283 -> 6,698, weak points 47 -> 23, seconds 121 -> 207.
-#: ``best``'s windows of up to 300 cells go to branch and bound up to 700 placements (2,500
-#: with 1,000 nodes took 430 s on the soap holder, 34 s now).
+#: thick it reaches along the wall, where the smaller boxes free a few bricks.
 NEAREST = (16, 16, 9)
 
 #: ``normal`` ends, while weak points remain, by trying up to this many windows as ``best``
 #: tries them, the weak bricks first, until none is left.  Weak points on one-cell-thin
-#: features are tried too.  The Relativty hw box keeps 2 weak points (1 thin) at 136 bricks
-#: without them, 1 (thin) at 135 with them (7.1 -> 10.4 s; 120 windows: 134 bricks in 13.6 s);
-#: the bunny 481 bricks -> 476 with its 2 thin ones.  (When ``normal``'s windows were smaller,
-#: 120 of them mended the soap holder's thin weak point, 91 bricks -> 87, and the eyes
-#: panel's, 82 -> 83: ``normal`` alone leaves neither now.)  Since windows whose relaxation is
-#: fractional are solved over the placements it uses, 120 rather than 60: on 18 models x 3
-#: seeds weak points that are not thin 5 -> 3, bricks 6,419 -> 6,421, seconds 215 -> 229 (the
-#: phone holder, seed 0: 54 bricks with such a weak point -> 55 with none; 240: 6,413 bricks,
-#: the same weak points, 255 s).
+#: features are tried too.
 WEAK_WINDOWS = 120
 
 #: The window boxes tried at a site, in this order, by ``normal`` and ``best``.
@@ -178,36 +113,11 @@ SHAPES = (NEAREST, (6, 6, 3), (4, 4, 6), (8, 4, 4), (4, 8, 4), (8, 8, 4), (6, 6,
 #: The effort levels: ``fast`` is the greedy layout only; ``best`` continues from
 #: ``normal``'s result with more windows (so it is never worse on the key).  ``normal``'s
 #: windows are as large as ``best``'s (up to 300 cells, 2,500 placements, branch and bound
-#: up to 700): with windows of up to 200 cells (1,500 placements, 500; without the two last
-#: shapes) it gave 2,193 bricks on 19 models, now 2,165 (VR headset 260 -> 250, Stanford
-#: bunny 485 -> 474, soap holder 87 -> 84; charger stand 60 -> 62, OpenBot body STL
-#: 198 -> 199), in about 1.5x the time (spheres of 2,636 and 23,439 cells: 3.3 -> 4.2 s,
-#: 17.6 -> 20.4 s).  Once the windows' placements and leaf targets were compiled (same
-#: layouts, in less time), ``normal``'s windows per cell went 0.08 -> 0.12 (the hw box's
-#: ``normal`` then took 10.1 -> 5.7 s, the soap holder's 7.5 -> 6.8 s): on 19 models
-#: 2,169 -> 2,148 bricks, the same 4 weak points (all thin) (OpenBot body STL 199 -> 190,
-#: HMD body 165 -> 160, drilling plate 283 -> 279, VR headset 250 -> 246, hw box 135 -> 133;
-#: Stanford bunny 476 -> 480).  0.16 gave 2,136 bricks but 6 weak points (hw box 1 -> 3).
-#: (Presolving the windows' integer programs saved up to 1.4 s a model but changed which
-#: of equal re-covers is kept: the phone mount's proven fewest, 20, became 21.)
-#: The cover matrices compiled (same layouts, in less time), ``best``'s last search, from the
-#: best of its seeds, tried 2 windows per cell (up to 6,000,
-#: and :data:`MAX_WORK`): where a model is large its seeds are few, and the windows still
-#: find fewer bricks long after ``normal``'s share.  Windows per cell 0.15 (up to 600) ->
-#: 0.5 (1,500) -> 1 (3,000) -> 2 (6,000), seed 0: VR headset 229 -> 225 -> 224 -> 223 bricks,
-#: Stanford bunny 471 -> 462 -> 460 -> 455, drilling plate 277 -> 275; on small models,
-#: where 8 seeds came first, nothing changed (soap holder 84, eyes panel 79) and the time
-#: hardly did (soap holder 67 s either way).  Larger windows (450 or 700 cells) or more seeds
-#: (6 or 10 at 1,500 windows: 225) did no better for the time.  Since windows whose relaxation
-#: is fractional are solved over the placements it uses (their branch and bound takes longer
-#: than shrinking them did), 1 window per cell (up to 3,000) finds as few bricks in less time:
-#: seed 0, two runs side by side, 2 -> 1.5 -> 1: VR headset 223 (66 s alone) -> 221 -> 223
-#: (43 s), Stanford bunny 452 (51 s alone) -> 456 -> 453 (41 s), drilling plate 271 -> 271 ->
-#: 270 (27 s), soap holder 83 -> 83 -> 83 (69 s; its 8 seeds of ``normal`` take most of it).
-#: ``best``'s work: the seconds it took, two runs side by side, were those of its simplex
-#: iterations at 58-78 us each (teapot 807,000 in 46 s, soap holder 868,000 in 68 s, hw box
-#: 1,165,000 in 78 s, VR headset 681,000 in 43 s, Stanford bunny 649,000 in 46 s); at most
-#: 750,000 keeps the VR headset's and the bunny's as they were, and the others near 50 s.
+#: up to 700).  ``best``'s last search, from the best of its seeds, tries 1 window per cell
+#: (up to 3,000, and :data:`MAX_WORK`): where a model is large its seeds are few, and the
+#: windows still find fewer bricks long after ``normal``'s share.  ``best``'s ``work`` is
+#: counted in simplex iterations, which take about the same time each, so it stands for a
+#: time limit that gives the same result on every machine.
 EFFORT_LEVELS = {
     "fast": Effort(0.0, 0, 0, 0, (), 0.0, 0, 0, 0, 0.0, 0, 0),
     "normal": Effort(0.12, 120, 1000, 300, SHAPES, 0.4, 2500, 700, 200, 10.0, 300, 4, WEAK_WINDOWS),
@@ -218,16 +128,8 @@ EFFORT_LEVELS = {
 #: ``best`` runs ``normal``'s search from several seeds (the seed, then the next ones) and
 #: goes on from the best result on the key: the search's result varies with the seed by
 #: several per cent in bricks.  (most cells of the layout, seeds), smallest first; larger
-#: layouts one.  Small layouts' ``normal`` takes 2-7 s, so they get 8: from 3 to 8 seeds the
-#: charger stand went 59 -> 58 bricks, the phone holder 53 -> 51, the soap holder 86 -> 84,
-#: the eyes panel 80 -> 79, and 6 others stayed (``best`` then took 17-62 s, two at a time).
-#: Where :func:`improve` gets another start (``others``: the relaxed layout), the seeds are
-#: shared among the starts (8 -> 4 + 4, 3 -> 2 + 2): on 19 models 2,119 -> 2,092 bricks, none
-#: worse (VR headset 242 -> 229, OpenBot body STL 190 -> 179, charger stand 58 -> 56).
-#: Since the layouts found are merged (:func:`_merged`), two seeds up to 30,000 cells, one
-#: before: drilling plate (5,601 cells) 269 -> 265 bricks, 25 -> 32 s; sphere of 100 mm
-#: (23,439) 1,572 -> 1,561, 47 s; the Stanford bunny (5,074) stays at 452, as its first
-#: seed's work leaves the second none.
+#: layouts one.  Where :func:`improve` gets another start (``others``: the relaxed layout),
+#: the seeds are shared among the starts.
 BEST_STARTS = ((1_000, 8), (5_000, 3), (30_000, 2))
 
 #: The share of ``best``'s work (:attr:`Effort.work`) its searches from several seeds may
@@ -240,9 +142,7 @@ SEED_WORK_SHARE = 0.6
 MAX_WORK = 2_500_000
 
 #: Layer windows times bricks that sweeping the layers may spend at the end of a search: it
-#: starts another round only while the rounds so far, one more time, stay within it (the
-#: 100 mm sphere's 1,700 bricks: one round of about 90 layer windows, 5 s; the bunny's
-#: 500 bricks: all four rounds).
+#: starts another round only while the rounds so far, one more time, stay within it.
 MAX_LAYER_WORK = 150_000
 
 #: Objective weights of the window program: per brick, per leaf (a brick
@@ -255,16 +155,16 @@ COMPACT_LEAF_COST = 1.0
 ISLAND_COST = 6.0
 SEAM_COST = 0.02
 #: While weak points count: how often a window whose re-cover leaves the key as it was is
-#: solved again, and the extra price each time of each of its new bricks that was a weak point.
+#: solved again, and the extra price each time of each of its new bricks that was a weak point
+#: (the program prices leaves, not weak points; this shows it those its answer made).
 WEAK_RETRIES = 2
 WEAK_COST = 1.5
 
 Key = tuple[int, int, int, int, int]
 #: The key each window is kept on: (components, failing joints, weak points, weak points
 #: that are not thin, bricks), none counted while compacting: all weak points before those
-#: that are not thin, unlike :func:`quality`.  Keeping windows on :func:`quality` closed paths
-#: the search takes through layouts with a weak point that is not thin: ``best`` on the VR
-#: headset 223 -> 240 bricks, on the 46 mm sphere 184 -> 191.
+#: that are not thin, unlike :func:`quality`, whose order would close paths the search
+#: takes through layouts with a weak point that is not thin.
 SearchKey = tuple[int, int, int, int, int]
 
 #: What the window program returns when its LP relaxation is fractional and it, and the
@@ -355,8 +255,8 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
 
 #: Seconds :func:`_merged`'s program may take; where its fewest cover is not proven by
 #: then, the merge is dropped rather than keeping a cover that a faster machine would have
-#: bettered (the merges measured took under a second, so their result is the machine's
-#: only where one takes about this long).
+#: bettered (merges usually take well under this, so the result rarely depends on the
+#: machine).
 MERGE_S = 30.0
 
 
@@ -428,7 +328,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     budget = int(np.clip(round(level.windows_per_cell * layout.grid.count),
                          level.min_windows, level.max_windows))
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
-    # the effort stays seconds (the 1 m cube's 22,652 bricks: 1,000 windows took 121 s)
+    # the effort stays seconds
     budget = min(budget, max(1, int(MAX_WORK / max(len(layout.bricks), 1))))
     search = _Search(layout, parts, seed, frozen, apart, failing_joints)
     start = search.strict
@@ -462,11 +362,7 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
 
     The first round tries each window shape at every site before the next shape, so on a
     large layout it tries one or two shapes at the weak bricks and spends the rest on the
-    others; the second tries them all at the weak bricks.  On 18 models x 3 seeds it left 2
-    weak points that are not thin, was 3 (the eyes panel, seed 1: 84 bricks with one -> 88
-    with none), and 16 weak points in all, was 18, for 8 bricks more (6,421 -> 6,429) and
-    225 -> 247 s; the 100 mm sphere's 6 weak points, one not thin, went (1,651 -> 1,665
-    bricks, 12.3 -> 12.6 s)."""
+    others; the second tries them all at the weak bricks."""
     def none_weak() -> bool:
         return search.key[2] == 0
 
@@ -742,9 +638,9 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                                np.concatenate([cand, q]))), shape=(len(cand), n))
     leaf.data[:] = 1.0
     lp = _leaf_free_lp(sparse.vstack([cover, leaf]).tocsc(), m, island)
-    # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, did
-    # not finish a 1,636-cell model's in 10 s), its bound certified by weak duality; a large
-    # one without the leaf rows, which it gets as they are broken (:func:`_relaxed_cuts`)
+    # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, is slow
+    # on such programs), its bound certified by weak duality; a large one without the leaf
+    # rows, which it gets as they are broken (:func:`_relaxed_cuts`)
     large = n > LP_CUT_VARIABLES
     h = _highs((LP_CUT_SHARE if large else 0.5) * time_limit_s, random_seed=0, solver="ipm",
                run_crossover="off", presolve="off")
@@ -761,7 +657,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
             return result(None, True, None, "infeasible")
         bound = max(bound, found)
     lp.integrality_ = [highspy.HighsVarType.kInteger] * n
-    # a large program's presolve does not watch the clock (the drilling plate's took 80 s)
+    # a large program's presolve does not watch the clock
     h = _highs(max(time_limit_s - (time.perf_counter() - start), 0.05), random_seed=0,
                mip_abs_gap=1.0 - 1e-3, presolve="off" if large else "choose")
     h.passModel(lp)
@@ -1005,11 +901,8 @@ def _certified(h: highspy.Highs) -> int:
 #: :func:`leaf_free_bound` and get those it breaks, and degree cuts, a round at a time
 #: (:func:`_relaxed_cuts`), until this share of the time limit, at most this many degree cuts
 #: a round: their integer program's first round seldom ends in the time, so its lazy cuts
-#: never come, and with all leaf rows the relaxation itself did not (the drilling plate's
-#: 26,912 took it past 120 s; the 148 it breaks, 42 s).  Degree cuts: the bound in one piece
-#: without weak points in 20 s: VR headset 190 -> 194, HMD body 150 -> 154, OpenBot body
-#: STL 167 -> 168; on smaller programs the cuts took the integer program's time (the lens
-#: mount's proof of 32: 9.6 -> 18 s; phone mount 20 -> 19).
+#: never come, and with all leaf rows the relaxation itself often does not end either.
+#: Smaller programs skip these rounds: there the cuts would take the integer program's time.
 LP_CUT_VARIABLES = 10_000
 LP_CUT_SHARE = 0.8
 LP_CUTS = 4000
@@ -1776,6 +1669,7 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     h.setOptionValue("output_flag", False)
     h.setOptionValue("threads", 1)
     h.setOptionValue("random_seed", 0)
+    # no presolve: it would change which of equal re-covers is kept
     h.setOptionValue("presolve", "off")
     h.setOptionValue("time_limit", level.time_limit_s)
     h.setOptionValue("mip_max_nodes", level.node_limit)

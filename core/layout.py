@@ -3,42 +3,29 @@
 :func:`lay_out` turns a :class:`~core.model.Grid` into a
 :class:`~core.model.Layout` in three steps.
 
-1. **Brick cells.**  A brick is three plate layers tall, so the cells are
-   grouped into three-layer column pieces ("groups") where bricks will go,
-   and plate cells elsewhere.  Candidates: the three global phases (groups
-   at layers ``p + 3t``) and a patch-wise choice (the largest connected
-   patch of columns that fill some three layers first, so each part of the
-   model gets its own phase).  In every candidate a group becomes plates
-   again where two neighbouring columns would otherwise touch only side by
-   side (a thin floor beside a wall, a staircase, two phases meeting),
-   and in a second version of it also beside plate cells that could only
-   hang by one stud.  ``relaxed`` (``best``'s second start) takes instead the
-   brick layers of the exact cover's LP relaxation (:func:`relaxed_brick_groups`).
-2. **Merging**, per candidate.  Bottom-up, per layer the brick slab and
-   then the plate slab, a raster scan takes the first uncovered cell and
-   chooses among the footprints of the allowed parts anchored there by a
-   score: area, a large bonus for joining bricks below that belong to
-   different components so far (union-find over the placed bricks), a
-   bonus for resting on two or more bricks, penalties for seams on the
-   seams below (bricklayer's bond), for leaving a brick with a single
-   neighbour (a leaf: its neighbour becomes a weak point) and for orphaning
-   a cell; a small bonus for the layer's preferred direction and a seeded
-   tie-break.  Scan direction and axis alternate between layers; each slab
-   is merged with four scans and the best total kept.  The candidate with
-   the fewest bricks plus weak points and extra components wins.
-3. **Repair** (after Testuz et al. 2013).  The brick graph is analysed
-   (components per region, articulation points).  Around every seam where
-   two components of one region meet and every leaf or other weak brick
-   the bricks of a neighbourhood are split back into cells and merged
-   again with another scan, radius, brick-to-plate choice or weights; a
-   change is kept only when (components, weak points, bricks) improves
-   lexicographically, where removing weak points may not take the brick
-   count above :data:`BRICK_BUDGET` times the fewest bricks of any merge.
-   The number of attempts is bounded, so the result is deterministic.
+1. **Brick cells.**  A brick is three plate layers tall, so the cells are grouped into
+   three-layer column pieces ("groups") where bricks will go, and plate cells elsewhere.
+   Candidates: the three global phases (groups at layers ``p + 3t``) and a patch-wise
+   choice (:func:`patch_groups`), so each part of the model gets its own phase.  In every
+   candidate a group becomes plates again where neighbouring columns would otherwise touch
+   only side by side, and in a second version also beside plate cells that could only hang
+   by one stud.  ``relaxed`` (``best``'s second start) takes instead the brick layers of the
+   exact cover's LP relaxation (:func:`relaxed_brick_groups`).
+2. **Merging**, per candidate.  Bottom-up, per layer the brick slab and then the plate
+   slab, a raster scan takes the first uncovered cell and chooses among the footprints of
+   the allowed parts anchored there by a score (:data:`WEIGHTS`: area, joining components,
+   seams over seams, leaves, orphaned cells, seeded ties).  Scan direction and axis
+   alternate between layers; each slab is merged with four scans and the best kept.  The
+   candidate with the fewest bricks plus weak points and extra components wins.
+3. **Repair** (after Testuz et al. 2013).  Around every seam where two components of one
+   region meet and every weak brick, the bricks of a neighbourhood are split back into
+   cells and merged again with another variant (:data:`REPAIR_VARIANTS`); a change is kept
+   only when (components, weak points, bricks) improves lexicographically, within
+   :data:`BRICK_BUDGET`.  The attempts are bounded, so the result is deterministic.
 
-All per-cell work runs in numba (the candidates of step 2 two at a time, in
-threads); Python loops over candidates, repair
-attempts and the final bricks.  Randomness comes only from ``seed``.
+All per-cell work runs in numba (the candidates of step 2 two at a time, in threads);
+Python loops over candidates, repair attempts and the final bricks.  Randomness comes only
+from ``seed``.
 """
 
 from __future__ import annotations
@@ -107,11 +94,9 @@ MAX_REPAIR_WORK = 8_000_000
 BRICK_BUDGET = 1.1
 
 #: ``best`` also starts from a layout whose brick layers the exact cover's LP relaxation
-#: chooses (:func:`relaxed_brick_groups`) where at most this many placements fit (its
-#: interior point takes about 2 s at 43,000, the VR headset's; the drilling plate's
-#: 136,000 took 30 s).  On the VR headset ``best`` then gave 242 -> 229 bricks, on the
-#: OpenBot body STL 190 -> 179: the windows of the improvement cannot move a wall's brick
-#: layers, so where the greedy's phases are poor its result stays poor.
+#: chooses (:func:`relaxed_brick_groups`) where at most this many placements fit (beyond,
+#: its interior point takes tens of seconds): the windows of the improvement cannot move a
+#: wall's brick layers, so where the greedy's phases are poor its result stays poor.
 RELAXED_PLACEMENTS = 50_000
 #: Time limit of that relaxation, and the least value that makes a placement a brick group.
 RELAXED_TIME_S = 20.0
