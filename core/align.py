@@ -1,42 +1,33 @@
 """Alignment: place a new version of a part where the previous version stood.
 
-Between two design iterations the user may have moved or rotated the part
-(paper, "Calculating changes between design iterations").  Triangles are no
-features to match on: a re-export tessellates everything anew.  Planar
-*sides* survive, so the alignment works on them:
+Between two design iterations the user may have moved or rotated the part (paper,
+"Calculating changes between design iterations").  A re-export tessellates everything anew,
+so triangles are no features to match on; planar *sides* survive, and the alignment uses them:
 
-1. **Sides.**  For a mesh, neighbouring coplanar triangles are merged into
-   facets (``trimesh``'s ``facets``); for a B-rep (STEP, FCStd) the planar
-   faces are taken directly, with their exact normals, areas and centroids.
-   Patches on one plane (same outward normal within
-   :data:`PLANE_ANGLE_DEG`, same offset within :data:`PLANE_OFFSET_MM`) are
-   one *plane*; planes with one normal are one *direction* (the paper's
-   "side": all polygons with the same normal).  Only planes of at least
-   :data:`MIN_SIDE_FRACTION` of the surface area count.
-2. **Rotation hypotheses.**  Every pair of non-parallel large directions of
-   the new version is matched with every pair of directions of the
-   previous version that encloses the same angle and whose areas agree
-   within :data:`AREA_RATIO`; each match fixes a rotation.  A rotation is
-   scored by the area of the new directions it maps onto a previous
-   direction (an extended Gaussian image comparison); the best distinct
-   ones are kept, and always the identity.
-3. **Translation.**  Under a rotation, a new plane ``n.x = d`` maps onto a
-   previous plane ``n'.x = d'`` when ``n'.t = d' - d``.  Per direction
-   the shift ``d' - d`` supported by the most plane area wins (a 1-D
-   Hough vote, so edited planes do not disturb it); the shifts of all
-   directions give ``t`` by least squares, directions that no plane fixes
-   come from the volume centroids.  Then rotation (Kabsch on the matched
-   normals) and translation (least squares on the matched planes) are
-   refined once on all matched planes; for exact planes this is exact.
-4. **Check.**  Each candidate is scored by the overlap of the two volumes
-   (intersection over union of their occupancy on a fine common grid,
-   :func:`volume_overlap`), and the best one wins.  Below
-   :data:`MIN_OVERLAP` there is no confident match: the new version is
-   taken as placed where it is (the identity), and the alignment says so.
+1. **Sides.**  A mesh's neighbouring coplanar triangles are merged into facets; a B-rep's
+   (STEP, FCStd) planar faces are taken directly, with their exact normals, areas and
+   centroids.  Patches on one plane (normal within :data:`PLANE_ANGLE_DEG`, offset within
+   :data:`PLANE_OFFSET_MM`) are one *plane*; planes with one normal are one *direction*
+   (the paper's "side").  Only planes of at least :data:`MIN_SIDE_FRACTION` of the surface
+   area count.
+2. **Rotation hypotheses.**  Every pair of non-parallel large directions of the new version
+   is matched with every pair of the previous one that encloses the same angle, areas
+   within :data:`AREA_RATIO`; each match fixes a rotation, scored by the area of the new
+   directions it maps onto previous ones (an extended Gaussian image comparison).  The best
+   distinct ones are kept, and always the identity.
+3. **Translation.**  Under a rotation, a new plane ``n.x = d`` maps onto a previous plane
+   ``n'.x = d'`` when ``n'.t = d' - d``.  Per direction the shift supported by the most
+   plane area wins (a 1-D Hough vote, so edited planes do not disturb it); the shifts give
+   ``t`` by least squares, and what no plane fixes comes from the volume centroids.  Then
+   rotation (Kabsch) and translation are refined once on all matched planes; for exact
+   planes this is exact.
+4. **Check.**  Each candidate is scored by the intersection over union of the two volumes
+   on a fine common grid (:func:`volume_overlap`), and the best one wins.  Below
+   :data:`MIN_OVERLAP` there is no confident match: the new version is taken as placed
+   where it is (the identity), and the alignment says so.
 
-All bulk work is vectorised with numpy, scipy's KD-tree and
-:func:`core.voxelize.legofy`; Python loops only run over the few planes and
-hypotheses.
+Bulk work is vectorised (numpy, scipy's KD-tree, :func:`core.voxelize.legofy`); Python
+loops only run over the few planes and hypotheses.
 """
 
 from __future__ import annotations

@@ -1,39 +1,29 @@
 """Exact parametric LEGO brick solids whose faces carry tags.
 
-These are real LEGO bricks (studs, hollow underside, tubes, pins) as the
-workbench shows them and as the paper's merge works on them: merging
-neighbouring bricks removes the faces where they touch, found by tag, and
-sews the rest into one solid (:func:`merged_solid`; "Merging and
-splitting").  Printed parts are not made from these solids any more: they
-keep the model whole and get studs and sockets only where they meet LEGO
-(:mod:`core.printed`, :mod:`core.interfaces`).  This
-module builds the brick solid with OpenCascade (through cadquery's OCP)
-and tags every face from the construction history of the Boolean
-operations, never by guessing from positions afterwards.
+These are real LEGO bricks (studs, hollow underside, tubes, pins) as the workbench shows
+them and as the paper's merge works on them: merging neighbouring bricks removes the faces
+where they touch, found by tag, and sews the rest into one solid (:func:`merged_solid`;
+"Merging and splitting").  Printed parts are not made from these solids: they keep the
+model whole and get studs and sockets only where they meet LEGO (:mod:`core.printed`,
+:mod:`core.interfaces`).  The solid is built with OpenCascade (through cadquery's OCP) and
+every face is tagged from the construction history of the Boolean operations, never by
+guessing from positions afterwards.
 
-Nothing here sees the user's input (the callers build bricks from a layout
-and the catalog): wrong arguments raise ValueError or TypeError, an
-OpenCascade step that fails RuntimeError (:class:`BooleanFailed`,
-:class:`TessellationFailed`).
+Nothing here sees the user's input (the callers build bricks from a layout and the
+catalog): wrong arguments raise ValueError or TypeError, an OpenCascade step that fails
+RuntimeError (:class:`BooleanFailed`, :class:`TessellationFailed`).
 
-Face indices
-------------
-``BrickSolid.tags`` maps a tag to indices into :func:`face_list` of the
-solid: the faces in the order of ``TopExp.MapShapes_s(shape, TopAbs_FACE,
-map)`` (index ``i`` is ``map.FindKey(i + 1)``), which is also the order of
-``TopExp_Explorer`` and of cadquery's ``Shape.Faces()``.  The order depends
-only on the shape's topology, so it survives copying, moving (a located
-shape keeps its faces) and a BREP round trip (``BRepTools.Write_s`` /
-``Read_s``, the way shapes travel into FreeCAD); it does not survive any
-operation that rebuilds the shape (a Boolean, a fillet, re-import as STEP).
+**Face indices.**  ``BrickSolid.tags`` maps a tag to indices into :func:`face_list` of the
+solid: the order of ``TopExp.MapShapes_s(shape, TopAbs_FACE, map)`` (index ``i`` is
+``map.FindKey(i + 1)``), which is also that of ``TopExp_Explorer`` and of cadquery's
+``Shape.Faces()``.  It depends only on the shape's topology, so it survives copying, moving
+and a BREP round trip (``BRepTools.Write_s`` / ``Read_s``, the way shapes travel into
+FreeCAD), but not an operation that rebuilds it (a Boolean, a fillet, a re-import as STEP).
 
-Clearance
----------
-``BrickGeometry.clearance`` (a diameter, default 0: real LEGO) shrinks
-the stud, the tube's outside and the pin by it, widens the tube's inside by
-it and thins the cavity's walls by half of it; the outer size stays
-``n * pitch - 2 * play``.  Printed parts do not use it: their fit is
-:class:`core.interfaces.Fit`.
+**Clearance.**  ``BrickGeometry.clearance`` (a diameter, default 0: real LEGO) shrinks the
+stud, the tube's outside and the pin by it, widens the tube's inside by it and thins the
+cavity's walls by half of it; the outer size stays ``n * pitch - 2 * play``.  Printed parts
+do not use it: their fit is :class:`core.interfaces.Fit`.
 """
 
 from __future__ import annotations

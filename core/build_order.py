@@ -1,53 +1,33 @@
 """Build order: the numbered assembly steps of a layout, bottom-up.
 
-A *unit* is what a person puts down in one motion: a LEGO brick, or a
-whole printed part (all bricks with the same ``printed_part``).  Two units
-*touch* where a cell of one lies directly under a cell of the other.
+A *unit* is what a person puts down in one motion: a LEGO brick, or a whole printed part
+(all bricks with the same ``printed_part``).  Two units *touch* where a cell of one lies
+directly under a cell of the other.  Order (:func:`plan`), one pass with a priority queue
+(placing a unit only makes more units placeable):
 
-Order (:func:`plan`):
+* A LEGO unit can be placed once it *attaches*: it stands on the base (layer ``k == 0``)
+  or on a placed unit, or a placed unit sits on it (hung under an overhang).  A printed
+  part also waits until every unit under any of its cells is in place.
+* Of the placeable units, the lowest layer goes first.  Within a layer a unit over air
+  goes by its *reach* (:func:`reach`), so an overhang or a bridge grows out from all its
+  supports in turn (a bridge built from one end carries twice the length built from
+  both); units of equal reach follow a serpentine over bands of :data:`BAND_STUDS` studs
+  along y (x rising in even bands, falling in odd ones), so consecutive units are neighbours.
+* When nothing attachable is left (a floating piece, printed parts that carry each other
+  in a cycle), a printed part that touches a placed unit is inserted *early*; failing
+  that, the lowest remaining unit is placed *unattached*.  Both are recorded.
 
-* A LEGO unit can be placed once it *attaches*: it stands on the base
-  (its lowest layer is ``k == 0``), or on a placed unit (studs below it),
-  or a placed unit sits directly on it (it is hung under an overhang).
-* A printed part can be placed once every unit directly under any of its
-  cells is in place and it attaches as above; it is then inserted as one
-  piece.
-* Among the units that can be placed, the one with the lowest layer goes
-  first, so the model grows bottom-up, layer by layer.  Within a layer, a
-  unit over air goes by its *reach* (:func:`reach`): how far, in steps of
-  :data:`REACH_STUDS` studs, it sticks out from the nearest cell of its layer
-  that stands on a full column down to the ground.  An overhang, or a bridge
-  between two supports, so grows out from all its supports in turn, never
-  further out on one side than it must (a bridge built from one end carries
-  twice the length built from both).  Units of equal reach (every unit of a
-  build without overhangs) follow a serpentine over bands of :data:`BAND_STUDS` studs along y
-  (x rising in even bands, falling in odd ones), so consecutive units are
-  neighbours.  Placing a unit can only make more units placeable, so this is
-  one pass with a priority queue over the units.
-* A layout can contain units that never attach that way (a piece that
-  floats because the structure is split, or printed parts that carry each
-  other in a cycle).  When nothing attachable is left, a printed part that
-  touches a placed unit is inserted *early* (before everything under it is
-  in place); failing that, the lowest remaining unit is placed *unattached*.
-  Both are recorded, and the loop places one unit per round, so it ends.
+Steps: consecutive LEGO units of one layer form a step of at most ``bricks_per_step``
+bricks while each new brick lies within :data:`NEAR_STUDS` studs of the step's footprint;
+a printed part is a step of its own.  A LEGO unit only attaches to units of another layer,
+so every unit of a step attaches to units of earlier steps.
 
-Steps (:func:`plan`): consecutive LEGO units of one layer are grouped into
-a step of at most ``bricks_per_step`` bricks while each new brick lies within
-:data:`NEAR_STUDS` studs of the step's footprint; a printed part is a step
-of its own.  Because a LEGO unit only ever attaches to units of another
-layer, every unit of a step attaches to units of earlier steps.
-
-Standing (:func:`standing`): every partial build is checked with the forces;
-a step is put earlier when that lets the build stand.  Where no order does,
-a *prop* (a stack of 1x1 bricks and plates stood on the table or baseplate
-under a cell with nothing under it down to the ground, so never where a brick
-goes later; it only presses) holds the step's furthest-reaching brick up,
-until the build stands without it: as a builder holds up an overhang with a
-spare brick.
-
-Assembly time (:func:`assembly_seconds`): ``seconds_per_brick`` per LEGO
-brick plus ``seconds_per_part`` per printed part insertion (finding the part
-by its engraved ID, turning it the right way and pressing it onto its studs).
+Standing (:func:`standing`): every partial build is checked with the forces; a step is put
+earlier when that lets the build stand.  Where no order does, a *prop* (a stack of 1x1
+bricks and plates on the ground under a cell with nothing under it, so never where a brick
+goes later; it only presses) holds the step's furthest-reaching brick up until the build
+stands without it, as a builder holds up an overhang with a spare brick.
+:func:`assembly_seconds`: the time to assemble, per LEGO brick and per printed part.
 """
 
 from __future__ import annotations
@@ -633,10 +613,9 @@ class _Spots:
         bricks ``present`` in place) stands: one prop under the brick that reaches furthest
         out, then one under each brick that can have one, among the step's bricks; failing
         that, among the placed bricks they touch, then the placed bricks those touch, and so
-        on outwards until a ring of bricks has one.  (Three rings, the step's bricks and two
-        more, left 8 steps of the phone charger stand's 58-brick layout tipping; its prop is
-        on the fourth.)  A prop goes only where the air at its foot joins the air around the
-        build (a hand can put it there)."""
+        on outwards until a ring of bricks has one (no fixed number of rings: even a small
+        layout's prop can be four rings out).  A prop goes only where the air at its foot joins
+        the air around the build (a hand can put it there)."""
         ring = set(step.bricks)
         seen = set(ring)
         outside = self.open_air(present)
@@ -753,7 +732,8 @@ def numbered(layout: Layout, order: BuildOrder) -> Layout:
 
 def assembly_seconds(layout: Layout, seconds_per_brick: float = SECONDS_PER_BRICK,
                      seconds_per_part: float = SECONDS_PER_PART) -> float:
-    """Assembly estimate: ``seconds_per_brick`` per LEGO brick + ``seconds_per_part`` per printed part.
+    """Assembly estimate: ``seconds_per_brick`` per LEGO brick + ``seconds_per_part`` per printed part
+    (finding the part by its engraved ID, turning it the right way, pressing it onto its studs).
 
     The two are the user's settings (command line, document properties), so a
     value that is not a number of seconds >= 0 is an :class:`InputError`.

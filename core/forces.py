@@ -1,79 +1,33 @@
 """Force stage: does the layout stand, with what it carries?
 
-The graph test of :mod:`core.stability` says which bricks hold together; this
-stage says whether they *hold*: a static equilibrium of rigid bodies whose
-joints have the strength of real LEGO, solved as one linear program with
-HiGHS (after StableLego, Liu et al. 2024, and Luo et al. 2015).
+The graph test of :mod:`core.stability` says which bricks hold together; this stage says
+whether they *hold*: a static equilibrium of rigid bodies (every LEGO brick, every printed
+part) whose joints have the strength of real LEGO, solved as linear programs with HiGHS
+(after StableLego, Liu et al. 2024, and Luo et al. 2015).  Gravity acts at each body's
+centre of mass (:data:`core.catalog.MASS_G`, :func:`printed_mass_g`); a brick's ``load_g``
+(layout.json) and :class:`Load` boxes (``--load``) add masses.
 
-**Bodies.**  Every LEGO brick is a rigid body, and so is every printed part
-(all its bricks).  Gravity acts at its centre of mass: a LEGO part's mass is
-its catalog weight (:data:`core.catalog.MASS_G`), a printed part's is its
-volume printed with the slicer profile's walls and infill in its filament's
-density (:func:`printed_mass_g`).  Extra masses rest on bricks: a brick's
-``load_g`` (layout.json) at its centre, and :class:`Load` boxes (``--load``)
-shared out over the cells they touch.
+**Joints.**  Where a cell of one body lies directly under a cell of another, the lower one's
+stud is gripped at contact points (:func:`contact_directions`, :data:`CONTACT_RADIUS` from
+its axis), each taking compression without limit and tension (the clutch) up to
+``clutch_n`` where both stud and socket are whole (a printed part's incomplete one presses
+but does not hold); each stud also takes shear.  Bodies side by side do not push on each
+other (on the safe side).  The bottom layer rests on a ``table`` (compression, friction
+:data:`TABLE_FRICTION`) or a ``baseplate`` (its studs grip).  A LEGO brick is also a beam:
+its bending moment between studs stays within :func:`bending_capacity_nmm` (ABS).
 
-**Joints.**  Where a cell of one body lies directly under a cell of another,
-the lower one's stud is in the upper one's underside.  A stud is gripped at
-contact points (:func:`contact_directions`): under a 1-wide brick by the two
-side walls and the pins or end walls along it (four points), under a 2-wide
-brick by the outer wall beside it and, along the brick, by a tube or an end
-wall (three points), under a printed socket all round (four).  The points lie
-:data:`CONTACT_RADIUS` studs from the stud's axis.  Each point carries a
-vertical force: compression without limit, tension (the clutch, friction on
-the stud) up to ``clutch_n`` per point, where both the stud and the socket
-are whole (a printed part's incomplete stud or socket presses but does not
-hold).  Each stud also carries a horizontal force (shear) in the joint's
-plane.  Bodies side by side in a layer do not push on each other here (on the
-safe side: a push could only help).  The grid's bottom layer rests on the ground: on a ``table`` the
-outline of every bottom cell presses down (compression only) with friction
-:data:`TABLE_FRICTION`; on a ``baseplate`` its studs grip the bottom cells
-like any joint.
+**Program.**  Forces that put every body in equilibrium and minimise the worst
+*utilisation* ``u``: tension / clutch, bending moment / strength.  A second pass keeps that
+worst and minimises the sum of every joint's (all studs between two bodies) own worst, so
+that each joint carries only what it must.  The layout stands when ``u <= 1``; a body that
+no equilibrium holds (it floats, or tips whatever the joints do) is *unsupported*, ``u``
+infinite.
 
-**Strength of a part.**  A LEGO brick is also a beam: across every section
-between its studs the bending moment stays within its section's strength
-(:func:`bending_capacity_nmm`, ABS).  That is what makes a plate a weaker
-bridge than a brick.
-
-**Program.**  Find forces that put every body in equilibrium (six equations
-each) and minimise the worst *utilisation* ``u``: tension / clutch at every
-contact point, bending moment / strength at every section.  A second pass
-keeps that worst value and minimises the sum of every joint's own worst
-utilisation (a joint: all studs between two bodies), so that each joint
-carries only what it must and its utilisation means something.  The layout stands when ``u <= 1``.  A body that no equilibrium
-holds at all (it floats, or it tips off the table whatever the joints do) is
-*unsupported*: its utilisation is infinite.
-
-**Big builds.**  The program grows faster than the build: 20-35 s for 1,474
-bricks.  Past :data:`EXACT_BODIES` bodies the verdict comes first from the
-parts that *hang* (:meth:`_Model._by_parts`): the bodies with a cell over air,
-what rests on them, and :data:`MARGIN_LEVELS` levels of bodies under them.
-Every other body has each cell on a cell down to the ground, so it carries
-what presses on it straight down; a hanging part is solved standing on those
-*supports*, which only press (no pull on their studs), and a big one is cut in
-plan into groups with no force between them, merged back where a group cannot
-stand alone.  These forces and pure compression elsewhere balance every body,
-so when every group stands the build stands, and the worst utilisation
-reported is what these forces reach: at least the whole program's least (the
-same on the scaling cases of ``make bench``).  When a group does not stand,
-the whole program decides, up to :data:`MAX_BODIES` bodies.  Past it, the
-build is solved in height bands, top down (:meth:`_Model._by_bands`): each
-band stands on the bricks under it, whose studs hold, and the forces it puts
-on them are fixed loads of the band below.  Those forces too balance every
-body, so bands that all stand prove the build stands, with at most their
-worst; a band that does not stand so proves nothing, and the build stays
-unchecked.  A solid connecting rod scaled x6 (3,649 bricks) stands, at most
-0.12, in 8 bands and about a minute.
-
-**Calibration.**  The contact radius is the one fitted constant, set by
-StableLego's real builds on a baseplate with its clutch of 0.98 N per contact
-point (T = 100 g) and the catalog weights.  Its staircase of 2x4 bricks, each
-offset by two studs, stands at 19 levels and falls at 20, failing at the
-second brick: so the radius is below 0.2305 studs (at the stud's rim, 0.3,
-20 levels would stand).  Its stick of 1-wide bricks out to 47 studs holds
-three 1x4 at its tip when a 1x2 props its second brick: so the radius is
-above 0.2025.  :data:`CONTACT_RADIUS` lies between, and
-``tests/core/test_stablelego.py`` checks every one of its photographed builds.
+**Big builds.**  Past :data:`EXACT_BODIES` bodies the parts that hang are solved first, on
+supports that only press (:meth:`_Model._by_parts`); where one does not stand, the whole
+program decides, up to :data:`MAX_BODIES`; past it, height bands top down
+(:meth:`_Model._by_bands`).  Their forces balance every body, so when all stand the build
+stands, with at most their worst (an upper bound); a band that does not leaves it unchecked.
 """
 
 from __future__ import annotations
@@ -98,8 +52,11 @@ from core.request import parse_load
 G = 9.81
 #: Default clutch: the tension one stud contact point holds, N (StableLego's T = 100 g).
 CLUTCH_N = 0.98
-#: Distance of a stud's contact points from its axis, in studs (8 mm): fitted to StableLego's
-#: real builds, within 0.2025-0.2305 (see the module docstring).
+#: Distance of a stud's contact points from its axis, in studs (8 mm), the one fitted
+#: constant: with :data:`CLUTCH_N`, the catalog weights and a baseplate, StableLego's 2x4
+#: staircase offset by two studs (stands at 19 levels, falls at 20) puts it below 0.2305, and
+#: its 47-stud stick of 1-wide bricks (three 1x4 at the tip, a 1x2 propping its second
+#: brick) above 0.2025; tests/core/test_stablelego.py checks every photographed build.
 CONTACT_RADIUS = 0.215
 #: Friction coefficient of ABS on a table top.
 TABLE_FRICTION = 0.4
@@ -354,8 +311,8 @@ class _Program:
 
     def highs(self, simplex: bool = False):
         """A HiGHS object holding this program: interior point (one-off solves) or the
-        primal simplex (re-solved after bound changes from the previous basis: on the
-        prefixes of a 209-brick build 6x faster than the dual)."""
+        primal simplex (re-solved after bound changes from the previous basis, where it is
+        much faster than the dual)."""
         import highspy
 
         from core.lower_bound import INTERIOR_POINT
@@ -363,8 +320,8 @@ class _Program:
         h.setOptionValue("output_flag", False)
         h.setOptionValue("threads", 1)
         h.setOptionValue("solver", "simplex" if simplex else INTERIOR_POINT)
-        # the interior point's own answer is enough (a vertex is not needed): crossover to
-        # one took 40 % of the time on a 1,474-brick layout
+        # the interior point's own answer is enough (a vertex is not needed, and crossover
+        # to one is costly)
         h.setOptionValue("run_crossover", "choose")
         if simplex:
             h.setOptionValue("simplex_strategy", 4)         # primal: warm starts after bound changes
@@ -416,12 +373,10 @@ class _Program:
 def ipm_iteration_work(nnz: int) -> int:
     """The work of one interior-point iteration on a program of ``nnz`` coefficients, in
     simplex iterations (each about a millisecond on the big force programs): about a
-    millisecond per unit too, growing with the square of the program.  Measured on this
-    2-core machine, milliseconds per iteration (this function's value): 8.9 at 56,453
-    coefficients (a slab over a box; 9), 20-80 at 104,000-145,000 (the bands of a
-    connecting rod scaled x6; 31-60), 136 at 205,813 (121), 254 at 296,026 and 381 at
-    347,516 (bands of an HMD shell scaled x5; 250, 345), 1,162 at 631,012 (the rod scaled
-    x5 as one program; 1,138)."""
+    millisecond per unit too, growing with the square of the program.  Fitted to the
+    interior point's milliseconds per iteration on big force programs (a slab over a box,
+    the bands of scaled-up connecting rods and HMD shells, 56,000 to 631,000
+    coefficients)."""
     return max(1, round((nnz / 1000.0) ** 2 / 350.0))
 
 
@@ -449,7 +404,7 @@ def _run(h) -> None:
     so that the signal raises here at once and the solver is told to stop (HiGHS's user
     interrupt) instead of finishing a program that may run for minutes; the solver gets
     :data:`STOP_WAIT_S` to stop (it looks at the interrupt between iterations only, and a
-    phase of its may take seconds: 3.3 s on FreeCAD 1.0's Python), and is left running
+    phase of its may take seconds), and is left running
     after that, as the command line ends its process without waiting for threads
     (:mod:`core.__main__`).  Elsewhere (inside FreeCAD, where a Qt event loop owns the main
     thread, or in a worker) in this thread."""
@@ -484,7 +439,7 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     ``seconds`` (None: :data:`PROGRAM_WORK` per program, and past :data:`MAX_BODIES`
     bodies no whole program) is what the whole build's programs may take; given,
     a build past :data:`MAX_BODIES` that its parts and bands do not settle is
-    solved as one program too (minutes for 4,000 bricks).
+    solved as one program too (minutes for thousands of bricks).
 
     Promises: ``stable`` is True exactly when every body is held and the
     worst utilisation is at most 1; with ``detail`` every brick has a
@@ -560,8 +515,8 @@ class _Warm:
     def factor_of(self, body_present: np.ndarray, propped: np.ndarray | None = None) -> float | None:
         """The largest load factor the bodies ``body_present`` carry (with the table points
         ``propped`` held up by props, :meth:`_Model.resting`); None when neither the
-        warm start nor a cold solve found it (a degenerate set: a piece about to tip, seen
-        on the Stanford bunny), with the last good basis put back."""
+        warm start nor a cold solve found it (a degenerate set, e.g. a piece about to tip),
+        with the last good basis put back."""
         m, h = self.model, self.highs
         self._apply(body_present)
         if self.table is not None and len(self.table["cols"]):
@@ -587,9 +542,8 @@ class _Warm:
 
     def _run(self, cold: bool) -> bool:
         """Solve from the current basis by the primal simplex, or (``cold``) afresh by the
-        interior point with a crossover to a basis for the next warm start: on a 454-brick
-        build's first whole program 1.9 s instead of the cold primal simplex's 4.6 s.
-        Whether it reached the optimum."""
+        interior point with a crossover to a basis for the next warm start (faster than a
+        cold primal simplex).  Whether it reached the optimum."""
         from core.lower_bound import INTERIOR_POINT
         h = self.highs
         if cold:
@@ -1001,9 +955,9 @@ def _supported_below(lab: np.ndarray) -> bool:
     return not np.any(lab[:, :, 1:] & ~lab[:, :, :-1])
 
 
-#: Most bodies the force programs are solved for (beyond, a build that needs any pull is
-#: reported unchecked): one program of ~270 bricks under an overhanging slab took 3 s
-#: (14 s with every joint's utilisation) on this 2-core machine under load.
+#: Most bodies the force programs are solved for (beyond, a build that needs any pull and
+#: that its hanging parts and height bands do not settle is reported unchecked): a
+#: program's time grows faster than its build.
 MAX_BODIES = 2500
 
 
@@ -1011,37 +965,30 @@ MAX_BODIES = 2500
 #: (:meth:`_Model._by_parts`) before the whole program is solved.
 EXACT_BODIES = 300
 #: Up to MAX_BODIES, the hanging part is solved on its own only when it and its supports
-#: are at most this share of the bodies (a bunny hangs almost whole: the whole program).
+#: are at most this share of the bodies (a build that hangs almost whole: the whole program).
 PART_SHARE = 0.7
-#: Most hanging bodies checked in parts: a 2 m hollow cube's 12,534 take 64 programs and
-#: 63 s on this 2-core machine (it stands, at most 0.09), a 1 m cube's 3,328 about 25 s.
-#: A hanging piece that no cut splits (a bunny scaled x3: 6,908 of its 6,912 bricks) is
-#: solved whole only up to MERGED_BODIES: that one program ran 360 s (infeasible).
+#: Most hanging bodies checked in parts.  A hanging piece that no cut splits is solved whole
+#: only up to MERGED_BODIES: beyond, its one program takes many minutes.
 MAX_HANGING = 20000
 #: Work (:func:`solver_work`) one program of a whole build (or of a hanging part) may do
 #: before the build is reported unchecked, and the height bands of one build in all
 #: (:meth:`_Model._by_bands`).  Counted in iterations, not seconds, so that the verdict does
-#: not depend on the machine's load; about two minutes on this 2-core machine.  The interior
-#: point needs minutes on solid, overhanging builds of thousands of bricks: 371 s for a
-#: 3,923-brick HMD shell scaled x5 as one program; in bands, one of its bands fell back to
-#: the simplex for 71,251 iterations (104 s).
+#: not depend on the machine's load; about two minutes on a 2-core machine.  The interior
+#: point needs minutes on solid, overhanging builds of thousands of bricks.
 PROGRAM_WORK = 120_000
 #: Solver iterations the programs of one build's partial builds may run in all
 #: (:class:`BuildChecker`); past them the steps that need one are checked by the brick graph
-#: only.  A 2,151-brick connecting rod (Assembly4's, scaled x5) had run its steps' programs
-#: for more than 13 minutes, each a whole program of its solid, overhanging body.  Counted
-#: in iterations, not seconds, so that the answer does not depend on the machine's load.
-#: A warm-started iteration took 0.44-0.9 ms on this 2-core machine, beside another job:
-#: the Stanford bunny's 507-brick build runs 74,700 in all (307 programs, 29-54 s); the rod
-#: scaled x5 ran 80,000 in 70 s.  So about a minute.
+#: only (without a bound, the steps of a solid, overhanging build of thousands of bricks
+#: would each solve a whole program).  Counted in iterations, not seconds, so that the
+#: answer does not depend on the machine's load: about a minute of warm-started iterations
+#: on a 2-core machine.
 BUILD_BUDGET = 100_000
 #: Levels of bricks under a hanging part that its program takes in (they may pull).
 MARGIN_LEVELS = 2
 #: Levels of bricks under the hanging part that the build steps' program of it takes in
 #: (:class:`BuildChecker`; :data:`MARGIN_LEVELS` where that makes it too big a share): on
 #: its supports, which only press, a slab being built on a wall two studs thick tips with
-#: 2 levels, and each such step then needs the whole program: all 454-brick build
-#: prefixes under a slab took 24.5 s with 2, 10.9 s with 4.
+#: 2 levels, and each such step then needs the whole program.
 BUILD_MARGIN_LEVELS = 4
 #: Most bodies in one program of a hanging part (bigger ones are cut in plan)...
 WINDOW_BODIES = 250
@@ -1053,7 +1000,7 @@ BAND_BODIES = 400
 #: ...up to this many bodies in all.
 MAX_BANDED = 20000
 #: ...while the bodies of all the groups solved stay within this many times the hanging ones
-#: (cut too small, a roof's groups merged over and over: 500 s on a 1 m hollow cube).
+#: (cut too small, a roof's groups would be merged over and over).
 EFFORT = 4
 #: Levels of seated bodies a group that does not stand on its supports takes in, step by
 #: step (:meth:`_Model._deepened`).
@@ -1090,8 +1037,8 @@ BAND_MEANS = ("height bands of about {BAND_BODIES} bricks, top down: each band o
 FRAGILE = 0.8
 
 #: Phase 2 bounds every joint's utilisation by phase 1's worst times 1 + this: held exactly
-#: there the program has almost no interior, and HiGHS's interior point took 173 s instead
-#: of 8.5 s on a 454-brick layout.  The utilisations it reports are then cut at the worst.
+#: there the program has almost no interior, and HiGHS's interior point slows down many
+#: times.  The utilisations it reports are then cut at the worst.
 CAP_SLACK = 1e-4
 
 #: Largest load factor the verdict looks for: a structure that carries this many times its
@@ -1331,9 +1278,8 @@ class _Model:
 
         if stable and (worst < DARK_BELOW or self.nbody > EXACT_BODIES
                        and (worst < DETAIL_ABOVE or self.nbody > MAX_BODIES)):
-            # each brick gets the worst (as a hanging part's do): phase 2 took 78 of the 125 s
-            # of a 2,151-brick connecting rod standing at 0.009, and as long as phase 1 on a
-            # 3,834-brick HMD shell
+            # each brick gets the worst (as a hanging part's do): on big builds phase 2 costs
+            # as much as phase 1 or more
             return each_worst()
         prog, parts = self._program(detail=True, cap=worst)
         # unless it stands, what fails and why, however long it takes

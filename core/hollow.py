@@ -1,52 +1,33 @@
 """Hollow stage: keep a shell of a legofied part, plus the pillars that hold its roof.
 
-A big solid object is mostly interior that nobody sees.  :func:`hollow`
-returns a new :class:`~core.model.Grid` with the cells to keep:
+A big solid object is mostly interior that nobody sees.  :func:`hollow` returns a new
+:class:`~core.model.Grid` with the cells to keep:
 
-* the **shell**: every filled cell within ``studs`` studs of an empty cell
-  (outside the part, or a cavity of it) horizontally, and within
-  ``ceil(studs * 8 / 3.2)`` plate layers of one vertically, so the walls,
-  floor and roof are about equally thick in mm (2 studs: 16 mm walls, 5
-  layers = 16 mm floor and roof).  Cells beyond the grid count as empty.
-  Formally a filled cell is *interior* when the whole box of cells
-  ``i +- studs, j +- studs, k +- layers`` around it is filled (a box
-  erosion), and the shell is the filled cells that are not interior;
-* **pillars**: the interior cells of the columns ``(i, j)`` with
-  ``i mod PILLAR_PITCH < PILLAR_STUDS`` and ``j mod PILLAR_PITCH <
-  PILLAR_STUDS`` (2 x 2-stud pillars on a 12-stud lattice), which run from
-  the floor shell to the roof shell of every hollow.  A roof of a hollow
-  closed shell standing on a table has nothing under it but air: the
-  pillars carry it from below, at most 10 studs (80 mm) apart, and keep it
-  connected to the floor where the walls are far;
-* every cell of ``keep`` (the high-res regions: they are printed from the
-  model and stay solid).
+* the **shell**: the filled cells that are not *interior*, a cell being interior when the
+  whole box ``i +- studs, j +- studs, k +- layers`` around it is filled (a box erosion;
+  cells beyond the grid count as empty), with ``layers = ceil(studs * 8 / 3.2)`` so that
+  walls, floor and roof are about equally thick in mm (2 studs: 16 mm walls, 5 layers =
+  16 mm floor and roof);
+* **pillars**: the interior cells of the columns ``(i, j)`` with ``i mod PILLAR_PITCH <
+  PILLAR_STUDS`` and ``j mod PILLAR_PITCH < PILLAR_STUDS`` (2 x 2-stud pillars on a
+  12-stud lattice), from the floor shell to the roof shell of every hollow: a closed
+  shell's roof has nothing under it but air, so they carry it, at most 10 studs (80 mm)
+  apart, and keep it joined to the floor where the walls are far;
+* every cell of ``keep`` (the high-res regions: printed from the model, they stay solid).
 
-Every interior cell has its whole neighbourhood box filled, so the cell
-directly under the lowest interior cell of a column is a shell cell, as is
-the one over the highest: each pillar stands on the shell and carries it.
-Removing interior cells never separates the shell: the shell surrounds
-each removed cell.  So the kept cells form as many 6-connected regions as
-the part.
+Every interior cell has its whole neighbourhood box filled, so the cells right under and
+over a column's interior are shell cells: each pillar stands on the shell and carries it.
+The shell surrounds every removed cell, so removing them never separates it: the kept cells
+form as many 6-connected regions as the part.
 
-:func:`decide` applies the request's setting: ``-1`` (automatic) proposes
-a 2-stud shell when the part has at least :data:`AUTO_MIN_CELLS` cells and
-the shell keeps at most two thirds of them, ``0`` keeps the part solid,
-``n >= 1`` hollows with an ``n``-stud shell.  Fewer cells need not mean
-fewer bricks: the shell of an uneven part is made of small bricks (the
-Stanford bunny at 47 cm: 7,345 bricks hollow, 6,734 solid), while a solid
-interior is mostly the largest brick.  So the driver keeps an automatic
-shell only when its layout has fewer than two thirds of the solid part's
-bricks: surely so when it is below two thirds of the solid part's lower
-bound (:func:`surely_saves`), else by laying out the solid part too
-(:func:`compared`).
-
-Whether the driver lays out the solid part beside a shell is decided by
-:func:`solid_layout_wanted`: when the automatic choice needs it, and for the
-report whenever the solid part has at most :data:`SOLID_LAYOUT_MAX_CELLS`
-cells, so that the report gives the bricks with and without hollowing from
-two layouts; beyond that it gives the solid part's lower bound and says why.
-Both are the driver's fast layout (:func:`core.layout.lay_out`, greedy, before
-the improve stage takes some bricks off).
+:func:`decide` applies the request's setting: ``-1`` (automatic) proposes a 2-stud shell for
+a part of at least :data:`AUTO_MIN_CELLS` cells when it keeps at most two thirds of them,
+``0`` keeps the part solid, ``n >= 1`` hollows with an ``n``-stud shell.  Fewer cells need
+not mean fewer bricks (an uneven part's shell is made of small bricks, a solid interior is
+mostly the largest brick), so the driver keeps an automatic shell only when its greedy
+layout has fewer than two thirds of the solid part's bricks: surely so below two thirds of
+the solid part's lower bound (:func:`surely_saves`), else by laying out the solid part too
+(:func:`compared`; :func:`solid_layout_wanted` says when, and for the report).
 """
 
 from __future__ import annotations
@@ -73,10 +54,9 @@ AUTO_KEEP_SHARE = 2.0 / 3.0
 #: Largest shell thickness accepted (studs).
 MAX_STUDS = 64
 #: Most cells of a solid part the driver lays out beside its shell only for the report
-#: (:func:`solid_layout_wanted`).  The fast layout of the 1 m cube's 4,890,625 cells took
-#: 16 s, its whole hollow run 52-55 s instead of 35: too close to the minute a 1 m part is
-#: given.  Its lower bound (101,889 against 104,488 laid out) is close anyway: a big
-#: block's interior is mostly the largest brick.
+#: (:func:`solid_layout_wanted`): beyond, its layout would take much of the minute a 1 m
+#: part is given, and its lower bound, reported instead, is close anyway (a big block's
+#: interior is mostly the largest brick).
 SOLID_LAYOUT_MAX_CELLS = 2_000_000
 
 

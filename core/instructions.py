@@ -1,41 +1,32 @@
 """Assembly instructions: one self-contained ``instructions.html`` a person builds from.
 
-The page holds a single isometric SVG picture of the whole model in which
-every brick is drawn once, as the three visible faces of its box (top, -x
-and -y side; view from the front left, above, as :mod:`core.render`), and a
-little script shows one step at a time by switching each brick's class:
-bricks of earlier steps grey, the step's bricks blue (dropping in when
-played), later bricks hidden.  Printed parts are drawn as what they are,
-their meshes shaded in orange (:mod:`core.picture`), with their ID written
-on top; the one being inserted is bright with its outline drawn over
-everything (so it shows where it goes even behind other bricks), those in
-place are pale.  Studs are an SVG pattern per layer on the top faces (a
-pattern's affine transform maps the stud lattice of the plane z = top onto
-the picture), so a 3,000-brick model stays a file of a few hundred kB and
-is written in well under a second.
+The page holds a single isometric SVG picture of the whole model in which every brick is
+drawn once, as the three visible faces of its box (top, -x and -y side; view from the front
+left, above, as :mod:`core.render`), and a little script shows one step at a time by
+switching each brick's class: bricks of earlier steps grey, the step's bricks blue (dropping
+in when played), later bricks hidden.  Printed parts are their meshes shaded in orange
+(:mod:`core.picture`) with their ID on top; the one being inserted is bright, its outline
+drawn over everything (so it shows where it goes even behind other bricks), those in place
+pale.  Studs are an SVG pattern per layer on the top faces (an affine pattern transform maps
+the stud lattice of the plane z = top onto the picture), which keeps big models' pages small.
 
-Drawing order.  Boxes are painted back to front in an order that is valid
-for every subset of them, so hiding the bricks of later steps never needs a
-new order: for two boxes whose pictures overlap (their intervals along the
-three picture directions ``x - y``, ``x + z``, ``y + z`` all overlap), the one
-on the far side of a separating plane (larger x, larger y, or lower z) is
-drawn first; the order is a topological sort of these pairs (Kahn's
-algorithm, farthest box first among the free ones).  Disjoint boxes can
-occlude each other in a cycle (staggered LEGO walls do: about one brick in
-six of a 40 x 40 stud box lies on one); :func:`drawing_pieces` draws the
-bricks on cycles as their 1 x 1-stud columns, which leaves no cycle, so the
-order is exact.
+Drawing order (:func:`painter_order`).  Boxes are painted back to front in an order valid
+for every subset of them, so hiding later steps never needs a new order: of two boxes whose
+pictures overlap (their intervals along ``x - y``, ``x + z``, ``y + z`` all overlap), the
+one on the far side of a separating plane (larger x, larger y, or lower z) goes first, in a
+topological sort of these pairs (Kahn's algorithm, farthest free box first).  Disjoint
+boxes can occlude each other in a cycle (staggered LEGO walls do); :func:`drawing_pieces`
+draws the bricks on cycles as their 1 x 1-stud columns, which leaves none.
 
-The page needs no network: CSS, script, pictures and data are inline.
-Keys: right/down/PageDown/Enter = next step, left/up/PageUp = previous,
-Home/End, space = play/pause; a swipe left or right on a touch screen; a
-slider and buttons; ``instructions.html#17`` opens at step 17.  A panel shows the step's parts (part picture, count,
+The page needs no network: CSS, script, pictures and data are inline.  Keys:
+right/down/PageDown/Enter = next step, left/up/PageUp = previous, Home/End, space =
+play/pause; a swipe left or right on a touch screen; a slider and buttons;
+``instructions.html#17`` opens at step 17.  A panel shows the step's parts (picture, count,
 design number, name, colour), the layer being built and the time estimate.
 
 :func:`write_assembly` is the pipeline's entry point: it orders the steps
 (:mod:`core.build_order`), sets ``brick.step`` and writes ``instructions.html``,
-``assembly.mpd`` (:mod:`core.ldraw`), ``bom.csv`` and ``bricklink.xml``
-(:mod:`core.bom`).
+``assembly.mpd`` (:mod:`core.ldraw`), ``bom.csv`` and ``bricklink.xml`` (:mod:`core.bom`).
 """
 
 from __future__ import annotations

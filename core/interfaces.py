@@ -1,43 +1,30 @@
 """Where a printed part meets LEGO: the studs and sockets it gets, and their fit.
 
-A printed part is the model inside its bricks' envelopes, kept whole
-(:mod:`core.printed`).  Brick geometry is *added* only where the part meets
-a brick of another part directly above or below it:
+A printed part is the model inside its bricks' envelopes, kept whole (:mod:`core.printed`).
+Brick geometry is *added* only where the part meets a brick of another part directly above
+or below it:
 
-* a **socket** in every cell of the part's bottom layer that stands on
-  another brick: a square hole :attr:`Fit.socket_width` wide (the four
-  flat walls touch a real stud at the real 4.8 mm spacing, as the walls of
-  a real 1x1 brick do) and :attr:`Fit.socket_depth` deep (a stud is 1.7 mm
-  high), cut into a solid band of the cell's footprint with a
-  :attr:`Fit.roof` above it;
-* a **stud** on every cell of the part's top layer that carries another
-  brick: a cylinder of :attr:`Fit.stud_diameter` and 1.7 mm height on a
-  :attr:`Fit.skin` of the cell's footprint.
+* a **socket** in every cell of the part's bottom layer that stands on another brick: a
+  square hole :attr:`Fit.socket_width` wide (its four flat walls touch a real stud at the
+  real 4.8 mm spacing, as the walls of a real 1x1 brick do) and :attr:`Fit.socket_depth`
+  deep, cut into a solid band of the cell's footprint with a :attr:`Fit.roof` above it;
+* a **stud** on every cell of the part's top layer that carries another brick: a cylinder
+  of :attr:`Fit.stud_diameter` and 1.7 mm height on a :attr:`Fit.skin` of the footprint.
 
-Where the model already fills that band or skin, the addition changes
-nothing; where the model is thinner (a 2 mm lens plate in a 9.6 mm brick),
-the band or skin is grown inside the cell's column until it reaches
-:attr:`Fit.overlap` into the model, the least material that joins the
-connector to the part.  Nowhere else is anything cut from the model.
+Where the model is thinner than that band or skin (a 2 mm lens plate in a 9.6 mm brick),
+it is grown inside the cell's column until it reaches :attr:`Fit.overlap` into the model,
+the least material that joins the connector to the part.  Nowhere else is anything cut
+from the model.
 
-The fit
--------
-FDM prints outer surfaces slightly large and holes slightly small, so a
-printed stud and a printed socket need separate, signed settings:
-
-* ``stud_fit``: printed stud diameter = 4.8 + ``stud_fit``.  Default +0.05
-  (Ø4.85): printed LEGO-compatible designs known to clamp use Ø4.85–5.0
-  (LEGO.scad by cfinke: ``stud_diameter = 4.85``; MachineBlocks and
-  Brickify's calibration strips reach 4.9–5.0 on printers that print small).
-* ``socket_fit``: distance between opposite socket walls = 4.8 +
-  ``socket_fit``.  Default 0: the real spacing, which a real 4.8 mm stud
-  enters with the slight interference a hole printed a little small gives.
-  Negative tightens the fit, positive loosens it.
-
-``python -m core calibration-strip`` prints a strip of studs and sockets in
-steps of 0.05 mm to find a printer's values.
-
-All dimensions are in mm.
+**The fit.**  FDM prints outer surfaces slightly large and holes slightly small, so printed
+studs and sockets have separate, signed settings.  ``stud_fit``: printed stud diameter =
+4.8 + ``stud_fit``; default +0.05 (Ø4.85: printed LEGO-compatible designs known to clamp
+use Ø4.85–5.0, e.g. LEGO.scad by cfinke; MachineBlocks and Brickify's calibration strips
+reach 4.9–5.0 on printers that print small).  ``socket_fit``: distance between opposite
+socket walls = 4.8 + ``socket_fit``; default 0, the real spacing, which a real stud enters
+with the slight interference of a hole printed a little small.  Negative tightens the fit,
+positive loosens it.  ``python -m core calibration-strip`` prints a strip of studs and
+sockets in steps of 0.05 mm to find a printer's values.  All dimensions are in mm.
 """
 
 from __future__ import annotations

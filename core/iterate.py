@@ -1,57 +1,33 @@
 """Design iteration: a new version of the part against an earlier output folder.
 
-The paper's second key benefit ("Faster iteration through localized
-changes", "Calculating changes between design iterations"): the user edits
-the part, and only what changed is rebuilt and reprinted.
+The paper's second key benefit ("Faster iteration through localized changes"): the user
+edits the part, and only what changed is rebuilt and reprinted.  A previous result is read
+back by :func:`core.result.load_previous`; :func:`core.pipeline.run` runs the stages of the
+iteration, in the same order as a fresh run's:
 
-* A previous result is read back by :func:`core.result.load_previous`
-  (:mod:`core.result` writes and reads the snapshot of every output).
-* The stages of the iteration branch of the driver (:func:`core.pipeline.run`
-  runs them, in the same order as a fresh run's):
+1. **Align** (:func:`align_to`, :mod:`core.align`) the new version onto the previous one.
+2. **Legofy** it on the previous grid's lattice and **diff** the cells (:func:`legofy_on`,
+   :mod:`core.diff`).
+3. **High-res marks** as in a fresh run, from the request's regions (moved into the
+   previous frame) and, unless the request says otherwise, the previous run's
+   (:func:`previous_regions`): a marked box prints what it touches in the new version,
+   exactly as a fresh run with the same regions would.  Anchor tabs as in a fresh run.
+4. **Keep** (:func:`lay_out`) every previous brick whose cells are all still filled and
+   whose kind (LEGO / printed) still fits the marks; a printed part is kept whole or not at
+   all.  The rest (the *freed* cells) is laid out anew, the neighbourhood grown ring by
+   ring while the joined layout is less stable than the previous one (:func:`_relayout`).
+5. **Printed parts** (:func:`printed_parts`): a kept part whose surroundings changed, and
+   every new group of printed bricks, is cut from the aligned model; a part is *reprinted*
+   when it is new or differs from its previous print by more than
+   :func:`core.diff.reprint_threshold`.
+6. The ``changes`` document (:func:`changes`): transform, cells added/removed, bricks
+   kept/added/taken off, parts reprinted, and the instructions diff, which
+   :func:`core.changes_page.changes_page` writes as a self-contained HTML page.
 
-  1. **Align** (:func:`align_to`, :mod:`core.align`) the new version onto
-     the previous one.
-  2. **Legofy** it on the previous grid's lattice and **diff** the cells
-     (:func:`legofy_on`, :mod:`core.diff`).
-  3. **High-res marks** are made as in a fresh run, from the regions: the
-     request's (moved into the previous frame) and, unless the request says
-     otherwise, the previous run's (:func:`previous_regions`).  So a marked
-     box prints what it touches in the new version, exactly as a fresh run
-     with the same regions would: cells the edit added outside every region
-     are LEGO.  Anchor tabs are added as in a fresh run.
-  4. **Keep** (:func:`lay_out`) every previous brick whose cells are all still filled and
-     whose kind (LEGO / printed) still fits the marks; a printed part is
-     kept whole or not at all (not when a freed marked cell touches it).
-     The rest (*freed* cells: added cells and the cells of bricks not
-     kept) is laid out anew with :func:`core.layout.lay_out`, LEGO and
-     marked cells separately.  :func:`core.stability.analyse` then checks
-     the joined layout; while it has more extra components than the
-     previous layout or new weak points that carry more than single leaf
-     bricks (a brick standing alone on one brick is a leaf), one ring of
-     LEGO bricks around the freed cells (bricks touching them face to face,
-     also above and below) is freed too and the neighbourhood laid out
-     again, at most :data:`MAX_RINGS` times; the best attempt (extra
-     components, new weak points, new leaf-only weak points, bricks placed)
-     wins.
-  5. **Printed parts** (:func:`printed_parts`): a kept part whose surroundings changed (changed
-     surface near it, :func:`core.diff.changed_boxes`, or other connector
-     cells) and every new group of printed bricks is cut from the aligned
-     model (:func:`core.printed.build_part`).  A new group takes the id of
-     the previous part it overlaps most.  A part is *reprinted* when it is
-     new or its symmetric difference with the previous print exceeds
-     :func:`core.diff.reprint_threshold`; otherwise the old print still
-     fits.
-  6. The ``changes`` document (:func:`changes`): transform, cells added/removed, bricks
-     kept/added/taken off, parts reprinted, and the instructions diff.
-
-* :func:`core.changes_page.changes_page` writes the self-contained HTML page
-  of the instructions diff: what to take off, what to add, what to reprint.
-
-Brick ids are stable: a kept brick keeps its id, new bricks get ids above
-the previous largest, so "take off brick 17" means the brick 17 of the
-previous instructions.  The new version is expressed in the *previous*
-frame: ``changes["transform"]["matrix"]`` maps the new file's coordinates
-into it.
+Brick ids are stable: a kept brick keeps its id, new bricks get ids above the previous
+largest, so "take off brick 17" means the brick 17 of the previous instructions.  The new
+version is expressed in the *previous* frame: ``changes["transform"]["matrix"]`` maps the
+new file's coordinates into it.
 """
 
 from __future__ import annotations
@@ -185,7 +161,9 @@ class _Plan:
 
 def _keep(previous: Previous, cells: diff_stage.CellDiff, marked: np.ndarray,
           allowed: set[str]) -> _Plan:
-    """Decide which previous bricks are kept (module docstring, step 4)."""
+    """Decide which previous bricks are kept (module docstring, step 4): those whose cells
+    are all still filled and whose kind still fits the marks; a printed part whole or not at
+    all, and not when a freed marked cell touches it."""
     grid = cells.grid
     shape = np.array(grid.shape)
     filled = np.asarray(grid.filled, dtype=bool)
@@ -275,7 +253,15 @@ def _same_again(layout: Layout, plan: _Plan) -> tuple[Layout, _Plan]:
 def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
               parts: tuple[Part, ...], seed: int) -> tuple[Layout, int]:
     """Kept bricks plus the freed neighbourhood laid out anew, grown ring by ring
-    while the joined layout is less stable than the previous one (step 4)."""
+    while the joined layout is less stable than the previous one (step 4).
+
+    LEGO and marked cells are laid out separately (:func:`core.layout.lay_out`).  While the
+    joined layout has more extra components than the previous layout, or new weak points
+    that carry more than single leaf bricks (a brick standing alone on one brick), one ring
+    of LEGO bricks around the freed cells (touching them face to face, also above and
+    below) is freed too, at most :data:`MAX_RINGS` times; the best attempt (extra
+    components, new weak points, new leaf-only weak points, bricks placed) wins.
+    Returns the layout and the rings grown."""
     filled = np.asarray(grid.filled, dtype=bool)
     kept_cells = np.zeros(grid.shape, dtype=bool)
     for i in plan.kept:

@@ -2,37 +2,30 @@
 
 Conventions (LDraw file format 1.0.2 and the official parts library):
 
-* 1 LDU = 0.4 mm: stud pitch 20 LDU, plate 8 LDU, brick 24 LDU; -Y is up.
-  A model point (x, y, z) in mm (z up) goes to LDraw (x, -z, y) / 0.4,
-  a proper rotation, so nothing is mirrored.  The grid origin goes to LDraw
-  y = 0 (the model stands on the plane y = 0), and x and z are shifted by
-  whole studs so that the model's footprint is centred on the origin.
-* A part file's origin is the top centre of its body (studs excluded), the
-  body hangs down to y = 8 (plate) or 24 (brick), and its long side runs
-  along X (3001 spans x -40..40, z -20..20).  A brick turned by 90° (long
-  side along the model's y) gets the rotation that takes X to Z.
-* Colours: what :func:`core.colours.ordered_code` decides, the colours the
-  bill of materials orders (in every palette: a random display palette
-  does not change what is built): LEGO bricks :data:`LEGO_COLOR` (71,
-  Light Bluish Grey: the neutral colour of most LEGO construction sets),
-  printed parts :data:`PRINTED_COLOR` (25, Orange) so that they stand out.
+* 1 LDU = 0.4 mm: stud pitch 20 LDU, plate 8 LDU, brick 24 LDU; -Y is up.  A model point
+  (x, y, z) in mm (z up) goes to LDraw (x, -z, y) / 0.4, a proper rotation, so nothing is
+  mirrored.  The grid origin goes to LDraw y = 0 (the model stands on the plane y = 0), and
+  x and z are shifted by whole studs so that the model's footprint is centred on the origin.
+* A part file's origin is the top centre of its body (studs excluded), the body hangs down
+  to y = 8 (plate) or 24 (brick), and its long side runs along X (3001 spans x -40..40,
+  z -20..20).  A brick turned by 90° (long side along the model's y) gets the rotation
+  that takes X to Z.
+* Colours: those the bill of materials orders (:func:`core.colours.ordered_code`, whatever
+  the display palette): LEGO bricks :data:`LEGO_COLOR` (71, Light Bluish Grey, the neutral
+  colour of most LEGO construction sets), printed parts :data:`PRINTED_COLOR` (25, Orange).
 
-The file is an MPD (``assembly.mpd``): the main model with one line-type-1
-reference per LEGO brick and ``0 STEP`` between the assembly steps, then one
-embedded subfile per printed part (``0 FILE printed_P1.ldr``) holding the
-part's triangles (line type 3, colour 16), referenced once, in its step, with
-the identity transform (its coordinates are already in place).
+The file is an MPD (``assembly.mpd``): the main model with one line-type-1 reference per
+LEGO brick and ``0 STEP`` between the assembly steps, then one embedded subfile per printed
+part (``0 FILE printed_P1.ldr``) holding its triangles (line type 3, colour 16), referenced
+once, in its step, with the identity transform (its coordinates are already in place).
+The build's props (:attr:`core.build_order.BuildOrder.props`) are in the step they are stood
+in, each after a comment that says what it holds; one taken away later carries LeoCAD's
+``0 !LEOCAD PIECE STEP_HIDE <step>`` (the first step it is gone in), which LeoCAD honours
+and other programs ignore, showing it to the end.
 
-The build's props (:attr:`core.build_order.BuildOrder.props`: stacks of 1x1 plates and
-bricks stood on the table under an overhang while it is built) are in the step they are
-stood in, in the colour the bill of materials orders them, each after a comment that says
-what it holds.  A prop that is taken away later carries LeoCAD's ``0 !LEOCAD PIECE
-STEP_HIDE <step>`` (the first step it is gone in): LeoCAD hides it from there on; other
-programs show it to the end, as they show every part.
-
-:func:`parse` reads such a file back (any LDraw/MPD text with line types
-0-5), and :func:`placed_bricks` turns the references back into grid cells,
-so the writer is checked by a round trip.
+:func:`parse` reads such a file back (any LDraw/MPD text with line types 0-5), and
+:func:`placed_bricks` turns the references back into grid cells, so the writer is checked
+by a round trip.
 """
 
 from __future__ import annotations

@@ -1,38 +1,30 @@
 """The brush panel's live estimate: the print time and speed-up a brush change would give.
 
-A brush stroke changes which bricks are printed and how they group into
-parts.  Cutting and slicing those parts takes seconds; :class:`Estimator`
-answers in a fraction of a second instead, from the last result (its layout, model
-mesh, printed parts and their print times) and the painted bricks:
+A brush stroke changes which bricks are printed and how they group into parts.  Cutting and
+slicing those parts takes seconds; :class:`Estimator` answers in a fraction of a second
+instead, from the last result (its layout, model mesh, printed parts and their print times)
+and the painted bricks:
 
-* **Grouping.**  ``high-res``: a painted LEGO brick joins every printed
-  part and every other painted brick it touches face to face
-  (:func:`core.high_res.adjacency`, the contact :func:`core.high_res.groups`
-  uses), so painted bricks next to a part join it and a separate painted
-  group is a new part; parts stay apart where they were apart (a split
-  edit holds).  ``unmark``: painted printed bricks become LEGO, and what
-  is left of a part falls into its connected groups.  ``merge`` and
-  ``split`` group the painted printed bricks as :func:`core.printed.merge`
-  and :func:`core.printed.split` do.
-* **Features.**  Each part is cut as :func:`core.printed.build_part` cuts
-  it, on the model's mesh (manifold3d), with its studs, sockets and LEGO's
-  play but without the engraved id; its volume, area and its height along
-  the direction its pose printed up (the largest part's pose for a group
-  that took parts in; upright for a new part) make one plate of
-  :func:`core.print_time.plate_features`.  A part is cut once per set of
-  bricks: a stroke cuts only the parts it changed.
-* **Time.**  The printed parts' print time is the last result's (each
-  part's ``print_s``, sliced or estimated) plus the calibrated estimate's
-  change (:data:`core.print_time.ESTIMATE_COEFFS`) from the parts as they
-  are to the parts as changed, both measured as above: with nothing
-  changed it is the last result's time.  The speed-up is the report's
-  (:func:`core.pipeline.speedups`, ``fabrication``) for a fresh build of
-  the changed layout, against the last whole-model print time.
+* **Grouping.**  ``high-res``: a painted LEGO brick joins every printed part and every other
+  painted brick it touches face to face (:func:`core.high_res.adjacency`, the contact
+  :func:`core.high_res.groups` uses), so a separate painted group is a new part; parts stay
+  apart where they were apart (a split edit holds).  ``unmark``: painted printed bricks
+  become LEGO, and what is left of a part falls into its connected groups.  ``merge`` and
+  ``split`` group them as :func:`core.printed.merge` and :func:`core.printed.split` do.
+* **Features.**  Each part is cut as :func:`core.printed.build_part` cuts it (manifold3d),
+  with its studs, sockets and LEGO's play but without the engraved id; its volume, area and
+  height along the direction its pose printed up (the largest part's pose for a group that
+  took parts in; upright for a new part) make one plate of
+  :func:`core.print_time.plate_features`.  A stroke cuts only the parts it changed.
+* **Time.**  The last result's print time (each part's ``print_s``, sliced or estimated)
+  plus the calibrated estimate's change (:data:`core.print_time.ESTIMATE_COEFFS`) from the
+  parts as they are to the parts as changed: with nothing changed, the last result's time.
+  The speed-up is the report's (:func:`core.pipeline.speedups`, ``fabrication``) for a fresh
+  build of the changed layout, against the last whole-model print time.
 
-What it does not promise: the recompute lays out the marked cells again
-(bricks around them may change), and supports, the print pose of a new
-part and the engraving are not counted, so it is an estimate of the
-change, not a prediction of the next report.
+What it does not promise: the recompute lays out the marked cells again (bricks around them
+may change), and supports, the print pose of a new part and the engraving are not counted,
+so it is an estimate of the change, not a prediction of the next report.
 """
 
 from __future__ import annotations

@@ -1,35 +1,30 @@
 """Output folders and scratch folders: checked before a run, written aside, installed whole.
 
 Every command that writes a folder of results (``fabricate``, ``watch``,
-``calibration-strip``, the workbench's export) goes through
-:class:`OutputFolder`:
+``calibration-strip``, the workbench's export) goes through :class:`OutputFolder`:
 
-1. **Before the run** (:meth:`OutputFolder.open`) the place is checked by
-   doing what the end of the run will do: the parent folder is made, a
-   lock is taken (``.NAME.lock`` beside the output: a second run into the
-   same folder is refused in one line while the first holds it), and the
-   temporary folder the run writes into (``.NAME.part-PID-XXXX``, beside
-   the output, so that installing it is a rename) is created.  An output
-   that exists must be an earlier output (``earlier``: only files a run of
-   the same kind writes), must not hold an input of the run (the model, a
-   region file), and must be movable (it is renamed aside and back).
-   Anything refused is one :class:`~core.errors.InputError` line; nothing
-   of the user's is touched.
-2. **Installing** (:meth:`OutputFolder.install`) renames the earlier output
-   aside (``.NAME.old-PID-XXXX``), renames the new one into place and then
-   removes the old one; if the new one cannot be put in place the old one
-   is renamed back.  Signals are held back during the renames.
-3. **On any failure** (:meth:`OutputFolder.close`) the temporary folder is
-   removed; a full disk, a read-only or vanished place while writing becomes
-   one InputError line saying so.  Parent folders the run made for nothing
-   are removed again.
+1. **Before the run** (:meth:`OutputFolder.open`) the place is checked by doing what the
+   end of the run will do: the parent folder is made, a lock is taken (``.NAME.lock``
+   beside the output: a second run into the same folder is refused in one line while the
+   first holds it), and the temporary folder the run writes into (``.NAME.part-PID-XXXX``,
+   beside the output, so that installing it is a rename) is created.  An output that exists
+   must be an earlier output (``earlier``: only files a run of the same kind writes), must
+   not hold an input of the run (the model, a region file), and must be movable (it is
+   renamed aside and back).  Anything refused is one :class:`~core.errors.InputError` line;
+   nothing of the user's is touched.
+2. **Installing** (:meth:`OutputFolder.install`) renames the earlier output aside
+   (``.NAME.old-PID-XXXX``), renames the new one into place and then removes the old one;
+   if the new one cannot be put in place the old one is renamed back.  Signals are held
+   back during the renames.
+3. **On any failure** (:meth:`OutputFolder.close`) the temporary folder is removed; a full
+   disk, a read-only or vanished place while writing becomes one InputError line saying so.
+   Parent folders the run made for nothing are removed again.
 
-Leftovers of runs that were killed (``.NAME.part-*``, ``.NAME.old-*``)
-are cleaned up by the next run into the same output, under its lock (an
-``old`` folder is put back when the output itself is missing).  Scratch
-folders in the system's temporary folder (:func:`scratch`) carry the
-process id of their run; those of runs that are no longer alive are
-removed by the next :func:`scratch` of the same kind.
+Leftovers of killed runs (``.NAME.part-*``, ``.NAME.old-*``) are cleaned up by the next run
+into the same output, under its lock (an ``old`` folder is put back when the output itself
+is missing).  Scratch folders in the system's temporary folder (:func:`scratch`) carry the
+process id of their run; those of runs no longer alive are removed by the next
+:func:`scratch` of the same kind.
 """
 
 from __future__ import annotations

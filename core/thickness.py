@@ -1,57 +1,33 @@
 """Local wall thickness of a printed part, and where it is too thin to print.
 
-:func:`thin_features` measures how thick the walls of a closed triangle
-mesh (a printed part, in mm) are and reports where they are thinner than a
-limit, by default :data:`NOZZLE_MM` (0.4 mm, the thinnest wall a 0.4 mm FDM
-nozzle lays down: one extrusion line).
+:func:`thin_features` measures how thick the walls of a closed triangle mesh (a printed
+part, in mm) are, a shape-diameter measure along the normal, and reports where they are
+thinner than a limit, by default :data:`NOZZLE_MM` (one extrusion line of a 0.4 mm nozzle):
 
-Method (a shape-diameter measure along the normal):
+1. **Samples** are spread evenly over the surface (seeded: the same mesh and seed give the
+   same report), about ``sqrt(area / samples)`` apart (``spacing_mm``), each standing for
+   ``area / samples`` of it.
+2. **Rays.**  From every sample a ray runs along the inward normal of its triangle; the
+   distance to the first surface it meets is the local thickness.  Hits closer than
+   :data:`SELF_HIT` times the bounding-box diagonal are the sample's own triangle, not a
+   wall.  A ray from near a convex edge runs parallel to the side face and meets the
+   opposite face, so the edges of thick parts are *not* reported thin; a genuinely sharp
+   edge (a wedge under ~45 degrees) is, as it cannot be printed either.  A ray that meets
+   nothing (an open mesh) counts as not thin; an inside-out watertight mesh is measured
+   with its normals flipped.
+3. **Spots.**  Thin samples within about :data:`CLUSTER_MM` (or three spacings) of each
+   other are one spot; at most :data:`MAX_SPOTS` are reported, largest first.
 
-1. **Samples.**  Points are spread evenly over the surface
-   (``trimesh.sample.sample_surface_even``, seeded, so the same mesh and
-   seed always give the same report).  Their spacing is about
-   ``sqrt(area / samples)``; the report states it as ``spacing_mm``.  Each
-   sample stands for ``area / samples`` of the surface.
-2. **Rays.**  From every sample a ray runs along the inward normal of the
-   triangle it lies on; the distance to the first surface it meets is the
-   local thickness there.  The rays start on the surface and hits closer
-   than :data:`SELF_HIT` times the part's bounding-box diagonal are
-   ignored: they are the sample's own triangle or a coplanar neighbour
-   (numerical noise), not a wall.  A ray from near a convex edge of a box
-   runs parallel to the side face and meets the opposite face, so edges of
-   thick parts are *not* reported thin (a 10x10x5 mm box reports nothing);
-   a genuinely sharp edge (a knife edge, a wedge under ~45 degrees) does
-   give short rays near its tip and is reported, as it cannot be printed
-   either.  A ray that meets nothing (an open mesh, a hole) gives no
-   measurement and its sample counts as not thin.  A watertight mesh whose
-   volume is negative (inside out) is measured with its normals flipped.
-3. **Spots.**  Thin samples are grouped by proximity: samples within about
-   :data:`CLUSTER_MM` (2 mm, or three sample spacings if that is more) of
-   each other are one spot.  Spots are reported largest first, at most
-   :data:`MAX_SPOTS`.
+The rays are cast by a vectorised uniform-grid ray caster written here (numpy and scipy,
+no Python loop over rays): trimesh's intersector without embree queries its r-tree once
+per ray in Python, far too slowly.
 
-The rays are cast by a small vectorised uniform-grid ray caster written
-here (numpy and scipy only, no Python loop over rays): trimesh's own
-intersector without embree queries its r-tree once per ray in Python and
-took 22 s for 2 000 rays on an 81 920-triangle sphere.  Here 20 000
-samples on that sphere take about 0.5 s of CPU (0.5 to 0.9 s wall time on
-a busy 2-core machine), a 50 000-triangle torus 0.45 s, the 225 154
-triangles of 3DBenchy 1.1 s.
-
-Accuracy limits:
-
-* Sampling: a thin sliver narrower than the sample spacing may fall between
-  samples and be missed, and areas are estimates (about ``1/sqrt(n)``
-  relative error for a spot of ``n`` samples, plus the boundary of the spot
-  at the scale of one spacing).  More ``samples`` make both finer.
-* The thickness is measured perpendicular to the *facet* the sample lies
-  on, so a coarsely tessellated curved wall reads slightly thicker or
-  thinner than the true wall (by the facet's tilt).  A wall is measured
-  where a ray crosses it; a thin rib seen only edge-on (its narrow end
-  face) is measured along its length, but its large side faces are
-  sampled and report it.
-* Walls thinner than the self-hit tolerance (``SELF_HIT`` x diagonal,
-  0.002 mm on a 200 mm part) are not seen.
+Accuracy: a sliver narrower than the sample spacing may be missed, and areas are estimates
+(about ``1/sqrt(n)`` relative error for a spot of ``n`` samples); more ``samples`` make both
+finer.  The thickness is measured perpendicular to the *facet*, so a coarsely tessellated
+curved wall reads off by the facet's tilt.  A thin rib seen edge-on is measured along its
+length at its end face, but its side faces report it.  Walls thinner than ``SELF_HIT`` x
+diagonal (0.002 mm on a 200 mm part) are not seen.
 """
 
 from __future__ import annotations

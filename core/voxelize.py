@@ -1,60 +1,33 @@
 """Legofy: which 1x1 plate cells of a grid a part fills.
 
-A cell is filled exactly when it shares positive volume with the part.  The
-answer is computed exactly (no sampling approximation) in two parts:
+A cell is filled exactly when it shares positive volume with the part.  The answer is
+computed exactly (no sampling approximation), as the union of two sets:
 
-1. **Surface cells.**  A cell is filled when some triangle meets the *open*
-   interior of the cell box.  The test is the separating axis test of
-   Akenine-Möller (13 axes: 3 box normals, the triangle normal and the 9
-   edge x box-axis cross products) against the box shrunk by
-   :data:`EPS_MM` on every side, with strict inequalities: a triangle must
-   penetrate a cell by more than 1e-6 mm to fill it.  So a face flush with
-   a cell face, or a part merely touching a cell, does not fill it, and
-   rounding (``3 * 3.2 = 9.600000000000001``) does not leak a face into the
-   next layer; a thin wall through a cell fills it.  One numba loop over
-   triangles visits only the cell columns the triangle's xy projection
-   meets (a 2-D separating axis test) and, per column, only the layers its
-   plane spans there, so huge triangles cost what they cover.
+1. **Surface cells** (:func:`surface_cells`).  A cell is filled when some triangle meets
+   the *open* interior of its box: Akenine-Möller's separating axis test (13 axes) against
+   the box shrunk by :data:`EPS_MM`, with strict inequalities.  So a face flush with a cell
+   face, or a part merely touching a cell, does not fill it, and rounding
+   (``3 * 3.2 = 9.600000000000001``) does not leak a face into the next layer; a thin wall
+   through a cell fills it.  A triangle visits only the cells its plane can meet, so huge
+   triangles cost what they cover.
 
-2. **Inside cells.**  The surface does not cross the open interior of any
-   other cell, so each such cell is wholly inside or wholly outside the part
-   and one sample point decides.  The point is not the cell centre but a
-   fixed generic point (centre + ``(0.1234567, 0.0765432, 0.1471)`` * cell),
-   so that rays from it miss the edges and vertices of axis-aligned models.
-   Rays cast from the sample points along an axis count signed crossings
-   (``+1`` entering through a face whose normal points against the ray,
-   ``-1`` leaving); a column's crossings are scattered per triangle into
-   per-cell counts and summed with a cumulative sum.  Point-in-triangle
-   tests evaluate each edge function with its endpoints in a canonical
-   order and break exact zeros by simulation of simplicity, so a ray
-   through a shared edge or vertex is counted exactly once.
+2. **Inside cells.**  The surface crosses no other cell's open interior, so each is wholly
+   inside or outside and one sample point decides (:data:`SAMPLE_FRACTION`: a generic point,
+   so that rays miss the edges and vertices of axis-aligned models).  Rays along an axis
+   count signed crossings; edge tests in canonical order with simulation of simplicity
+   count a ray through a shared edge or vertex exactly once.  Closed (watertight) meshes:
+   rays along +z, inside where the winding number is non-zero.  Open, non-manifold or
+   self-intersecting meshes (:func:`_vote_inside`, after Nooruddin & Turk): six ray
+   estimates (along x, y, z, from below and above) where all agree, else the generalized
+   winding number (van Oosterom & Strackee), inside at magnitude 0.5 or more, summed
+   through a cap of the holes (:func:`boundary_cap`, :func:`_winding_via_cap`).  Cells the
+   cap passes through count as surface cells too, so a box with a missing face is filled
+   as if the hole were closed by its cap.
 
-   * Closed (watertight) meshes: one family of rays along +z; a cell is
-     inside when its signed crossing count (winding number) is non-zero.
-   * Open, non-manifold or self-intersecting meshes: robust voting in the
-     style of Nooruddin & Turk.  Signed crossing counts along x, y and z,
-     each counted from below and from above (6 estimates per sample point),
-     are taken where all six agree.  Where they disagree (rays through
-     holes), the generalized winding number of the point (sum over all
-     triangles of the solid angle, by the formula of van Oosterom and
-     Strackee, divided by 4 pi) is computed exactly and the point is inside
-     when its magnitude is at least 0.5.  The sum is evaluated through a cap
-     of the holes (:func:`boundary_cap`: each connected piece of the mesh
-     boundary coned to the mean of its vertices): mesh minus cap is closed,
-     so gwn(mesh) = ray count(mesh) - ray count(cap) + gwn(cap), which costs
-     O(boundary edges) per point instead of O(triangles) and is identical
-     up to rounding.  Cells the cap passes through count as surface cells
-     too, so a cell cut only by a hole (a box with a missing face) is filled
-     as if the hole were closed by its cap (exactly its missing face for a
-     planar convex hole).
-
-Both inside tests count with sign, so each shell must be consistently
-oriented (either way: the non-zero rule also takes an inside-out shell as
-solid); overlapping shells add up, so self-intersecting parts are their union.
-
-The filled set is the union of the surface cells and the inside cells.  All
-geometry is shifted to the grid origin first, so cell bounds are exact
-multiples of the cell size.
+Both inside tests count with sign, so each shell must be consistently oriented (either way:
+the non-zero rule also takes an inside-out shell as solid); overlapping shells add up, so
+self-intersecting parts are their union.  All geometry is shifted to the grid origin first,
+so cell bounds are exact multiples of the cell size.
 """
 
 from __future__ import annotations
@@ -303,7 +276,8 @@ def winding_numbers(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def _winding_along(tri: np.ndarray, cell: np.ndarray, shape: np.ndarray,
                    axis: int) -> tuple[np.ndarray, np.ndarray]:
     """Signed crossing counts of rays along ``axis`` through every cell's sample
-    point: (counted from below, counted from above), each an (nx, ny, nz) int array."""
+    point (+1 entering through a face whose normal points against the ray, -1 leaving):
+    (counted from below, counted from above), each an (nx, ny, nz) int array."""
     perm = np.array([(axis + 1) % 3, (axis + 2) % 3, axis])
     frac = np.asarray(SAMPLE_FRACTION)[perm]
     chunks = numba.get_num_threads()

@@ -1,54 +1,32 @@
 """Watch folder: model files that appear or change, once completely written.
 
-A modeller (Blender with ``tools/blender/fabrickator_blender.py``, or any
-tool the user exports from) writes a new version of the part into a
-folder; Fabrickator picks it up as the next iteration.  The watcher polls
-(no platform file-notification API, so it behaves the same on every
-system and inside FreeCAD's Qt timer):
+A modeller (Blender with ``tools/blender/fabrickator_blender.py``, or any tool the user
+exports from) writes a new version of the part into a folder; Fabrickator picks it up as
+the next iteration.  The watcher polls (no platform file-notification API, so it behaves
+the same on every system and inside FreeCAD's Qt timer):
 
-* a file is *new or changed* when its (size, modification time) differs
-  from what was last reported for that name;
-* it is reported only once it is *complete*: the signature has stayed the
-  same for :data:`SETTLE_S` seconds and the file parses as far as its
-  format tells its end (:func:`is_complete`: a binary STL's size matches its
-  triangle count, an ASCII STL ends with ``endsolid``, a STEP file with
-  ``END-ISO-10303-21;``, a 3MF is a whole zip archive, a PLY holds the
-  vertices and faces its header counts); an OBJ, whose end is not marked,
-  must end with a whole line whose faces refer to vertices it has, and stay
-  the same for :data:`UNMARKED_SETTLE_S` seconds (a tool writing it in parts
-  with longer pauses is picked up too early: write it aside and rename it);
-* a file that stays the same for :data:`GIVE_UP_S` seconds more yet does not
-  look complete is skipped until it changes, once, saying why: the line
-  ``fabricate`` refuses it with when it cannot be read as a model (a picture
-  or random bytes under a model's name), else what makes it look incomplete;
-* hidden files (``.name``) and other suffixes (``.part``, ``.tmp``) are
-  ignored, so a writer that writes aside and renames is picked up at the
-  rename.
+* a file is *new or changed* when its (size, modification time) differs from what was last
+  reported for that name;
+* it is reported only once it is *complete*: the signature has stayed the same for
+  :data:`SETTLE_S` seconds and the file parses as far as its format tells its end
+  (:func:`is_complete`); an OBJ, whose end is not marked, must also stay the same for
+  :data:`UNMARKED_SETTLE_S` seconds (a tool writing it in parts with longer pauses is
+  picked up too early: write it aside and rename it);
+* a file that stays the same for :data:`GIVE_UP_S` seconds more yet does not look complete
+  is skipped until it changes, once, saying why (:func:`skip_reason`);
+* hidden files (``.name``) and other suffixes (``.part``, ``.tmp``) are ignored, so a
+  writer that writes aside and renames is picked up at the rename.
 
-Which file is a version of which is one rule, :func:`model_name` and
-:func:`same_model`: the workbench's Watch folder command follows it, and
-:class:`Versions` keeps a watch's last result per model by it (which earlier
-output the CLI's ``watch`` iterates a new file on).  A file is a version of
-a model when it lies in the same folder and its name, without the format
-suffix and without a *version suffix*, is the model's name (letter case
-aside).  A version suffix is what modellers, exporters and file managers
-append to a name:
+Which file is a version of which is one rule, :func:`model_name` and :func:`same_model`,
+which the workbench's Watch folder command and :class:`Versions` (which earlier output the
+CLI's ``watch`` iterates a new file on) follow: a file is a version of a model when it lies
+in the same folder and its name, without the format suffix and without a version suffix
+(:data:`VERSION_SUFFIX`), is the model's name, letter case aside.  So ``bracket.stl``,
+``bracket_v1.stl``, ``Bracket_V2.stl``, ``bracket (1).stl`` and ``bracket.step`` are
+versions of "bracket"; ``bracket2.stl`` is a model of its own.
 
-* a separator (space, ``_``, ``-`` or ``.``), an optional ``v`` or ``rev``,
-  and a number, possibly dotted: ``bracket_v2``, ``bracket-3``,
-  ``bracket.001`` (Blender), ``bracket rev4``, ``bracket_v1.2``;
-* a copy number in parentheses, as file managers and browsers add:
-  ``bracket (1)``, also after a version: ``bracket_v2 (1)``.
-
-So ``bracket.stl``, ``bracket_v1.stl``, ``Bracket_V2.stl``, ``bracket (1).stl``
-and ``bracket.step`` are versions of one model, "bracket".  Digits without a
-separator belong to the name: ``bracket2.stl``, ``gear2.stl`` and ``m3.stl``
-are models of their own (a designer who writes ``gear2`` next to ``gear``
-usually means a second gear, and a renamed file is one rename away).
-
-:class:`FolderWatcher` does one scan per :meth:`~FolderWatcher.poll` (for a
-Qt timer); :func:`watch` is the blocking generator the CLI ``watch``
-command loops over.
+:class:`FolderWatcher` does one scan per :meth:`~FolderWatcher.poll` (for a Qt timer);
+:func:`watch` is the blocking generator the CLI ``watch`` command loops over.
 """
 
 from __future__ import annotations
@@ -89,8 +67,12 @@ INCOMPLETE_WHY = {
     ".ply": "not a PLY file holding the header and the vertices and faces it counts",
     ".obj": "an OBJ file must end with a line break and its faces refer to vertices it has",
 }
-#: A version suffix at the end of a file's stem (module docstring): a separated
-#: (v|rev)number, a copy number in parentheses, or both.
+#: A version suffix at the end of a file's stem, as modellers, exporters and file managers
+#: append it: a separator (space, ``_``, ``-`` or ``.``), an optional ``v`` or ``rev`` and a
+#: number, possibly dotted (``bracket_v2``, ``bracket.001``, ``bracket rev4``,
+#: ``bracket_v1.2``); a copy number in parentheses (``bracket (1)``); or both.  Digits
+#: without a separator belong to the name: ``gear2`` next to ``gear`` usually means a
+#: second gear, and a renamed file is one rename away.
 VERSION_SUFFIX = re.compile(r"(?:[ _.-](?:v|rev)?\d+(?:\.\d+)*)?(?: ?\(\d+\))?$", re.IGNORECASE)
 
 
