@@ -67,10 +67,9 @@ def check_path(path, flag: str) -> None:
 
 
 #: Address space (bytes) a command of the CLI takes to load its libraries and run a small
-#: model, by command (anything else: ``"*"``).  Measured peaks on 2 cores with one OpenBLAS
-#: thread (core/__init__.py): fabricate of examples/build/hmd.step 1.16 GB (OpenCascade,
-#: LLVM for numba, two OpenBLAS), calibration-strip 1.22 GB, stability of the HMD's
-#: layout with a printed part 0.42 GB.  Below such a limit the libraries fail in ways no
+#: model, by command (anything else: ``"*"``): each command's peak on examples/build/hmd.step
+#: with one OpenBLAS thread (core/__init__.py; OpenCascade, LLVM for numba, two OpenBLAS),
+#: with some headroom.  Below such a limit the libraries fail in ways no
 #: Python code sees: OpenBLAS (before 0.3.30) retries its buffer for ever while it is
 #: being loaded, LLVM aborts a thread ("cannot allocate memory for thread-local data").
 ADDRESS_SPACE_NEEDED = {"fabricate": 3 << 29, "watch": 3 << 29, "calibration-strip": 3 << 29,

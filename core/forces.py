@@ -788,7 +788,7 @@ class BuildChecker:
         """Every brick of ``present`` rests on the ground or on bricks of ``present`` under
         every cell of it (it then stands in pure compression).  Kept up to date brick by
         brick from the last set asked about: consecutive build prefixes differ by a step,
-        so a 104,488-brick build's 17,643 prefixes cost no more than its bricks.  Keeps the
+        so all the prefixes of a build cost in all no more than its bricks.  Keeps the
         same count for the present bricks outside the hanging part."""
         last, outside = self._last, self._outside
         for b in np.flatnonzero(present != last).tolist():
@@ -822,7 +822,7 @@ class BuildChecker:
     def _reaches(self, present: np.ndarray) -> bool:
         """Whether every brick of ``present`` not in the last set found held reaches that set
         or the ground through such bricks (a layout without printed parts): a search over
-        the new bricks only, so a 130,919-brick build's steps cost no more than its bricks."""
+        the new bricks only, so all the steps of a build cost in all no more than its bricks."""
         new = present & ~self._held_last
         todo = [b for b in np.flatnonzero(new).tolist()
                 if self._grounded[b] or self._held_last[self._lowers[b]].any()

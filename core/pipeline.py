@@ -756,7 +756,7 @@ def hollow_report(fab: Fabrication) -> dict | None:
     big to lay out as well, or an iteration, which lays out only what changed)
     ``solid_at_least``, a lower bound: no catalog part covers more cells than the largest,
     so it needs at least its cells over the largest part's cells, which can be far below
-    a real layout (the bunny scaled x3: 2,321 against 6,912).  ``compare`` says it in a
+    a real layout's bricks (an uneven part needs many small ones).  ``compare`` says it in a
     sentence, and why a bound.
     """
     h = fab.hollowing

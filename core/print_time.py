@@ -79,10 +79,8 @@ ESTIMATE_LAYER_MM = 0.2
 #: of tests/core/test_print_time.py (boxes, cylinders, a tube, a cup, a
 #: sphere, LEGO-like studded parts, multi-part plates and six models of
 #: /work/shared/models), 21 plates from 20 min to 5 h, sliced without
-#: supports.  Relative error of
-#: the fit: rms 10.6 %, max 21 % (open cup +21 %, 2x2x12 tower -18 %);
-#: leave-one-out rms 14 %, max 31 %.  Held out: relativty_hmd_body -18 %,
-#: vr_phone_headset -4 %, openbot_body_bottom -11 %, 3dbenchy -10 %.
+#: supports.  Relative error of the fit: rms 10.6 %, max 21 %; leave-one-out
+#: rms 14 %, max 31 %.
 ESTIMATE_COEFFS = (0.04172, 0.2796, 5.67, 0.5232, 53.98)
 
 #: Settings laid over the profile for a plate that needs supports:

@@ -826,7 +826,7 @@ def _use_system_fontconfig() -> None:
     The fontconfig library bundled with the cadquery-ocp wheel was built
     with its configuration folder inside the build machine's conda
     environment (``/usr/share/miniconda3/envs/cadquery-ocp/etc/fonts``), so
-    on any other machine the first text shape printed "Fontconfig error:
+    on any other machine the first text shape prints "Fontconfig error:
     Cannot load default config file" on stderr.  Fontconfig reads
     ``FONTCONFIG_FILE`` when OpenCascade's font manager first initialises
     it, so setting it before the first text shape is enough.  Nothing
