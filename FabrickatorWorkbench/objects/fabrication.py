@@ -106,7 +106,8 @@ PROPERTIES = (
     Prop("App::PropertyInteger", "Hollow", "Fabrication",
          QT("App::Property", "Shell thickness in studs of a hollowed part, with pillars under "
                              "its roof; 0: solid; -1: automatic (hollow with 2 studs when the "
-                             "part has 50,000 cells or more and that saves a third of them)"),
+                             "part has 50,000 cells or more, keeps at most two thirds of them and "
+                             "saves more than a third of the bricks)"),
          partial(setting_default, "hollow")),
     Prop("App::PropertyBool", "KeepLayout", "Fabrication",
          QT("App::Property", "Iterate on the previous result: keep its layout wherever the part "
@@ -158,8 +159,9 @@ PROPERTIES = (
          QT("App::Property", "The force check in words: worst joint utilisation, mass carried"),
          "", READ_ONLY),
     Prop("App::PropertyFloat", "SpeedUp", "Result",
-         QT("App::Property", "Full print time / (printed parts' print time + assembly); "
-                             "0 when not sliced"), 0.0, READ_ONLY),
+         QT("App::Property", "Full print time / the fabrication's time (the LEGO built while "
+                             "the printer prints, then the printed parts pressed on); 0 when "
+                             "not sliced"), 0.0, READ_ONLY),
     Prop("App::PropertyInteger", "BricksKept", "Result",
          QT("App::Property", "Bricks kept from the previous recompute"), 0, READ_ONLY),
     Prop("App::PropertyInteger", "BricksChanged", "Result",
