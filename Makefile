@@ -86,19 +86,10 @@ test-freecad1: freecad1-root
 bench-check: examples/build/hmd.step
 	$(PY) bench/check.py
 
+# every benchmark script in turn (bench/run_all.py lists them), each printing its tables
+# as it goes, then docs/benchmarks.md written from them
 bench: examples/build/hmd.step
-	$(PY) bench/check.py --all || true
-	$(PY) bench/bench.py
-	$(PY) bench/bench_improve.py --best --time-limit 60
-	$(PY) bench/bench_printed.py
-	$(PY) bench/bench_forces.py
-	$(PY) bench/bench_grid_fit.py
-	$(PY) bench/bench_merge.py
-	$(PY) bench/bench_instructions.py
-	$(PY) bench/bench_iterate.py
-	$(PY) bench/bench_big.py
-	$(PY) bench/bench_startup.py
-	$(MAKE) --no-print-directory bench-freecad
+	$(PY) bench/run_all.py --freecadcmd "$(FREECADCMD)"
 
 clean:
 	rm -rf $(DEMO_OUT) examples/build bench/out .pytest_cache
