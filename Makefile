@@ -65,6 +65,11 @@ test: $(VENV)/.installed
 test-core: $(VENV)/.installed
 	$(PY) -m pytest tests/core -q -n auto --dist loadfile --durations=15
 
+# the inner loop: the core tests that need neither FreeCAD, PrusaSlicer, the shared models
+# nor a whole pipeline run (those are marked slow), spread over the cores test by test
+test-quick: $(VENV)/.installed
+	$(PY) -m pytest tests/core -q -n auto -m "not slow" --durations=10
+
 # --- FreeCAD 1.x: a Debian 13 (trixie) root made with debootstrap, beside the host's apt
 # sources (which stay Debian 12); built once into FREECAD1_ROOT, the suites run on a copy
 # of this tree with a Python 3.13 venv of the root's own
@@ -72,7 +77,7 @@ FREECAD1_ROOT ?= /var/tmp/fabrickator-trixie
 FREECAD1_LOG  := $(FREECAD1_ROOT).build.log
 FREECAD1_MAKE := make --no-print-directory -o .apt.stamp VENV=/root/venv
 
-.PHONY: test-core test-freecad1 freecad1-root
+.PHONY: test-core test-quick test-freecad1 freecad1-root
 
 freecad1-root:
 	$(SUDO) sh tools/freecad1/root.sh $(FREECAD1_ROOT)

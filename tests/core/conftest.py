@@ -12,6 +12,12 @@ ROOT = Path(__file__).resolve().parents[2]
 HMD_HIGH_RES = ["-54,25,25.5,-9,36,70.5", "9,25,25.5,54,36,70.5"]
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "slow: runs PrusaSlicer, reads the shared models or runs a whole pipeline "
+        "(left out of make test-quick)")
+
+
 @pytest.fixture(scope="session")
 def hmd_step(tmp_path_factory) -> Path:
     """The bundled example's STEP: examples/build/hmd.step, or built for the test session."""

@@ -76,6 +76,7 @@ def test_coplanar_patches_apart_are_one_plane():
     assert len(up) == 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_openbot_mesh_moved_by_arbitrary_rotation_is_recovered(openbot_stl, seed):
     mesh = openbot_stl.mesh
@@ -89,6 +90,7 @@ def test_openbot_mesh_moved_by_arbitrary_rotation_is_recovered(openbot_stl, seed
     assert np.isclose(np.linalg.det(result.transform[:3, :3]), 1.0)
 
 
+@pytest.mark.slow
 def test_openbot_stl_file_rotated_keeps_every_cell(openbot_stl, tmp_path):
     """Through a real STL file (float32 coordinates): recovered within one triangle
     size and, on the previous grid, not one cell differs."""
@@ -108,6 +110,7 @@ def test_openbot_stl_file_rotated_keeps_every_cell(openbot_stl, tmp_path):
     assert cells.cells_added == 0 and cells.cells_removed == 0
 
 
+@pytest.mark.slow
 def test_openbot_step_rotated_is_recovered_from_brep_faces(tmp_path):
     old = mesh_io.load_model(_model("openbot_body_bottom.step"))
     motion = _motion(11)
@@ -125,6 +128,7 @@ def test_openbot_step_rotated_is_recovered_from_brep_faces(tmp_path):
     assert cells.cells_added == 0 and cells.cells_removed == 0
 
 
+@pytest.mark.slow
 def test_edited_and_moved_part_still_aligns(openbot_stl):
     """A boss added changes some sides; the rest still fixes the transform."""
     mesh = openbot_stl.mesh
@@ -138,6 +142,7 @@ def test_edited_and_moved_part_still_aligns(openbot_stl):
     assert _recovery_error(result.transform, motion, np.asarray(mesh.vertices)) < 1e-3
 
 
+@pytest.mark.slow
 def test_unmoved_version_is_the_identity(openbot_stl):
     result = align.align(openbot_stl.mesh, openbot_stl.mesh, new_closed=True, old_closed=True)
     assert result.is_identity and result.method == "identity" and result.confident

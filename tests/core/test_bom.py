@@ -29,6 +29,7 @@ def read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_csv_totals_match_the_layout(hmd, tmp_path):
     path = bom.write_csv(bom.lines(hmd.layout, hmd.printed), tmp_path / "bom.csv")
     rows = read_csv(path)
@@ -50,6 +51,7 @@ def test_csv_totals_match_the_layout(hmd, tmp_path):
     assert sum(int(r["count"]) for r in rows) == sum(want.values()) + len(hmd.printed)
 
 
+@pytest.mark.slow
 def test_slicer_time_is_used_when_there(hmd):
     part = hmd.printed[0]
     old = part.print_s
@@ -61,6 +63,7 @@ def test_slicer_time_is_used_when_there(hmd):
         part.print_s = old
 
 
+@pytest.mark.slow
 def test_wanted_list_is_bricklink_xml_of_the_missing_bricks(hmd, tmp_path):
     path = bom.write_wanted_list(hmd.layout, tmp_path / "bricklink.xml", remarks="hmd & co")
     text = path.read_text(encoding="utf-8")
@@ -83,12 +86,14 @@ def test_wanted_list_is_bricklink_xml_of_the_missing_bricks(hmd, tmp_path):
     assert got.get(other, 0) == want[other] - 1
 
 
+@pytest.mark.slow
 def test_owned_counts_must_be_whole_numbers(hmd):
     for bad in (-1, 1.5, "3"):
         with pytest.raises(InputError, match="owned count"):
             bom.wanted(hmd.layout, {"3001": bad})
 
 
+@pytest.mark.slow
 def test_a_shared_model_without_printed_parts(tmp_path):
     path = MODELS / "xyz_calibration_cube.stl"
     if not path.is_file():

@@ -129,6 +129,7 @@ def test_counts_on_2x4_brick_and_1x4_brick():
     assert not any(t.startswith(("pin:", "tube:")) for t in lone.tags)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fp", FOOTPRINTS, ids=lambda fp: "x".join(map(str, fp)))
 def test_catalog_solids_valid_tagged_watertight(all_bricks, fp):
     sx, sy, layers = fp
@@ -364,6 +365,7 @@ def _on_boundary(face, solid) -> bool:
     return states == [TopAbs_OUT, TopAbs_IN]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(MERGES))
 def test_merge_by_face_removal_is_the_union_without_internal_faces(case):
     from core.brick_solids import merged_solid

@@ -104,6 +104,7 @@ def layout_of(bricks: list[tuple], shape) -> Layout:
     return Layout(Grid(np.zeros(3), CELL, filled), out)
 
 
+@pytest.mark.slow
 def test_real_model_with_printed_parts_is_ordered_bottom_up(hmd):
     lay = hmd.layout
     order = build_order.plan(lay)
@@ -194,6 +195,7 @@ def test_empty_layout_and_bad_arguments():
         build_order.plan("not a layout")
 
 
+@pytest.mark.slow
 def test_assembly_time_model(hmd):
     lay = hmd.layout
     lego = sum(1 for b in lay.bricks if b.kind == "lego")
@@ -205,6 +207,7 @@ def test_assembly_time_model(hmd):
         build_order.assembly_seconds(lay, 10.0, float("nan"))
 
 
+@pytest.mark.slow
 def test_callout_counts_the_step_bricks(hmd):
     order = build_order.plan(hmd.layout)
     index = {b.id: b for b in hmd.layout.bricks}
@@ -217,6 +220,7 @@ def test_callout_counts_the_step_bricks(hmd):
             assert {p for p, _ in counted} == {index[b].part for b in s.bricks}
 
 
+@pytest.mark.slow
 def test_shared_model_is_ordered():
     path = MODELS / "openbot_phone_mount.stl"
     if not path.is_file():
@@ -256,6 +260,7 @@ def test_random_layouts_order_every_brick(seed, density):
     assert len(order.unattached) == _components_without_base(lay)
 
 
+@pytest.mark.slow
 def test_the_checker_catches_a_wrong_order(hmd):
     order = build_order.plan(hmd.layout)
     flipped = build_order.BuildOrder([build_order.Step(n, s.layer, s.bricks, s.printed_part)
@@ -266,6 +271,7 @@ def test_the_checker_catches_a_wrong_order(hmd):
     assert any("cover" in p for p in check_order(hmd.layout, dropped))
 
 
+@pytest.mark.slow
 def test_the_phone_charger_stand_is_built_on_a_prop_and_an_export_keeps_it(tmp_path):
     """The phone charger stand tips over on a table as a whole (its force verdict says so):
     without props some of its steps do not stand.  It is built on a prop, which the finished

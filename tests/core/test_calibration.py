@@ -90,6 +90,7 @@ def mesh(written):
     return trimesh.load(written[0] / "calibration_strip.stl", force="mesh")
 
 
+@pytest.mark.slow
 def test_one_line_per_file_written(written):
     folder, lines = written
     assert lines == [str(folder / name) for name in FILES]
@@ -171,6 +172,7 @@ def test_readme_says_how_to_read_it_and_names_the_options(written):
     assert [float(v) for v in listed.group(1).split(",")] == pytest.approx(DEFAULT_VALUES)
 
 
+@pytest.mark.slow
 def test_range_and_step_options(tmp_path, capsys):
     # 0.1 + 2 * 0.05 is 0.20000000000000004 in floats: the label and the stud say 0.20
     status, lines, err = run(capsys, "--out", tmp_path, "--from", 0.1, "--to", 0.3, "--step", 0.05)

@@ -68,6 +68,7 @@ def test_box_end_to_end(box_stl, tmp_path):
         assert name in report["outputs"]
 
 
+@pytest.mark.slow
 def test_lower_bound_says_how_far_the_layout_is_from_the_fewest_bricks(box_stl, tmp_path):
     """The 5 x 3 stud box two bricks high: a course of 15 studs needs three catalog parts
     (no two footprints that fit make 15), so six bricks at least, and the layout has six,
@@ -141,6 +142,7 @@ def test_nan_coordinates(tmp_path):
     assert_refused(fabricate(str(bad), "--out", str(tmp_path / "o")), "nan")
 
 
+@pytest.mark.slow
 def test_bad_parts_and_units(box_stl, tmp_path):
     assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--parts", "3001"),
                    "3024")
@@ -172,6 +174,7 @@ def test_out_folder_with_foreign_files_is_kept(box_stl, tmp_path):
     assert (out / "thesis.txt").read_text() == "precious"
 
 
+@pytest.mark.slow
 def test_rerun_replaces_previous_output(box_stl, tmp_path):
     out = tmp_path / "out"
     assert fabricate(str(box_stl), "--out", str(out), "--no-picture").returncode == 0
@@ -188,6 +191,7 @@ def test_unit_warning(tmp_path):
     assert "--units" in proc.stderr
 
 
+@pytest.mark.slow
 def test_triangle_soup_refused(tmp_path):
     soup = MODELS / "broken_triangle_soup.stl"
     if not soup.exists():
@@ -208,6 +212,7 @@ def _l_block(extra: bool) -> trimesh.Trimesh:
     return mesh
 
 
+@pytest.mark.slow
 def test_previous_keeps_the_layout_of_a_moved_and_edited_part(tmp_path):
     first, second = tmp_path / "v1.stl", tmp_path / "v2.stl"
     _l_block(False).export(first)
@@ -234,6 +239,7 @@ def test_previous_that_is_not_an_output_is_refused(box_stl, tmp_path):
                    "--previous", "not an output folder")
 
 
+@pytest.mark.slow
 def test_watch_fabricates_each_new_version(box_stl, tmp_path):
     folder = tmp_path / "inbox"
     folder.mkdir()

@@ -57,6 +57,7 @@ def test_bricks_of_one_part_need_no_connector_between_them():
     assert len(found.top) == 0 and len(found.bottom) == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["step", "stl"])
 def test_thin_printed_region_clamps_with_studs_and_sockets(wall_files, kind):
     fab = pipeline.run(wall_files[kind], high_res=[REGION], slice_parts=False)
@@ -94,6 +95,7 @@ def test_without_connectors_the_thin_part_hangs_loose(wall_files):
     assert fab.stability.components > 1
 
 
+@pytest.mark.slow
 def test_part_edits_split_and_merge_printed_bricks(wall_files):
     wide = "-31,-10,3.5,31,10,31"
     whole = pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False)
@@ -109,6 +111,7 @@ def test_part_edits_split_and_merge_printed_bricks(wall_files):
         pipeline.run(wall_files["step"], high_res=[wide], slice_parts=False, part_edits=[{"op": "glue"}])
 
 
+@pytest.mark.slow
 def test_a_seat_standing_through_the_floor_is_anchored(tmp_path):
     floor = cq.Workplane("XY").box(48.0, 48.0, 6.4, centered=(True, True, False))
     seat = cq.Workplane("XY").circle(6.0).circle(1.7).extrude(25.6)

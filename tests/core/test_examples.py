@@ -43,6 +43,7 @@ def exported(tmp_path_factory):
     return out, run.stdout
 
 
+@pytest.mark.slow
 def test_script_writes_step_and_stl(exported):
     out, stdout = exported
     for name in ("hmd.step", "hmd.stl"):

@@ -25,6 +25,7 @@ def _manifold(mesh):
                                  tri_verts=np.ascontiguousarray(mesh.faces, np.uint64)))
 
 
+@pytest.mark.slow
 def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
     model = trimesh.creation.icosphere(subdivisions=4, radius=14.0)
     model.apply_translation([12, 12, 8])
@@ -55,6 +56,7 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
         assert placed.bounds == pytest.approx(plate.geometry[p.id].bounds, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_cli_high_res_box_on_the_demo_makes_parts(tmp_path):
     if not DEMO.exists():
         subprocess.run([sys.executable, str(ROOT / "examples" / "hmd.py"), str(DEMO.parent)],
@@ -114,6 +116,7 @@ def _overlap(a, b):
     return bool(np.all(a[0][:2] < b[1][:2]) and np.all(b[0][:2] < a[1][:2]))
 
 
+@pytest.mark.slow
 def test_plate_lays_parts_on_the_bed_inside_it_without_overlap():
     parts = _parts([[("3001", (2, 4, 3), (0, 0, 0))], ARM, CAP, [("3003", (2, 2, 3), (6, 2, 0))]])
     bed = print_time.build_volume(print_time.load_profile())[:2]
@@ -129,6 +132,7 @@ def test_plate_lays_parts_on_the_bed_inside_it_without_overlap():
     assert [m.volume for m in meshes] == pytest.approx([p.mesh.volume for p in parts], rel=1e-9)
 
 
+@pytest.mark.slow
 def test_parts_that_fill_a_bed_go_on_more_plates(tmp_path):
     parts = _parts([[("3001", (2, 4, 3), (2 * i, 0, 0))] for i in range(4)])
     plates = export.plates(parts, bed=(60, 60))
@@ -160,6 +164,7 @@ def test_overhanging_part_gets_a_flatter_pose_than_upright():
     assert mesh.metadata[print_time.POSE_KEY] == {"name": pose.name, "supports": pose.supports}
 
 
+@pytest.mark.slow
 def test_studs_never_point_down_onto_the_bed():
     # A mushroom on its stem (studs would be on top of the cap): upright, the cap overhangs;
     # upside down, the cap would lie flat on the bed, which the studs rule forbids.
@@ -182,6 +187,7 @@ def test_a_box_prints_upright_without_supports():
     assert plain.name == "upright" and plain.support_mm2 == 0 and not plain.supports
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("side", [+1, -1])
 def test_the_engraved_face_never_faces_down(side):
     # The arm prints fastest lying on one of its long sides (they are mirror images, so
@@ -194,6 +200,7 @@ def test_the_engraved_face_never_faces_down(side):
     assert pose.name == ("on side -y" if side > 0 else "on side +y")
 
 
+@pytest.mark.slow
 def test_an_engraved_part_is_laid_with_its_id_up_or_sideways():
     (part,) = _parts([ARM], above=[("3460", (8, 1, 1), (0, 0, 7))], engrave=True)
     assert part.engraved and part.complete_studs
@@ -224,6 +231,7 @@ def test_plate_config_switches_supports_on_when_a_part_needs_them(tmp_path):
     assert configs["mixed"]["layer_height"] == print_time.load_profile()["layer_height"]
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_the_plate_prints_in_prusaslicer_as_timed(tmp_path):
     parts = list(_overhanging_and_plain_parts())
@@ -242,6 +250,7 @@ def test_the_plate_prints_in_prusaslicer_as_timed(tmp_path):
     assert print_time.gcode_seconds(gcode) == pytest.approx(timed.seconds, rel=0.002)
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_support_need_agrees_with_the_slicer(tmp_path):
     # A T: a 10 x 10 x 20 stem carrying a 30 x 10 x 4 bar, 200 mm^2 overhanging 20 mm high.

@@ -172,6 +172,7 @@ def test_printed_part_weight_turns_a_marginal_layout_unstable():
     assert 2 in result.failing_bricks
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("prusa-slicer") is None, reason="PrusaSlicer is not installed")
 @pytest.mark.parametrize("size", [(20.0, 20.0, 20.0), (40.0, 16.0, 9.6)])
 def test_printed_mass_matches_prusaslicers_filament_weight(tmp_path, size):
@@ -784,6 +785,7 @@ def test_the_whole_programs_limit_is_its_work_not_the_clock(monkeypatch):
     assert short.unchecked and f"ran past the {calm.work - step:,} solver iterations" in short.unchecked
 
 
+@pytest.mark.slow
 def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars(monkeypatch):
     """A 21 cm hollow cube's roof (on its walls and the hollow stage's pillars) cut in plan
     into groups: each stands on what is under it, so the cube stands, with a worst
@@ -850,6 +852,7 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     assert forces.analyse(lay, detail=False).unchecked
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("margin", [forces.MARGIN_LEVELS, forces.BUILD_MARGIN_LEVELS])
 def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch, margin):
     """Past EXACT_BODIES each partial build is solved on the layout's hanging part (with

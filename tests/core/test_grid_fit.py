@@ -45,6 +45,7 @@ def test_no_region_or_nothing_to_gain_keeps_the_centred_frame():
         assert np.allclose(fit.origin, centred_origin) and fit.shape == centred_shape
 
 
+@pytest.mark.slow
 def test_region_solid_fits_like_the_same_box(tmp_path):
     solid = tmp_path / "plate.stl"
     trimesh.creation.box(bounds=PLATE).export(solid)
@@ -56,6 +57,7 @@ def test_region_solid_fits_like_the_same_box(tmp_path):
         grid_fit.fit(_block(), solids=[tmp_path / "missing.stl"])
 
 
+@pytest.mark.slow
 def test_pipeline_prints_less_with_the_fitted_grid(tmp_path):
     path = tmp_path / "block.stl"
     _block().export(path)
@@ -72,6 +74,7 @@ def test_pipeline_prints_less_with_the_fitted_grid(tmp_path):
     assert covered == fitted.grid.count
 
 
+@pytest.mark.slow
 def test_vr_headset_lens_bores_print_less():
     path = MODELS / "vr_phone_headset.stl"
     if not path.exists():
@@ -84,6 +87,7 @@ def test_vr_headset_lens_bores_print_less():
     assert fitted.stability.components == fitted.stability.regions
 
 
+@pytest.mark.slow
 def test_faces_a_hair_past_a_cell_boundary_are_snapped_onto_it(tmp_path):
     path = tmp_path / "slab.stl"
     trimesh.creation.box(bounds=[[0.0, 0.0, 0.0], [40.0, 40.0, 3 * 3.2 + 2e-5]]).export(path)
@@ -92,6 +96,7 @@ def test_faces_a_hair_past_a_cell_boundary_are_snapped_onto_it(tmp_path):
     assert fab.grid.filled[:, :, :3].all()
 
 
+@pytest.mark.slow
 def test_iterating_on_a_fitted_grid_changes_nothing_when_the_part_did_not(tmp_path):
     path = tmp_path / "block.stl"
     _block().export(path)
@@ -104,6 +109,7 @@ def test_iterating_on_a_fitted_grid_changes_nothing_when_the_part_did_not(tmp_pa
     assert changes["parts_reprinted"] == []
 
 
+@pytest.mark.slow
 def test_cli_says_how_the_grid_moved_and_no_grid_fit_keeps_it_centred(tmp_path):
     import json
     import subprocess

@@ -96,6 +96,7 @@ def box_stl(tmp_path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_pipeline_hollows_on_request_and_reports_it(box_stl):
     # interior 16 x 16 x 10 = 2,560; pillars: i, j in 2..17 -> {12, 13}: 4 columns x 10
     fab = pipeline.run(box_stl, slice_parts=False, hollow=2)
@@ -117,6 +118,7 @@ def test_pipeline_hollows_on_request_and_reports_it(box_stl):
     assert default.grid.count == 8000 and not default.hollowing.on
 
 
+@pytest.mark.slow
 def test_a_solid_part_beyond_the_limit_is_reported_as_a_lower_bound(box_stl, monkeypatch):
     monkeypatch.setattr(hollow, "SOLID_LAYOUT_MAX_CELLS", 5000)
     fab = pipeline.run(box_stl, slice_parts=False, hollow=2, effort="fast")
@@ -168,6 +170,7 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["cube_10m", "mm_file_in_m", "two_cubes_1km_apart"])
 def test_too_big_is_refused_in_one_line_before_allocating(tmp_path, case):
     model = tmp_path / f"{case}.stl"
@@ -219,6 +222,7 @@ def test_automatic_hollowing_needs_a_third_fewer_bricks():
     assert declined.to_json()["laid_out_both"] == {"hollow_bricks": 1100, "solid_bricks": 1600}
 
 
+@pytest.mark.slow
 def test_the_layout_stage_reports_progress_through_the_pipeline(box_stl):
     heard = []
     pipeline.run(box_stl, slice_parts=False, progress=lambda f, m: heard.append((f, m)))
@@ -230,6 +234,7 @@ def test_the_layout_stage_reports_progress_through_the_pipeline(box_stl):
     assert names.index("layout") < names.index(inside[0][1]) < names.index("stability")
 
 
+@pytest.mark.slow
 def test_a_new_version_of_a_hollowed_part_is_hollowed_as_before(box_stl, tmp_path):
     """Iterating on a hollowed output hollows the new version with the same shell and the
     same pillar lattice, so only the cells near the edit change.  By hand: a notch of

@@ -87,6 +87,7 @@ def dead_pid() -> int:
 
 # --- special and unreadable files -----------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, role", [("fifo", "model"), ("fifo", "region"),
                                         ("socket", "model"), ("device", "model")])
 def test_special_files_are_refused_before_opening(tmp_path, box_stl, capsys, kind, role):
@@ -127,6 +128,7 @@ def as_nobody():
         shutil.rmtree(folder, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_an_unreadable_file_names_the_permission_problem(as_nobody):
     folder, prefix, env = as_nobody
     out = folder / "outputs"
@@ -448,6 +450,7 @@ def mobius(path: Path) -> None:
     trimesh.Trimesh(points, faces, process=False).export(path)
 
 
+@pytest.mark.slow
 def test_an_open_one_sided_surface_is_said_in_the_report_and_one_line(tmp_path, capsys):
     path = tmp_path / "mobius.stl"
     mobius(path)
@@ -520,6 +523,7 @@ def _slicers_of(pid: int) -> list[int]:
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("prusa-slicer") is None or not Path("/proc").is_dir(),
                     reason="needs PrusaSlicer (apt-get install prusa-slicer) and Linux /proc")
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGKILL, -9)])

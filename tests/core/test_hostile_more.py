@@ -116,6 +116,7 @@ def test_a_huge_coordinate_times_the_scale_is_one_line(tmp_path, capsys):
     assert "RuntimeWarning" not in err
 
 
+@pytest.mark.slow
 def test_a_huge_high_res_box_marks_the_whole_part(box_stl, tmp_path, capsys):
     status, _, err = in_process(capsys, "fabricate", box_stl, "--out", tmp_path / "o",
                                 "--high-res=-1e300,-1e300,-1e300,1e300,1e300,1e300",
@@ -138,6 +139,7 @@ def test_box_cells_of_a_huge_box_are_the_whole_grid():
     assert high_res.box_cells(grid, box).all()
 
 
+@pytest.mark.slow
 def test_a_huge_load_box_carries_the_whole_layout(box_stl, tmp_path):
     proc = cli("fabricate", box_stl, "--out", tmp_path / "o", "--quiet", "--no-picture")
     assert proc.returncode == 0, proc.stderr
@@ -237,6 +239,7 @@ def test_watch_takes_a_root_of_earlier_outputs(box_stl, tmp_path, capsys):
 
 # --- 7. a file a watch skips -------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_watch_names_a_file_that_is_no_model_and_keeps_watching(tmp_path):
     folder = tmp_path / "in"
     folder.mkdir()
@@ -273,6 +276,7 @@ def test_folder_watcher_reports_an_incomplete_file_once_until_it_changes(tmp_pat
 
 # --- 8. a user without a home --------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_user_without_a_home_and_a_read_only_package_builds(box_stl):
     if not IS_ROOT or shutil.which("setpriv") is None:
         pytest.skip("needs root and util-linux setpriv to run the CLI as user nobody")
@@ -330,6 +334,7 @@ def shell(args, redirect: str, timeout: float = 300) -> subprocess.CompletedProc
                           text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("redirect", ["2>&-", ">&- 2>&-", "<&- 2>&-", "2</dev/null"])
 def test_bad_input_with_stderr_closed_still_exits_2(tmp_path, redirect):
     proc = shell(["fabricate", tmp_path / "missing.stl", "--out", tmp_path / "o"], redirect)
@@ -339,6 +344,7 @@ def test_bad_input_with_stderr_closed_still_exits_2(tmp_path, redirect):
     assert proc.returncode == 2 and proc.stderr == "", proc.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("redirect", ["2>&-", ">&- 2>&-", "2</dev/null"])
 def test_a_run_with_stderr_closed_finishes_and_exits_0(box_stl, tmp_path, redirect):
     proc = shell(["fabricate", box_stl, "--out", tmp_path / "o", "--no-picture"], redirect)
@@ -415,6 +421,7 @@ def test_stability_with_a_small_address_space_never_hangs(box_layout, tmp_path, 
         assert proc.returncode == 0 and "stands" in proc.stdout
 
 
+@pytest.mark.slow
 def test_memory_running_out_mid_run_is_one_line_and_leaves_nothing(tmp_path):
     cube = tmp_path / "cube.stl"                         # 2.7 million cells, hollowed
     trimesh.creation.box((1500.0, 1500.0, 1500.0)).export(cube)
@@ -505,6 +512,7 @@ def test_watch_says_a_readable_file_looks_incomplete(tmp_path):
                           "must end with a line break"), why
 
 
+@pytest.mark.slow
 def test_watch_names_each_file_that_is_no_model_once(tmp_path):
     folder = tmp_path / "in"
     folder.mkdir()
@@ -525,6 +533,7 @@ def test_watch_names_each_file_that_is_no_model_once(tmp_path):
 
 # --- a stop signal during a long force program ----------------------------------------
 
+@pytest.mark.slow
 def test_sigterm_during_a_force_program_stops_the_run_at_once(tmp_path):
     """A force program may run for minutes (HiGHS, in C); a SIGTERM must still end the run
     in one line at once: the program runs in a worker thread that HiGHS's user interrupt

@@ -54,6 +54,7 @@ def shapes(draw):
 PART_SETS = [catalog.CATALOG, catalog.select("plates"), catalog.select("3024,3023,3004,3001,3020")]
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(shapes(), st.sampled_from(range(len(PART_SETS))), st.integers(0, 3))
 def test_same_cells_allowed_parts_never_worse(filled, which, seed):
@@ -84,6 +85,7 @@ def test_best_starts_from_more_seeds_on_small_layouts():
         == [8, 8, 3, 3, 2, 2, 1]
 
 
+@pytest.mark.slow
 def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
     """``best`` goes on from the best of ``normal``'s searches from best_starts seeds (3
     here, to keep the test short).  On this terraced shape (142 cells) seed 5 leaves fewer
@@ -101,6 +103,7 @@ def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
     assert improve.quality(best) <= min(normal)
 
 
+@pytest.mark.slow
 def test_best_spends_its_seeds_within_its_work(monkeypatch):
     """``best`` starts another seed's search only while the seeds so far, one more on
     average, stay within its share of the work.  On the terraced shape of the test above,
@@ -221,6 +224,7 @@ def test_layer_groups_are_the_nearest_bricks_from_a_corner():
     assert improve._nearest_groups(rec, np.array([1, 1]), 3) == [[n] for n in range(10)]
 
 
+@pytest.mark.slow
 def test_best_from_another_start_is_no_worse_and_deterministic(monkeypatch):
     """``best`` with another start (the relaxed layout, other brick layers) shares its seeds
     between the two starts: on the terraced shape of the test above it covers the cells once,
@@ -300,6 +304,7 @@ def test_l_sheet_reaches_two_plates():
     assert sorted(b.part for b in best.bricks) == ["3034", "3795"]
 
 
+@pytest.mark.slow
 def test_l_wall_reaches_fewest_bricks():
     """An L wall two studs thick, two bricks high: arms 2 x 8 along x and 2 x 8 along y sharing
     the corner (28 studs a course).  A course needs two bricks at least (the largest covers 16
@@ -621,6 +626,7 @@ def _small_shape(size: tuple[int, int, int], seed: int):
     return filled, tuple(p for p in catalog.CATALOG if p.number in ("3024", "3023", "3623", "3005"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("relaxed_cuts", [False, True])
 @pytest.mark.parametrize("size, seed", SMALL_SHAPES)
 def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, seed, relaxed_cuts,
@@ -669,6 +675,7 @@ def _thin_weak_points_here(filled: np.ndarray, boxes: list[tuple], graph) -> tup
     return len(weak), len(thin)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("relaxed_cuts", [False, True])
 @pytest.mark.parametrize("size, seed", SMALL_SHAPES)
 def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, seed, relaxed_cuts,
@@ -716,6 +723,7 @@ def test_separating_bricks_are_those_that_split_their_region():
                                                           False, False]
 
 
+@pytest.mark.slow
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(filled=shapes())
 @example(filled=np.arange(6)[None, None, :] < np.array([[1, 0], [1, 1]])[:, :, None])
@@ -800,6 +808,7 @@ def _mended(monkeypatch, name: str, level=None, seed: int = 0):
     return fab.layout, pipeline.run(model, slice_parts=False, picture=False, seed=seed).layout
 
 
+@pytest.mark.slow
 def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monkeypatch):
     """On the Relativty hw box (seed 2) ``normal``'s own windows leave two weak points, one
     of them holding a leaf on a one-cell-thin feature; its closing windows remove the other
@@ -813,6 +822,7 @@ def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monke
     assert len(after.bricks) < len(before.bricks)
 
 
+@pytest.mark.slow
 def test_normal_tries_a_weak_point_on_a_thin_feature_too(monkeypatch):
     """The Utah teapot: ``normal``'s own windows leave weak points that all hold a leaf on
     a one-cell-thin feature (counted by networkx here); its closing windows still run while

@@ -29,6 +29,7 @@ def hmd(tmp_path_factory, hmd_step):
     return fab, out, result
 
 
+@pytest.mark.slow
 def test_the_printed_parts_the_steps_name_carry_their_engraved_ids(hmd):
     """The steps tell the builder to find each printed part's ID engraved on its side: both
     lens mounts of the demo have it, on a side whose slab in front is free of the part (its
@@ -81,6 +82,7 @@ def assert_pieces_cover_bricks(layout, pieces, owner):
     assert np.all(pieces[:, 0] >= boxes[owner, 0] - 1e-9) and np.all(pieces[:, 1] <= boxes[owner, 1] + 1e-9)
 
 
+@pytest.mark.slow
 def test_drawing_order_is_valid_on_the_real_model(hmd):
     fab, _, result = hmd
     pieces, owner, order, split = instructions.drawing_pieces(fab.layout)
@@ -116,6 +118,7 @@ def test_an_occlusion_cycle_is_broken_and_counted():
     assert sorted(order.tolist()) == [0, 1, 2] and cycles == 1
 
 
+@pytest.mark.slow
 def test_page_is_self_contained(hmd):
     _, out, _ = hmd
     text = (out / "instructions.html").read_text(encoding="utf-8")
@@ -127,6 +130,7 @@ def test_page_is_self_contained(hmd):
     assert "hmd.step &lt;test&gt;" in text and "<test>" not in text
 
 
+@pytest.mark.slow
 def test_page_draws_every_brick_with_its_step(hmd):
     fab, out, result = hmd
     text = (out / "instructions.html").read_text(encoding="utf-8")
@@ -155,6 +159,7 @@ def test_page_draws_every_brick_with_its_step(hmd):
         assert f'<symbol id="i{number}"' in text
 
 
+@pytest.mark.slow
 def test_write_assembly_sets_steps_and_writes_all_files(hmd):
     fab, out, result = hmd
     assert sorted(p.name for p in out.iterdir()) == sorted(result["files"].values())
@@ -172,6 +177,7 @@ def test_write_assembly_sets_steps_and_writes_all_files(hmd):
     json.dumps(result)
 
 
+@pytest.mark.slow
 def test_write_assembly_refuses_a_missing_folder_and_bad_numbers(hmd, tmp_path):
     fab, _, _ = hmd
     with pytest.raises(FileNotFoundError, match="does not exist"):
@@ -182,6 +188,7 @@ def test_write_assembly_refuses_a_missing_folder_and_bad_numbers(hmd, tmp_path):
         instructions.write_assembly(fab.layout, fab.printed, tmp_path, bricks_per_step=0)
 
 
+@pytest.mark.slow
 def test_page_refuses_an_order_that_misses_bricks(hmd):
     fab, _, _ = hmd
     order = build_order.plan(fab.layout)
@@ -232,6 +239,7 @@ def test_outline_of_a_ring_seen_along_its_axis_has_its_hole():
     assert areas[0] == pytest.approx(np.pi * 6.0 ** 2, rel=0.03)
 
 
+@pytest.mark.slow
 def test_printed_parts_are_drawn_from_their_meshes(hmd):
     fab, out, _ = hmd
     text = (out / "instructions.html").read_text(encoding="utf-8")
@@ -246,6 +254,7 @@ def test_printed_parts_are_drawn_from_their_meshes(hmd):
         assert re.search(rf'<path class="ol [a-z]+" data-s="{step}" data-part="{p.id}" d="M', text)
 
 
+@pytest.mark.slow
 def test_inserted_part_is_highlighted_with_its_hole_showing(hmd, tmp_path):
     """The step that inserts the lens mount P1, as Chromium shows it: where the part's
     own surface is in front, the pixels carry the inserted part's colours; through the

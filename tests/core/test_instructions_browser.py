@@ -27,6 +27,9 @@ from selenium.webdriver.common.by import By  # noqa: E402
 from selenium.webdriver.common.keys import Keys  # noqa: E402
 from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
 
+#: Headless Chromium on the fabricated demo: left out of make test-quick.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def assembly(tmp_path_factory, hmd_step):

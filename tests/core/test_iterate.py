@@ -139,6 +139,7 @@ def openbot(tmp_path_factory):
     return fab, _previous(fab, tmp_path_factory.mktemp("openbot"))
 
 
+@pytest.mark.slow
 def test_moved_openbot_keeps_the_whole_layout(openbot, tmp_path):
     fab, previous = openbot
     path = tmp_path / "moved.stl"
@@ -158,6 +159,7 @@ def test_moved_openbot_keeps_the_whole_layout(openbot, tmp_path):
     assert "no LEGO bricks to take off" in page and "no layer changes" in page
 
 
+@pytest.mark.slow
 def test_openbot_boss_changes_only_bricks_near_it(openbot, tmp_path):
     fab, previous = openbot
     boss = trimesh.creation.cylinder(radius=5, height=14, sections=48)
@@ -176,6 +178,7 @@ def test_openbot_boss_changes_only_bricks_near_it(openbot, tmp_path):
     assert it.stability.components - it.stability.regions <= previous.extra_components
 
 
+@pytest.mark.slow
 def test_openbot_hole_cut_through_the_floor(openbot, tmp_path):
     fab, previous = openbot
     cutter = trimesh.creation.box(bounds=[[-30, -20, -1], [-6, 4, 6]])
@@ -224,6 +227,7 @@ def _clamps_vertically(layout) -> bool:
     return any((i, j, k + d) in lego for i, j, k in _printed_cells(layout) for d in (-1, 1))
 
 
+@pytest.mark.slow
 def test_screw_seat_marked_later_gets_anchor_tabs_as_in_a_fresh_run(openbot_step, tmp_path):
     """A region marked in an iteration that touches LEGO only sideways gets anchor
     tabs like a fresh run's (core.high_res.anchor), so its printed part clamps;
@@ -258,6 +262,7 @@ def test_screw_seat_marked_later_gets_anchor_tabs_as_in_a_fresh_run(openbot_step
     assert doc["stability"]["components"] > doc["stability"]["regions"]
 
 
+@pytest.mark.slow
 def test_printed_parts_are_kept_when_nothing_new_is_marked(openbot_step, tmp_path):
     """Anchor tabs only matter where the marks change: iterating again, with no
     new marks, adds no tabs and keeps every brick, both on the anchored version
@@ -291,6 +296,7 @@ def hmd_step(tmp_path_factory):
     return hmd, fab, _previous(fab, folder / "out")
 
 
+@pytest.mark.slow
 def test_snapshot_round_trip(hmd_step):
     _, fab, previous = hmd_step
     assert previous.grid.shape == fab.grid.shape and np.array_equal(previous.grid.filled, fab.grid.filled)
@@ -304,6 +310,7 @@ def test_snapshot_round_trip(hmd_step):
         assert as_json[0] == as_json[1]
 
 
+@pytest.mark.slow
 def test_hmd_boss_keeps_both_printed_lens_mounts(hmd_step, tmp_path):
     hmd, fab, previous = hmd_step
     body = hmd.build_hmd().union(
@@ -318,6 +325,7 @@ def test_hmd_boss_keeps_both_printed_lens_mounts(hmd_step, tmp_path):
     assert all(b.kind == "printed" for b in it.layout.bricks if b.printed_part)
 
 
+@pytest.mark.slow
 def test_hmd_widened_bore_reprints_only_that_mount(hmd_step, tmp_path):
     hmd, fab, previous = hmd_step
     cx, cz = hmd.IPD / 2, hmd.LENS_CENTRE_Z
@@ -349,6 +357,7 @@ def _box_overlaps(lo, hi, box) -> bool:
     return all(lo[n] < box[1][n] - 1e-6 and box[0][n] < hi[n] - 1e-6 for n in range(3))
 
 
+@pytest.mark.slow
 def test_high_res_later_then_forehead_lengthened(hmd_step, tmp_path):
     """Switching LEGO bricks to a printed forehead piece is an iteration (the paper's
     example): only the new part is printed, in place of LEGO bricks.  Then a visor
@@ -394,6 +403,7 @@ def test_high_res_later_then_forehead_lengthened(hmd_step, tmp_path):
 # --------------------------------------------------------------------------- HMD (mesh printed part)
 
 
+@pytest.mark.slow
 def test_mesh_printed_part_reprinted_only_when_its_geometry_changes(tmp_path):
     hmd = _hmd()
     base = _save(hmd.build_hmd(), tmp_path / "hmd.stl")

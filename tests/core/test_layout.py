@@ -181,6 +181,7 @@ def test_progress_is_reported_between_0_and_1():
     assert [f for f, _ in seen] == sorted(f for f, _ in seen)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["relativty_hmd_body.stl", "phone_charger_stand.stl"])
 def test_real_model_is_held_together(name):
     if not (MODELS / name).exists():

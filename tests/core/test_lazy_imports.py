@@ -42,6 +42,7 @@ def box_stl(tmp_path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_mesh_fabricate_without_printed_parts_imports_no_opencascade(box_stl, tmp_path):
     out = tmp_path / "out"
     result = run_cli("fabricate", str(box_stl), "--out", str(out), "--no-picture", "--quiet")
@@ -63,6 +64,7 @@ def test_importing_the_stages_imports_no_opencascade():
     assert proc.stdout.strip() == "[]"
 
 
+@pytest.mark.slow
 def test_mesh_fabricate_with_a_high_res_box_still_makes_its_printed_part(box_stl, tmp_path):
     out = tmp_path / "out"
     result = run_cli("fabricate", str(box_stl), "--out", str(out), "--high-res=0,0,6.4,8,8,9.6",

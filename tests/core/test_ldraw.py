@@ -59,6 +59,7 @@ def test_2x4_brick_is_3001_along_x_and_turned_by_90_degrees():
     assert np.isclose(np.linalg.det(ldraw.TURNED), 1.0)
 
 
+@pytest.mark.slow
 def test_every_reference_covers_exactly_its_brick(hmd):
     """Part body (LDraw convention) placed by the reference == the brick's cells in LDU."""
     fab, _, path = hmd
@@ -80,6 +81,7 @@ def test_every_reference_covers_exactly_its_brick(hmd):
         assert key in boxes, f"brick {b.id} {b.part} has no reference covering it"
 
 
+@pytest.mark.slow
 def test_round_trip_bricks_steps_and_colours(hmd):
     fab, order, path = hmd
     doc = ldraw.parse(path)
@@ -91,6 +93,7 @@ def test_round_trip_bricks_steps_and_colours(hmd):
     assert got == want
 
 
+@pytest.mark.slow
 def test_printed_parts_are_embedded_once_in_their_step(hmd):
     fab, order, path = hmd
     doc = ldraw.parse(path)
@@ -114,6 +117,7 @@ def test_printed_parts_are_embedded_once_in_their_step(hmd):
         assert v == pytest.approx(part.volume_mm3, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_file_layout_is_mpd_with_steps(hmd):
     _, order, path = hmd
     text = path.read_text()
@@ -201,6 +205,7 @@ def orange_pixels(path: Path) -> int:
     return int(((a[..., 0] > 180) & (a[..., 1] > 60) & (a[..., 1] < 170) & (a[..., 2] < 90)).sum())
 
 
+@pytest.mark.slow
 def test_leocad_reads_steps_and_embedded_printed_parts(hmd, tmp_path):
     """LeoCAD (Debian leocad) renders the MPD step by step with a box parts library:
     nothing orange before the first printed part's step, orange from that step on."""

@@ -119,6 +119,7 @@ def test_too_large(monkeypatch):
     assert out["variables"] > 100
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(12))
 def test_matches_brute_force_on_tiny_grids(seed):
     rng = np.random.default_rng(seed)

@@ -519,6 +519,7 @@ LOADABLE = ["3dbenchy.3mf", "asm4_connecting_rod.FCStd", "broken_shared_edge_cub
             "vr_phone_headset.stl", "xyz_calibration_cube.stl"]
 
 
+@pytest.mark.slow
 def test_every_shared_model_is_covered():
     models = models_or_skip()
     present = {p.name for p in models.iterdir()
@@ -530,6 +531,7 @@ def test_every_shared_model_is_covered():
 OPEN_MODELS = {"relativty_eyes_panel_open.stl", "stanford_bunny_open.obj", "utah_teapot_open.stl"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", LOADABLE)
 def test_shared_model_loads(name):
     path = models_or_skip() / name
@@ -544,6 +546,7 @@ def test_shared_model_loads(name):
         assert len(open_scan) == (name in OPEN_MODELS) and model.warnings == open_scan
 
 
+@pytest.mark.slow
 def test_triangle_soup_is_refused():
     path = models_or_skip() / "broken_triangle_soup.stl"
     with pytest.raises(InputError, match="no volume: the 100 triangles form 100 separate pieces"):
@@ -555,6 +558,7 @@ def test_triangle_soup_is_refused():
     ("freecad_drilling_plate.FCStd", (235.81, 164.18, 40.0)),
     ("openbot_body_bottom.step", (240.0, 150.0, 29.5)),
 ])
+@pytest.mark.slow
 def test_brep_models_have_their_size(name, extents):
     """True extents; the catalog's 46.86 / 240.41 x 150.82 are OCC's loose Bnd_Box (see report)."""
     model = load_model(models_or_skip() / name)
@@ -562,6 +566,7 @@ def test_brep_models_have_their_size(name, extents):
     assert model.watertight
 
 
+@pytest.mark.slow
 def test_broken_real_world_models_are_repaired():
     models = models_or_skip()
     hw = load_model(models / "relativty_hw_box_nonmanifold.stl")
@@ -642,6 +647,7 @@ def test_an_unknown_up_axis_is_refused():
         load_model(Path(__file__), up="w")
 
 
+@pytest.mark.slow
 def test_the_bunny_stands_upright_on_a_table_with_up_y():
     """The Stanford bunny's file is y-up: as given (z up) it lies on its side on a 2 x 3 stud
     foot and tips over on a table; turned with up y it sits on its base and stands (the

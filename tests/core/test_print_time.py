@@ -353,6 +353,7 @@ def test_estimate_reads_files(tmp_path):
     assert pt.estimate_seconds([path]) == pytest.approx(pt.estimate_seconds([box]))
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_slicing_a_cube(tmp_path):
     result = pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path)
@@ -364,6 +365,7 @@ def test_slicing_a_cube(tmp_path):
     assert 10 * 60 < result.seconds < 60 * 60
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_two_cubes_share_a_plate(tmp_path):
     cube = trimesh.creation.box((20, 20, 20))
@@ -374,6 +376,7 @@ def test_two_cubes_share_a_plate(tmp_path):
     assert one.seconds < two.seconds < 2 * one.seconds + 120
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_part_over_build_height_falls_back(tmp_path):
     tall = trimesh.creation.box((20, 20, 230))
@@ -395,6 +398,7 @@ def test_parts_that_do_not_fit_together_fall_back(tmp_path):
     assert result.seconds > 0
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_estimate_agrees_with_slicer_on_calibration_plates(tmp_path):
     plates = calibration_plates()
@@ -408,6 +412,7 @@ def test_estimate_agrees_with_slicer_on_calibration_plates(tmp_path):
     assert all(abs(e) <= 0.35 for e in errors.values()), errors
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_part_on_a_corner_is_sliced_again_with_supports(tmp_path):
     # A box balanced on one corner: PrusaSlicer finds no extrusions in the first layer.
@@ -421,6 +426,7 @@ def test_part_on_a_corner_is_sliced_again_with_supports(tmp_path):
     assert "support material" in Path(result.gcode_path).read_text(errors="replace").lower()
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_cone_on_its_tip_needs_a_raft(tmp_path):
     cone = trimesh.creation.cone(radius=10, height=20, sections=64)
@@ -432,6 +438,7 @@ def test_cone_on_its_tip_needs_a_raft(tmp_path):
     assert result.seconds > 0
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_plain_parts_need_no_retry(tmp_path):
     result = pt.print_time([trimesh.creation.cylinder(radius=10, height=20, sections=64)], tmp_path,
@@ -505,6 +512,7 @@ def test_forbidden_directions_are_never_turned_down():
         pt.fastest_pose(tee(), slicer="none", keep_up=[((0, 0, 1), 0.5), ((0, 0, -1), 0.5)])
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_supports_make_an_overhang_print_longer(tmp_path):
     plain = pt.slice_plate([tee()], tmp_path, supports=False)
@@ -518,6 +526,7 @@ def test_supports_make_an_overhang_print_longer(tmp_path):
     assert decided.supports and decided.seconds == pytest.approx(supported.seconds, rel=SAME_SLICE)
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_the_fastest_pose_needs_no_supports_when_that_is_faster(tmp_path):
     upright = pt.slice_plate([tee()], tmp_path, supports=True)
@@ -531,6 +540,7 @@ def test_the_fastest_pose_needs_no_supports_when_that_is_faster(tmp_path):
     assert pose.cost == pose.slicer_s
 
 
+@pytest.mark.slow
 @needs_slicer
 def test_an_unchanged_plate_is_sliced_once_and_a_changed_one_again(tmp_path, monkeypatch):
     monkeypatch.setenv("FABRICKATOR_CACHE", str(tmp_path / "cache"))

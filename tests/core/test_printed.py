@@ -223,6 +223,7 @@ def test_no_engraving_without_a_flat_side_says_why():
     assert not part.engraved and part.engraving.startswith("not engraved: no outer")
 
 
+@pytest.mark.slow
 def test_engraving_prints_no_fontconfig_error():
     import os
     import subprocess

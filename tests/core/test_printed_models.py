@@ -1,6 +1,7 @@
 """Printed parts of models made of several solids or shells, end to end through the pipeline."""
 
 import cadquery as cq
+import pytest
 import trimesh
 
 from core import pipeline
@@ -15,6 +16,7 @@ def _parts_ok(out, report):
         assert part["kept_mm3"] > 0
 
 
+@pytest.mark.slow
 def test_step_assembly_of_ten_solids_with_its_lower_30_percent_marked(tmp_path):
     # Ten 20 x 20 x 12 mm blocks in two rows, each overlapping its neighbour by 1 mm: one object.
     solids = [cq.Solid.makeBox(20, 20, 12, cq.Vector(19 * (n % 5), 19 * (n // 5), 0)) for n in range(10)]
@@ -28,6 +30,7 @@ def test_step_assembly_of_ten_solids_with_its_lower_30_percent_marked(tmp_path):
     assert sum(p["kept_mm3"] for p in report["printed_parts"]) < union
 
 
+@pytest.mark.slow
 def test_mesh_of_five_watertight_shells_with_one_end_marked(tmp_path):
     shells = [trimesh.creation.box(bounds=[[15 * n, 0, 0], [15 * n + 20, 20, 16]]) for n in range(5)]
     mesh = trimesh.util.concatenate(shells)
@@ -43,6 +46,7 @@ def test_mesh_of_five_watertight_shells_with_one_end_marked(tmp_path):
     assert part["engaged"]["sockets"] == 0
 
 
+@pytest.mark.slow
 def test_split_and_merge_never_leave_a_part_of_several_solids(tmp_path):
     # A block whose top face cuts the top plate layer: splitting that layer off a part leaves
     # each part one solid.

@@ -95,6 +95,7 @@ def written(tmp_path_factory) -> Path:
 
 # ---- what the tool writes is still accepted -------------------------------------------------
 
+@pytest.mark.slow
 def test_layouts_the_tool_writes_pass(written, tmp_path, capsys):
     doc = json.loads((written / "layout.json").read_text())
     assert any(b["kind"] == "printed" for b in doc["bricks"])

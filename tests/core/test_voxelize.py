@@ -186,6 +186,7 @@ def test_orientation_and_overlap_use_nonzero_rule(closed):
 
 # --- exactness against an independent brute force ----------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(24))
 def test_matches_boolean_brute_force(seed):
     """Exactness: every cell the part penetrates by more than 1e-5 mm (Boolean with
@@ -305,6 +306,7 @@ def load_model(name: str, scale: float = 1.0) -> trimesh.Trimesh:
     return mesh
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, scale", [("stanford_bunny_open.obj", 1000.0),
                                          ("utah_teapot_open.stl", 1.0)])
 def test_open_models_fill_sensibly(name, scale):

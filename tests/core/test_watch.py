@@ -135,6 +135,7 @@ def test_missing_folder_is_refused(tmp_path):
         next(watch.watch(tmp_path / "file"))
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("blender") is None,
                     reason="Blender is not installed (Debian: apt-get install blender)")
 def test_blender_addon_exports_on_leaving_edit_mode(tmp_path):
