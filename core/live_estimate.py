@@ -114,7 +114,7 @@ def snapshot_mesh(snapshot: str | os.PathLike) -> trimesh.Trimesh:
         else:
             with zipfile.ZipFile(path) as archive:
                 data = archive.read(member)
-        return trimesh.load(BytesIO(data), file_type="ply", process=False, force="mesh")
+        return result.read_ply(BytesIO(data))
     except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
         raise InputError(f"the stored result has no readable model mesh ({exc})") from None
 
@@ -278,7 +278,7 @@ def words(estimate: Figures | None, last: Figures, sliced: bool) -> str:
         gain = "unknown" if f.speedup is None else f"{f.speedup:.1f}x"
         if f.whole_estimated and f.speedup is not None:
             gain += " against the whole model's estimate"
-        return f"print {pipeline._hours(f.print_s)}, speed-up {gain}"
+        return f"print {pipeline.duration_words(f.print_s)}, speed-up {gain}"
 
     then = f"last {'sliced' if sliced else 'run (estimated)'}: {figures(last)}"
     if estimate is None:

@@ -782,12 +782,37 @@ def hollow_report(fab: Fabrication) -> dict | None:
     doc["bricks"][key] = solid
     doc["assembly_s"][key] = round(solid * fab.seconds_per_brick, 1)
     doc["solid_layout"] = how
-    doc["compare"] = (f"{lego:,} LEGO bricks, about {_hours(lego * fab.seconds_per_brick)} to build; "
-                      f"{words} and {_hours(solid * fab.seconds_per_brick)}{bound}")
+    doc["compare"] = (f"{lego:,} LEGO bricks, about {duration_words(lego * fab.seconds_per_brick)} to build; "
+                      f"{words} and {duration_words(solid * fab.seconds_per_brick)}{bound}")
     return doc
 
 
-def _hours(seconds: float) -> str:
+def force_line(force: dict | None, build: dict | None = None) -> str:
+    """The force check of report.json (``stability.force``) in one line; with the build
+    check (``stability.build``), what the props left in the finished build do."""
+    if not force:
+        return "not checked"
+    if not force.get("checked", True):
+        return f"not checked: {force['unchecked_why']}"
+    failing = len(force["failing_bricks"])
+    finished = (build or {}).get("finished_with_props")
+    return (forces_stage.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
+            + (f"; {build_order.finished_words(finished, force)}" if finished else ""))
+
+
+def steps_record(order: build_order.BuildOrder, layout: Layout) -> dict:
+    """The build order as plain JSON data: its steps, the bricks no step attaches, the
+    printed parts placed early, each step's warning (by step number) and the props."""
+    from core import instructions
+
+    return {"steps": [s.to_json() for s in order.steps],
+            "unattached": list(order.unattached),
+            "early_parts": list(order.early_parts),
+            "warnings": {str(n): text for n, text in instructions.step_warnings(order, layout).items()},
+            "props": list(order.props)}
+
+
+def duration_words(seconds: float) -> str:
     """``seconds`` as ``3 h 05 min`` or ``12 min``."""
     m = int(round(seconds / 60.0))
     return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"

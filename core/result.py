@@ -177,6 +177,12 @@ def snapshot_state(folder: str | os.PathLike) -> dict:
     return state
 
 
+def read_ply(source) -> trimesh.Trimesh:
+    """The mesh stored as PLY in ``source`` (a path or a binary file object), exactly as
+    written: no merging, no repair."""
+    return trimesh.load(source, file_type="ply", process=False, force="mesh")
+
+
 def load_previous(folder: str | os.PathLike) -> Previous:
     """Read the snapshot of an earlier output folder (``--previous DIR``).
 
@@ -188,12 +194,11 @@ def load_previous(folder: str | os.PathLike) -> Previous:
     try:
         layout = Layout.from_json(state["layout"])
         snap = folder / SNAPSHOT_DIR
-        mesh = trimesh.load(snap / "model.ply", file_type="ply", process=False, force="mesh")
+        mesh = read_ply(snap / "model.ply")
         brep = _read_brep(snap / "model.brep") if state["model"]["brep"] else None
         parts = {}
         for rec in state["printed"]:
-            part_mesh = trimesh.load(snap / "parts" / f"{rec['id']}.ply", file_type="ply",
-                                     process=False, force="mesh")
+            part_mesh = read_ply(snap / "parts" / f"{rec['id']}.ply")
             brep_file = snap / "parts" / f"{rec['id']}.brep"
             parts[rec["id"]] = _part_from_record(rec, part_mesh,
                                                  _read_brep(brep_file) if brep_file.exists() else None)
@@ -212,8 +217,7 @@ def _read_regions(record: dict | None, snap: Path) -> high_res.Regions | None:
     if record is None:
         return None
     boxes = tuple(np.asarray(b, dtype=np.float64).reshape(2, 3) for b in record["boxes"])
-    solids = tuple((trimesh.load(snap / "regions" / f"{n}.ply", file_type="ply", process=False,
-                                 force="mesh"), bool(closed))
+    solids = tuple((read_ply(snap / "regions" / f"{n}.ply"), bool(closed))
                    for n, closed in enumerate(record["solids_closed"]))
     return high_res.Regions(boxes, solids)
 

@@ -423,18 +423,10 @@ def _restore_parameters(obj) -> None:
 
 
 def force_words(force: dict | None, build: dict | None = None) -> str:
-    """The force check of report.json (``stability.force``) in one line; with the build
-    check (``stability.build``), what the props left in the finished build do."""
-    from core import build_order, forces
+    """The force check of report.json in one line (:func:`core.pipeline.force_line`)."""
+    from core import pipeline
 
-    if not force:
-        return "not checked"
-    if not force.get("checked", True):
-        return f"not checked: {force['unchecked_why']}"
-    failing = len(force["failing_bricks"])
-    finished = (build or {}).get("finished_with_props")
-    return (forces.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
-            + (f"; {build_order.finished_words(finished, force)}" if finished else ""))
+    return pipeline.force_line(force, build)
 
 
 def _store_forces(obj, force: dict | None, build: dict | None = None) -> None:
@@ -455,14 +447,9 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     layout = fab.layout
     obj.LayoutJson = json.dumps(layout.to_json())
     obj.ReportJson = json.dumps(report)
-    from core import instructions
+    from core import pipeline
 
-    obj.StepsJson = json.dumps({"steps": [s.to_json() for s in result.order.steps],
-                                "unattached": list(result.order.unattached),
-                                "early_parts": list(result.order.early_parts),
-                                "warnings": {str(n): text for n, text in
-                                             instructions.step_warnings(result.order, layout).items()},
-                                "props": list(result.order.props)})
+    obj.StepsJson = json.dumps(pipeline.steps_record(result.order, layout))
     obj.Plates = int(report["plates"])
     obj.Bricks = int(report["bricks"]["total"])
     obj.LegoBricks = int(report["bricks"]["lego"])
