@@ -176,6 +176,17 @@ class GuiTestCase(unittest.TestCase):
         shutil.rmtree(self.tmp, ignore_errors=True)
         settle()
 
+    def open_example(self):
+        """The bundled example fabricated in a document of its own, closed after the test
+        (skipped when its STEP is missing)."""
+        from FabrickatorWorkbench import example
+
+        if not os.path.exists(example.STEP):
+            self.skipTest(f"{example.STEP} is missing: run make first")
+        f = example.open_example()
+        self.addCleanup(App.closeDocument, f.Document.Name)
+        return f
+
     def fabrication(self, high_res=None):
         """A padded Body legofied through the Legofy command (optionally with a high-res box)."""
         body, _, _ = padded_body(self.doc, 40.0, 24.0, 19.2)
@@ -239,18 +250,11 @@ class TestWorkbench(GuiTestCase):
 
 class TestExampleAndPreferences(GuiTestCase):
     def test_bundled_example_opens_with_two_printed_lens_mounts(self):
-        from FabrickatorWorkbench import example
-
-        if not os.path.exists(example.STEP):
-            self.skipTest(f"{example.STEP} is missing: run make first")
-        f = example.open_example()
-        try:
-            self.assertTrue(f.Status.startswith("ok"), f.Status)
-            self.assertEqual([p.PartId for p in fab().printed_parts(f)], ["P1", "P2"])
-            self.assertGreater(f.Bricks, 100)
-            screenshot("example")
-        finally:
-            App.closeDocument(f.Document.Name)
+        f = self.open_example()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual([p.PartId for p in fab().printed_parts(f)], ["P1", "P2"])
+        self.assertGreater(f.Bricks, 100)
+        screenshot("example")
 
     def test_preferences_page_saves_the_defaults(self):
         from FabrickatorWorkbench import preferences

@@ -7,7 +7,6 @@ screenshots go to tests/gui/artifacts/look_*.png.
 
 from __future__ import annotations
 
-import os
 
 import FreeCAD as App
 import FreeCADGui as Gui
@@ -59,17 +58,10 @@ class TestLook(GuiTestCase):
         self.assertGreater(dark, 0.02 * bricks.sum(), "brick edges are not drawn")
 
     def test_example_in_bom_colours(self):
-        from FabrickatorWorkbench import example
-
-        if not os.path.exists(example.STEP):
-            self.skipTest(f"{example.STEP} is missing: run make first")
-        f = example.open_example()
-        try:
-            self.assertTrue(f.Status.startswith("ok"), f.Status)
-            self.assertEqual(len({shown_rgb(b) for b in fab().bricks(f) if b.Kind == "lego"}), 1)
-            screenshot("look_example_bom_colours")
-        finally:
-            App.closeDocument(f.Document.Name)
+        f = self.open_example()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(len({shown_rgb(b) for b in fab().bricks(f) if b.Kind == "lego"}), 1)
+        screenshot("look_example_bom_colours")
 
     def test_random_colours_preference_colours_bricks_apart_and_back(self):
         from core import colours

@@ -31,9 +31,22 @@ class _ReportAtOnce(unittest.TextTestResult):
     running = None
     started = time.monotonic()
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.took = []
+
     def startTest(self, test):
         type(self).running = (test.id(), time.monotonic())
         super().startTest(test)
+
+    def stopTest(self, test):
+        self.took.append((time.monotonic() - type(self).running[1], test.id()))
+        super().stopTest(test)
+
+    def slowest(self, count=15):
+        """The ``count`` slowest tests' wall times, as pytest's --durations prints them."""
+        rows = sorted(self.took, reverse=True)[:count]
+        return "".join(f"{seconds:7.2f}s {name}\n" for seconds, name in rows)
 
     def _at_once(self, kind, test, err):
         self.stream.write(f"\n{kind}: {test.id()}\n{self._exc_info_to_string(err, test)}\n")
@@ -67,6 +80,7 @@ def _run():
         if wanted:
             suite = unittest.TestSuite(t for s in suite for t in s if wanted in t.id())
         result = unittest.TextTestRunner(stream=sys.stderr, verbosity=2, resultclass=_ReportAtOnce).run(suite)
+        sys.stderr.write(f"\nslowest {min(15, len(result.took))} tests:\n{result.slowest()}")
         status = 0 if result.wasSuccessful() else 1
     except BaseException:
         traceback.print_exc()
