@@ -1,8 +1,7 @@
 """``make bench``: every benchmark script, one after the other, collected into docs/benchmarks.md.
 
-Runs each script of :data:`SCRIPTS` in a process of its own, as the Makefile ran
-them before, with its output on the terminal as it comes, and keeps what it
-prints on stdout: its markdown tables.  When all have ended, writes
+Runs each script of :data:`SCRIPTS` in a process of its own, with its output on
+the terminal as it comes, and keeps what it prints on stdout: its markdown tables.  When all have ended, writes
 ``docs/benchmarks.md`` (or ``--out``): a header saying that ``make bench``
 generated it, the date, the commit and the machine (CPU, cores, memory;
 Python, FreeCAD, PrusaSlicer), then a section per script in this order,
@@ -13,7 +12,7 @@ section (one that skips its models prints so itself), and the scripts after it
 still run.  The document is written to a temporary file beside it and renamed,
 so a run that is interrupted leaves the previous document whole.  Exits 1 when
 a script that is not :attr:`Script.tolerated` failed or could not be started
-(``check.py`` is, as ``|| true`` made it in the Makefile before), 0 otherwise.
+(``check.py``: a row over its target is its result, not a failure), 0 otherwise.
 """
 
 from __future__ import annotations
