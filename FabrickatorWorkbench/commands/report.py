@@ -10,7 +10,6 @@ import FreeCADGui as Gui
 from PySide import QtCore, QtGui
 
 from FabrickatorWorkbench import log, make
-from FabrickatorWorkbench.objects.fabricate import force_words
 from FabrickatorWorkbench.commands.base import (Command, recompute_or_fail, selected_fabrication,
                                                 transaction)
 
@@ -57,7 +56,8 @@ def summary(fab) -> list[str]:
         from core import improve
         lines.append(improve.bound_words(quality))
     if st.get("force"):
-        lines.append(f"force check: {force_words(st['force'], st.get('build'))}")
+        from core import pipeline
+        lines.append(f"force check: {pipeline.force_line(st['force'], st.get('build'))}")
     times = doc.get("print_time_s")
     if times:
         lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "

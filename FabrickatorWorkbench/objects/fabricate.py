@@ -422,20 +422,15 @@ def _restore_parameters(obj) -> None:
             log.warning(f"{obj.Label}: {name} put back to {value!r}, the last value that worked")
 
 
-def force_words(force: dict | None, build: dict | None = None) -> str:
-    """The force check of report.json in one line (:func:`core.pipeline.force_line`)."""
-    from core import pipeline
-
-    return pipeline.force_line(force, build)
-
-
 def _store_forces(obj, force: dict | None, build: dict | None = None) -> None:
     """The force check's verdict into Stands, FailingBricks and Forces (words, with what
     the props left in do: ``build``, the report's ``stability.build``); the Report view
     says it when the build does not stand."""
     obj.Stands = bool(force and force["stable"])
     obj.FailingBricks = len(force["failing_bricks"]) if force else 0
-    obj.Forces = force_words(force, build)
+    from core import pipeline
+
+    obj.Forces = pipeline.force_line(force, build)
     if force and force.get("checked", True) and not force["stable"]:
         log.warning(f"{obj.Label}: {obj.Forces} (the Report lists them; the Stress display "
                     f"mode shows them white)")
