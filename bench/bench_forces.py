@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench import MODELS, UNITS, model_paths, table  # noqa: E402  (bench/bench.py)
 from core import build_order, catalog, forces, hollow, layout, pipeline, voxelize  # noqa: E402
+from core.forces import limits  # noqa: E402
 from core.errors import InputError  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
 
@@ -124,7 +125,7 @@ def _scaling_grids():
 def bench_scaling() -> list[dict]:
     """The force check of the :data:`SCALING_CASES` (1,474, 454 and 269 bricks) and the
     :data:`HOLLOW_CUBES` (3,091 and 22,657) and, where asked, every build prefix, on a
-    table; up to :data:`core.forces.MAX_BODIES` bodies also by the whole program alone."""
+    table; up to :data:`core.forces.limits.MAX_BODIES` bodies also by the whole program alone."""
     rows = []
     for name, grid, prefixes in _scaling_grids():
         lay = layout.lay_out(grid, catalog.CATALOG, seed=0)
@@ -139,13 +140,13 @@ def bench_scaling() -> list[dict]:
                "verdict": _verdict(f), "method": _method(f), "verdict only s": verdict_s,
                "verdict + per-brick s": analyse_s, "steps": len(order.steps),
                "quick agrees": quick.stable == f.stable}
-        if f.sub_structures and len(lay.bricks) <= forces.MAX_BODIES:
-            exact_at, forces.EXACT_BODIES = forces.EXACT_BODIES, forces.MAX_BODIES
+        if f.sub_structures and len(lay.bricks) <= limits.MAX_BODIES:
+            exact_at, limits.EXACT_BODIES = limits.EXACT_BODIES, limits.MAX_BODIES
             start = time.perf_counter()
             whole = forces.analyse(lay, ground="table", detail=False)
             row.update({"whole program": _verdict(whole),
                         "whole program s": time.perf_counter() - start})
-            forces.EXACT_BODIES = exact_at
+            limits.EXACT_BODIES = exact_at
         if prefixes:
             checker = forces.BuildChecker(lay, ground="table")
             start = time.perf_counter()

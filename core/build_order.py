@@ -40,6 +40,7 @@ from numba import njit
 from scipy import ndimage, sparse
 
 from core import forces
+from core.forces import limits
 from core.catalog import BY_NUMBER
 from core.errors import InputError
 from core.model import Layout
@@ -429,7 +430,7 @@ def _group(layout: Layout, u: _Units, order: list[tuple[int, bool, bool]],
 #: Steps ahead of the planned next one that :func:`standing` may put first.
 LOOKAHEAD = 8
 #: A partial build whose worst utilisation is above this is fragile (the instructions warn).
-FRAGILE = forces.FRAGILE
+FRAGILE = limits.FRAGILE
 
 
 def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHEAD,

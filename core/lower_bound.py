@@ -41,6 +41,7 @@ from scipy import ndimage, sparse
 
 from core.catalog import CATALOG, Part
 from core.errors import InputError
+from core.forces.solver import INTERIOR_POINT
 from core.model import Grid
 
 #: Above this many placement variables the program is not built at all.
@@ -48,13 +49,6 @@ MAX_VARIABLES = 2_000_000
 
 #: Slack when rounding a floating-point dual bound up to an integer.
 _ROUND_EPS = 1e-6
-
-#: HiGHS's interior point where its answer itself is used, not only its bound: the force
-#: model's programs (:mod:`core.forces`, whose work limits count its iterations) and the
-#: relaxation whose values choose the relaxed start's brick layers (:func:`relaxed_cover`).
-#: HiGHS 1.15's default interior point (HiPO) stopped with status "Unknown" on the force
-#: programs; the bounds use it (``"ipm"``: faster on the large exact-cover relaxations).
-INTERIOR_POINT = "ipx"
 
 #: 6-connectivity structure for :func:`scipy.ndimage.label`.
 _SIX = ndimage.generate_binary_structure(3, 1)

@@ -12,7 +12,7 @@ that order, so the graph's connectivity is never traded for forces.  Cells
 marked for printing (``frozen``) keep their bricks.  The number of attempts
 is bounded and the seeds fixed, so the result is deterministic.  A build the
 force check could only judge unchecked, or in height bands (a big solid one,
-:meth:`core.forces._Model._by_bands`: each brick has its band's worst, not its
+:meth:`core.forces.decompose.Decompositions._by_bands`: each brick has its band's worst, not its
 own), is left as it is.
 """
 

@@ -14,6 +14,10 @@ import pytest
 import trimesh
 
 from core import forces
+from core.forces import joints, limits, solver, verdict
+from core.forces.analyse import _Model
+from core.forces.solver import Program
+from core.request import parse_load
 from core.catalog import MASS_G
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
@@ -53,7 +57,7 @@ def staircase_by_hand(n: int) -> float:
     its contact point furthest along x (the tube contact of its second stud, at x = 3.5 +
     r * sqrt(1/2) studs); every contact point nearer the start pulls with the clutch at
     most.  Worst utilisation = moment of the overhang / moment of the full clutch."""
-    r = forces.CONTACT_RADIUS
+    r = joints.CONTACT_RADIUS
     d = r * math.sqrt(0.5)
     pivot = 3.5 + d
     # per row of studs (y = 0 and y = 1 alike): stud at 2.5 has its end wall (x - r),
@@ -113,7 +117,7 @@ def test_cantilever_with_a_weight_at_its_tip_breaks_past_the_hand_length(length)
     lever 2 r, the two beside with r each: the joint holds 4 r T studs.  The plate's
     weight acts at L/2, the tip load (20 g) at L - 0.5."""
     tip = 20.0
-    r = forces.CONTACT_RADIUS
+    r = joints.CONTACT_RADIUS
     pivot = 0.5 + r
     capacity = (2 * r + r + r) * T_GF
     demand = MASS_G[PLATES_1_WIDE[length]] * (length / 2 - pivot) + tip * (length - 0.5 - pivot)
@@ -149,7 +153,7 @@ def test_bridge_of_one_plate_holds_less_than_a_brick():
     # innermost contact points (tubes 0.2 * sqrt(1/2) studs beyond the studs at 1.5 and
     # 6.5), the load at 3.5 and 4.5: M(4) = P / 2 * (6.5 - d - 4) - P / 2 * 0.5.  The
     # joints can add end moments, so the plate holds at least that, and not twice over.
-    d = forces.CONTACT_RADIUS * math.sqrt(0.5)
+    d = joints.CONTACT_RADIUS * math.sqrt(0.5)
     arm = 0.5 * (6.5 - d - 4) - 0.5 * 0.5
     strength = forces.bending_capacity_nmm(2, 1) / (forces.G / 1000) / 8.0
     simple = strength / arm
@@ -159,7 +163,7 @@ def test_bridge_of_one_plate_holds_less_than_a_brick():
 def test_printed_part_weight_turns_a_marginal_layout_unstable():
     """A 1x4 cantilever loaded to 99.5 % of its clutch stands; a printed part at its tip
     (a 20 mm cube's worth of PLA, printed with 2 perimeters and 15 % infill) breaks it."""
-    r = forces.CONTACT_RADIUS
+    r = joints.CONTACT_RADIUS
     pivot = 0.5 + r
     capacity = 4 * r * T_GF
     tip = (0.995 * capacity - MASS_G["3710"] * (2 - pivot)) / (3.5 - pivot)
@@ -202,7 +206,7 @@ def test_loads_and_load_g_add_their_mass():
     ("0,0,0,0,1,1:2", "empty"), ("0,0,0,1,1,1", "X0,Y0"), ("0,0,0,nan,1,1:3", "finite")])
 def test_bad_loads_name_the_problem(text, words):
     with pytest.raises(InputError, match=words):
-        forces.parse_load(text)
+        parse_load(text)
 
 
 def test_a_load_that_touches_no_brick_is_refused():
@@ -496,13 +500,13 @@ def test_a_build_that_would_lean_further_tips_too():
 def count_programs(monkeypatch) -> list:
     """A list that gets an item for every force program solved from now on."""
     solved = []
-    real = forces._Program.solve
+    real = Program.solve
 
     def counted(self, *args, **kwargs):
         solved.append(1)
         return real(self, *args, **kwargs)
 
-    monkeypatch.setattr(forces._Program, "solve", counted)
+    monkeypatch.setattr(Program, "solve", counted)
     return solved
 
 
@@ -522,7 +526,7 @@ def test_a_build_that_tips_as_a_whole_is_judged_without_a_program_as_the_program
     solved = count_programs(monkeypatch)
     quick = forces.analyse(layout, ground="table")
     quick_count = len(solved)
-    monkeypatch.setattr(forces._Model, "_falls_over", lambda self: None)
+    monkeypatch.setattr(_Model, "_falls_over", lambda self: None)
     whole = forces.analyse(layout, ground="table")
     assert not whole.stable and whole.topples
     assert quick.to_json() | {"seconds": 0} == whole.to_json() | {"seconds": 0}
@@ -592,18 +596,18 @@ def test_reinforce_leaves_a_build_judged_in_height_bands_alone(monkeypatch):
     from core import reinforce
     layout = staircase(19)
     assert reinforce.reinforce(layout, ground="baseplate").attempts > 0
-    monkeypatch.setattr(forces, "MAX_HANGING", 0)
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 2)
-    monkeypatch.setattr(forces, "BAND_BODIES", 3)
+    monkeypatch.setattr(limits, "MAX_HANGING", 0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 2)
+    monkeypatch.setattr(limits, "BAND_BODIES", 3)
     result = reinforce.reinforce(layout, ground="baseplate")
     assert result.forces.bands and result.forces.max_utilisation > reinforce.LOADED
     assert result.attempts == 0 and result.layout is layout
 
 
 def test_a_build_beyond_the_bodies_the_programs_solve_is_reported_unchecked(monkeypatch):
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
-    monkeypatch.setattr(forces, "MAX_BANDED", 10)          # nor in height bands
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "MAX_BANDED", 10)          # nor in height bands
     result = forces.analyse(staircase(12), ground="baseplate")
     doc = result.to_json()
     assert doc["checked"] is False and doc["stable"] is None and "12 bricks" in doc["unchecked_why"]
@@ -616,8 +620,8 @@ def test_given_seconds_a_build_beyond_the_bodies_is_solved_whole_as_the_hand_cal
     """Past MAX_BODIES, with neither parts nor bands, the staircase is unchecked; given seconds,
     one program solves it, and finds StableLego's answer: 12 levels stand at the hand
     calculation's utilisation, 20 fall."""
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
-    monkeypatch.setattr(forces, "MAX_BANDED", 10)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "MAX_BANDED", 10)
     assert forces.analyse(staircase(12), ground="baseplate").unchecked
     twelve = forces.analyse(staircase(12), ground="baseplate", seconds=60)
     assert twelve.stable and twelve.max_utilisation == pytest.approx(staircase_by_hand(12), rel=1e-4)
@@ -653,7 +657,7 @@ def test_a_step_borne_on_full_columns_keeps_what_the_programs_say(ground):
         assert ok == ok_exact
         if checker.solves == solves and not checker._supported(present):
             shortcuts += 1
-            assert worst_exact - 1e-9 <= worst <= forces.FRAGILE
+            assert worst_exact - 1e-9 <= worst <= limits.FRAGILE
         else:
             assert worst == pytest.approx(worst_exact, rel=1e-6, abs=1e-9)
     monkey.undo()
@@ -705,26 +709,26 @@ def test_a_big_build_is_checked_by_its_hanging_parts_as_the_whole_program_says(m
     lay = slab_over_box()
     whole = forces.analyse(lay)
     assert whole.sub_structures == 0 and whole.stable and 0.01 < whole.max_utilisation < 1
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
     # most of this small build hangs: the whole program, unless told otherwise
     assert forces.analyse(lay, detail=False).sub_structures == 0
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
     parted = forces.analyse(lay)
     assert parted.sub_structures == 1
     assert parted.stable == whole.stable
     assert whole.max_utilisation - 1e-6 <= parted.max_utilisation <= whole.max_utilisation * 1.01
     doc = parted.to_json()
-    assert doc["method"] == forces.SUB_MEANS and doc["checked"] is True
+    assert doc["method"] == verdict.SUB_MEANS and doc["checked"] is True
     # the walls under the slab stand in pure compression: nothing pulls on them
     slab_from = lay.grid.shape[2] - 6
-    walls = [b.id for b in lay.bricks if b.cell[2] + b.size[2] <= slab_from - 3 * forces.MARGIN_LEVELS]
+    walls = [b.id for b in lay.bricks if b.cell[2] + b.size[2] <= slab_from - 3 * limits.MARGIN_LEVELS]
     assert walls and all(parted.utilisation[b] == 0.0 for b in walls)
     assert set(parted.utilisation) == {b.id for b in lay.bricks}
     # a build the whole program can solve is not cut in plan; past MAX_BODIES it is, and
     # the pieces of the slab that would tip off the walls are merged with a neighbour
-    monkeypatch.setattr(forces, "WINDOW_BODIES", 25)
+    monkeypatch.setattr(limits, "WINDOW_BODIES", 25)
     assert forces.analyse(lay, detail=False).sub_structures == 1
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
     merged = forces.analyse(lay, detail=False)
     assert merged.stable and merged.sub_structures >= 1
     assert merged.max_utilisation >= whole.max_utilisation - 1e-6
@@ -736,9 +740,9 @@ def test_a_big_build_standing_easily_gives_each_brick_its_worst_without_phase_tw
     verdict and worst as with it, one program solved instead of two."""
     lay = slab_over_box()
     exact = forces.analyse(lay)
-    assert exact.stable and exact.sub_structures == 0 and exact.max_utilisation < forces.DETAIL_ABOVE
+    assert exact.stable and exact.sub_structures == 0 and exact.max_utilisation < limits.DETAIL_ABOVE
     solved = count_programs(monkeypatch)
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
     quick = forces.analyse(lay)
     assert len(solved) == 1 and quick.sub_structures == 0
     assert quick.stable and quick.max_utilisation == pytest.approx(exact.max_utilisation, rel=1e-6)
@@ -751,12 +755,12 @@ def test_a_program_past_its_work_leaves_the_build_unchecked_saying_so(monkeypatc
     """No force program runs for minutes: past PROGRAM_WORK the whole build is reported
     unchecked (the graph's verdict stands alone), and so is a build checked in parts."""
     lay = slab_over_box()
-    monkeypatch.setattr(forces, "PROGRAM_WORK", 1)
+    monkeypatch.setattr(limits, "PROGRAM_WORK", 1)
     whole = forces.analyse(lay)
     assert whole.unchecked and "ran past the 1 solver iterations it is given" in whole.unchecked
     assert whole.to_json()["checked"] is False and whole.to_json()["stable"] is None
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
     parted = forces.analyse(lay, detail=False)
     assert parted.unchecked and "ran past" in parted.unchecked
 
@@ -775,12 +779,12 @@ def test_the_whole_programs_limit_is_its_work_not_the_clock(monkeypatch):
     busy = forces.analyse(lay, detail=False)
     assert busy.seconds >= 3600 and busy.unchecked is None
     assert (busy.stable, busy.max_utilisation, busy.work) == (calm.stable, calm.max_utilisation, calm.work)
-    monkeypatch.setattr(forces, "PROGRAM_WORK", calm.work)
+    monkeypatch.setattr(limits, "PROGRAM_WORK", calm.work)
     assert forces.analyse(lay, detail=False).max_utilisation == calm.max_utilisation
-    prog, _ = forces._Model(lay, "table", [], (), None, forces.CLUTCH_N, None)._program(detail=False)
-    step = forces.ipm_iteration_work(prog.matrix().nnz)
+    prog, _ = _Model(lay, "table", [], (), None, forces.CLUTCH_N, None)._program(detail=False)
+    step = solver.ipm_iteration_work(prog.matrix().nnz)
     assert calm.work % step == 0                 # interior-point iterations alone, no simplex
-    monkeypatch.setattr(forces, "PROGRAM_WORK", calm.work - step)
+    monkeypatch.setattr(limits, "PROGRAM_WORK", calm.work - step)
     short = forces.analyse(lay, detail=False)
     assert short.unchecked and f"ran past the {calm.work - step:,} solver iterations" in short.unchecked
 
@@ -793,13 +797,13 @@ def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars
     from core import catalog, hollow, layout as layout_stage
     solid = Grid(np.zeros(3), CELL.copy(), np.ones((26, 26, 40), dtype=bool))
     lay = layout_stage.lay_out(hollow.hollow(solid, 2)[0], catalog.CATALOG, seed=0)
-    monkeypatch.setattr(forces, "EXACT_BODIES", forces.MAX_BODIES)
+    monkeypatch.setattr(limits, "EXACT_BODIES", limits.MAX_BODIES)
     whole = forces.analyse(lay, detail=False)
     assert whole.stable and whole.sub_structures == 0
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
-    monkeypatch.setattr(forces, "WINDOW_BODIES", 30)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "WINDOW_BODIES", 30)
     cut = forces.analyse(lay)
     assert cut.stable and cut.sub_structures > 1
     assert whole.max_utilisation - 1e-6 <= cut.max_utilisation < 1
@@ -810,18 +814,18 @@ def test_a_hanging_part_that_does_not_stand_on_its_supports_gets_the_whole_progr
     """A plate hanging by one stud off a 1x1 brick needs that stud's pull: on a support that
     only presses it cannot stand, so the verdict is the whole program's (the hand figure
     of the cantilever test); past MAX_BODIES it is reported unchecked, saying where."""
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
     tip = "40,0,12.8,48,8,16:20"
     result = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert result.sub_structures == 0 and not result.stable and 2 in result.failing_bricks
-    monkeypatch.setattr(forces, "EXACT_BODIES", 500)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 500)
     exact = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert result.utilisation == exact.utilisation
     assert result.failing_bricks == exact.failing_bricks
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
     assert forces.build_unchecked(result) is None
-    monkeypatch.setattr(forces, "MAX_BODIES", 1)
+    monkeypatch.setattr(limits, "MAX_BODIES", 1)
     unchecked = forces.analyse(cantilever(6), ground="baseplate", loads=[tip])
     assert unchecked.unchecked and "hanging part of 1 brick from layer 4 (cell 0, 0)" in unchecked.unchecked
     assert forces.build_unchecked(unchecked) and forces.build_unchecked(result) is None
@@ -839,21 +843,21 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     lay = layout_stage.lay_out(Grid(np.zeros(3), CELL.copy(), filled), catalog.CATALOG, seed=0)
     whole = forces.analyse(lay, detail=False)
     assert whole.sub_structures == 0 and whole.stable
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 1)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 1)
     parted = forces.analyse(lay, detail=False)
     assert parted.unchecked is None and parted.sub_structures >= 1 and parted.stable
     assert parted.max_utilisation >= whole.max_utilisation - 1e-6
-    monkeypatch.setattr(forces, "DEEPER_LEVELS", ())
+    monkeypatch.setattr(limits, "DEEPER_LEVELS", ())
     banded = forces.analyse(lay, detail=False)
     assert banded.bands and banded.stable and banded.max_utilisation >= whole.max_utilisation - 1e-6
-    monkeypatch.setattr(forces, "MAX_BANDED", 1)
+    monkeypatch.setattr(limits, "MAX_BANDED", 1)
     assert forces.analyse(lay, detail=False).unchecked
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("margin", [forces.MARGIN_LEVELS, forces.BUILD_MARGIN_LEVELS])
+@pytest.mark.parametrize("margin", [limits.MARGIN_LEVELS, limits.BUILD_MARGIN_LEVELS])
 def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program(monkeypatch, margin):
     """Past EXACT_BODIES each partial build is solved on the layout's hanging part (with
     ``margin`` levels under it) while every present brick outside it rests on present
@@ -862,11 +866,11 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
     from core import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
-    monkeypatch.setattr(forces, "EXACT_BODIES", forces.MAX_BODIES)
+    monkeypatch.setattr(limits, "EXACT_BODIES", limits.MAX_BODIES)
     whole = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "PART_SHARE", 1.0)
-    monkeypatch.setattr(forces, "BUILD_MARGIN_LEVELS", margin)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "PART_SHARE", 1.0)
+    monkeypatch.setattr(limits, "BUILD_MARGIN_LEVELS", margin)
     checker = forces.BuildChecker(lay)
     part = build_order.standing(lay, order, checker.stands)
     assert checker._sub is not None and checker._part is not None
@@ -944,7 +948,7 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     lay = slab_over_box()
     order = build_order.plan(lay)
     full = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
     checker = forces.BuildChecker(lay)
     graph = build_order.standing(lay, order, checker.stands)
     assert checker.solves == 0 and not graph.unstable and not full.unstable
@@ -987,10 +991,10 @@ def test_joined_to_the_ground_step_by_step_agrees_with_the_whole_graph():
 
 
 def test_a_hanging_part_beyond_what_is_checked_in_parts_is_reported_at_once(monkeypatch):
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 1)
-    monkeypatch.setattr(forces, "MAX_HANGING", 1)
-    monkeypatch.setattr(forces, "MAX_BANDED", 1)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 1)
+    monkeypatch.setattr(limits, "MAX_HANGING", 1)
+    monkeypatch.setattr(limits, "MAX_BANDED", 1)
     result = forces.analyse(slab_over_box(), detail=False)
     assert result.unchecked and "hanging part has" in result.unchecked and "more than the 1 " in result.unchecked
 
@@ -1006,16 +1010,16 @@ def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monke
     filled[9:11, 9:11, :] = True
     filled[:, :, -6:] = True
     lay = layout_stage.lay_out(Grid(np.zeros(3), CELL.copy(), filled), catalog.CATALOG, seed=0)
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
-    monkeypatch.setattr(forces, "WINDOW_BODIES", 5)
-    monkeypatch.setattr(forces, "MERGED_BODIES", 10)
-    monkeypatch.setattr(forces, "MAX_BANDED", 10)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "WINDOW_BODIES", 5)
+    monkeypatch.setattr(limits, "MERGED_BODIES", 10)
+    monkeypatch.setattr(limits, "MAX_BANDED", 10)
 
     def no_program(self, *args, **kwargs):
         raise AssertionError("a program was solved")
 
-    monkeypatch.setattr(forces._Program, "solve", no_program)
+    monkeypatch.setattr(Program, "solve", no_program)
     result = forces.analyse(lay, detail=False)
     assert result.unchecked and result.stable is False
     assert "no cut in plan splits" in result.unchecked and "more than the 10 solved" in result.unchecked
@@ -1041,22 +1045,22 @@ def test_a_build_past_max_bodies_is_checked_in_height_bands_as_the_hand_calculat
     bands, top down, each on the bricks under it with the forces of the bands above fixed.
     On the staircase (one way to hold each brick) that is exactly the whole program: 12 and
     19 levels stand with the same worst, 20 fall, and then bands prove nothing: unchecked."""
-    monkeypatch.setattr(forces, "MAX_HANGING", 0)          # its hanging parts are not tried
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "BAND_BODIES", 3)
+    monkeypatch.setattr(limits, "MAX_HANGING", 0)          # its hanging parts are not tried
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "BAND_BODIES", 3)
     for levels in (12, 19):
         whole = forces.analyse(staircase(levels), ground="baseplate", detail=False)
-        monkeypatch.setattr(forces, "MAX_BODIES", 2)
+        monkeypatch.setattr(limits, "MAX_BODIES", 2)
         banded = forces.analyse(staircase(levels), ground="baseplate")
-        monkeypatch.setattr(forces, "MAX_BODIES", 2500)
+        monkeypatch.setattr(limits, "MAX_BODIES", 2500)
         assert banded.stable and banded.bands >= levels // 3 and banded.sub_structures == 0
         assert banded.max_utilisation == pytest.approx(whole.max_utilisation, rel=1e-6)
         assert set(banded.utilisation) == {b.id for b in staircase(levels).bricks}
         assert max(banded.utilisation.values()) == pytest.approx(banded.max_utilisation)
         doc = banded.to_json()
-        assert doc["method"] == forces.BAND_MEANS and doc["bands"] == banded.bands
+        assert doc["method"] == verdict.BAND_MEANS and doc["bands"] == banded.bands
         assert "height bands" in forces.worst_words(doc)
-    monkeypatch.setattr(forces, "MAX_BODIES", 2)
+    monkeypatch.setattr(limits, "MAX_BODIES", 2)
     twenty = forces.analyse(staircase(20), ground="baseplate")
     assert twenty.unchecked and "height bands" in twenty.unchecked
     assert "does not stand on the bricks under it" in twenty.unchecked
@@ -1069,14 +1073,14 @@ def test_height_bands_bound_the_whole_programs_worst_from_above(monkeypatch):
     lay = slab_over_box()
     whole = forces.analyse(lay, detail=False)
     assert whole.stable
-    monkeypatch.setattr(forces, "MAX_HANGING", 0)
-    monkeypatch.setattr(forces, "EXACT_BODIES", 0)
-    monkeypatch.setattr(forces, "MAX_BODIES", 10)
-    monkeypatch.setattr(forces, "BAND_BODIES", 20)
+    monkeypatch.setattr(limits, "MAX_HANGING", 0)
+    monkeypatch.setattr(limits, "EXACT_BODIES", 0)
+    monkeypatch.setattr(limits, "MAX_BODIES", 10)
+    monkeypatch.setattr(limits, "BAND_BODIES", 20)
     banded = forces.analyse(lay)
     assert banded.stable and banded.bands > 2
     assert whole.max_utilisation - 1e-6 <= banded.max_utilisation < 1
     assert set(banded.utilisation) == {b.id for b in lay.bricks}
-    monkeypatch.setattr(forces, "PROGRAM_WORK", banded.work // 2)
+    monkeypatch.setattr(limits, "PROGRAM_WORK", banded.work // 2)
     late = forces.analyse(lay, detail=False)
     assert late.unchecked and "its bands' programs ran past the" in late.unchecked

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from core import forces
+from core.forces import joints
 from core.catalog import MASS_G
 from core.model import Brick, Grid, Layout
 
@@ -100,10 +101,10 @@ def test_the_contact_radius_lies_inside_what_both_real_builds_allow():
     T (4 + 8 r) against the arm beyond it, which stands with three 1x4 at the tip only for
     r > 0.2025.  The radius keeps a margin from both ends."""
     lo, hi = 0.2025, 0.2305
-    assert lo + 0.25 * (hi - lo) <= forces.CONTACT_RADIUS <= hi - 0.25 * (hi - lo)
+    assert lo + 0.25 * (hi - lo) <= joints.CONTACT_RADIUS <= hi - 0.25 * (hi - lo)
     for r, twenty_falls, stick_stands in ((lo - 0.002, True, False), (hi + 0.002, False, True)):
         with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(forces, "CONTACT_RADIUS", r)
+            mp.setattr(joints, "CONTACT_RADIUS", r)
             assert (not forces.analyse(layout_of(stair(20)), ground="baseplate").stable) == twenty_falls
             good = forces.analyse(layout_of(stick(THIRD_LOAD, PROP)), ground="baseplate")
             assert good.stable == stick_stands
