@@ -34,8 +34,7 @@ from scipy.sparse.csgraph import connected_components
 
 from core import output_dir
 from core.errors import InputError, shown_path
-from core.model import CELL_MM
-from core.request import UNITS, UP_AXES
+from core.model import CELL_MM, UNITS, UP_AXES
 
 #: Length of one file unit in mm, for ``load_model(units=...)``.
 

@@ -14,6 +14,14 @@ import numpy as np
 
 #: Size of one 1x1 plate cell in mm: stud pitch x stud pitch x plate height.
 CELL_MM = (8.0, 8.0, 3.2)
+#: Unit names a model file's coordinates may be in, and their size in mm.
+UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+#: The model axis that points up -> the rotation (rows: the turned x, y, z) that turns it to
+#: +z: a quarter turn about x for y and -y, about y for x and -x, a half turn for -z.
+#: Meshes are often y-up (OBJ scans such as the Stanford bunny); a build stands on z = 0.
+UP_AXES = {"z": ((1, 0, 0), (0, 1, 0), (0, 0, 1)), "y": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
+           "-y": ((1, 0, 0), (0, 0, 1), (0, -1, 0)), "x": ((0, 0, -1), (0, 1, 0), (1, 0, 0)),
+           "-x": ((0, 0, 1), (0, 1, 0), (-1, 0, 0)), "-z": ((1, 0, 0), (0, -1, 0), (0, 0, -1))}
 
 
 @dataclass(frozen=True)

@@ -20,19 +20,11 @@ from dataclasses import dataclass, field
 from core.colours import check_palette
 from core.errors import InputError
 from core.interfaces import Fit
-from core.model import Load
+from core.model import UNITS, UP_AXES, Load
 
 #: How hard the layout is improved after the greedy pass (:mod:`core.improve`), cheapest first.
 EFFORTS = ("fast", "normal", "best")
 
-#: Unit names a model file's coordinates may be in, and their size in mm.
-UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
-#: The model axis that points up -> the rotation (rows: the turned x, y, z) that turns it to
-#: +z: a quarter turn about x for y and -y, about y for x and -x, a half turn for -z.
-#: Meshes are often y-up (OBJ scans such as the Stanford bunny); a build stands on z = 0.
-UP_AXES = {"z": ((1, 0, 0), (0, 1, 0), (0, 0, 1)), "y": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
-           "-y": ((1, 0, 0), (0, 0, 1), (0, -1, 0)), "x": ((0, 0, -1), (0, 1, 0), (1, 0, 0)),
-           "-x": ((0, 0, 1), (0, 1, 0), (-1, 0, 0)), "-z": ((1, 0, 0), (0, -1, 0), (0, 0, -1))}
 #: The --scale factors accepted: beyond them a model is nanometres or light years across.
 SCALE_RANGE = (1e-6, 1e6)
 #: A --load box is clipped to this reach (mm) on every side: a box of 1e308 mm means the
