@@ -99,7 +99,7 @@ def trimesh_to_part(mesh):
 
 def part_to_trimesh(shape, tolerance: float = 0.05):
     """A watertight trimesh mesh (model mm) of a closed ``Part.Shape``, tessellated by OCP."""
-    from core.brick_solids import to_trimesh
+    from core.parts.brick_solids import to_trimesh
 
     return to_trimesh(part_to_occ(shape), tolerance=tolerance)
 

@@ -30,7 +30,7 @@ import FreeCAD as App
 import Mesh
 import Part
 
-from core import calibration
+from core.parts import calibration
 from core.errors import InputError
 from core.watch import model_name, same_model
 from FabrickatorWorkbench import bridge, deps, log, preferences
@@ -71,7 +71,7 @@ def make_fabrication(source, doc=None, brick_set: str | None = None,
     The Source is hidden, as FreeCAD's own features hide their inputs (deleting
     the Fabrication shows it again).  Unset parameters come from the preferences
     (``stud_fit``/``socket_fit``, mm,
-    signed: see :class:`core.interfaces.Fit`).  The result appears after
+    signed: see :class:`core.parts.interfaces.Fit`).  The result appears after
     the next ``doc.recompute()``.  Raises ValueError when ``source`` has no
     solid and no mesh.
     """
@@ -325,7 +325,7 @@ def steps(fab) -> list[dict]:
 
 def step_notes(fab) -> tuple[dict[str, str], list[dict]]:
     """What the instructions say at each step (step number as text -> words) and the props
-    (:attr:`core.build_order.BuildOrder.props`) of ``fab``'s last result; empty for a
+    (:attr:`core.instructions.build_order.BuildOrder.props`) of ``fab``'s last result; empty for a
     result stored before they were kept."""
     doc = json.loads(fab.StepsJson) if fab.StepsJson else {}
     return dict(doc.get("warnings", {})), list(doc.get("props", []))
@@ -457,7 +457,7 @@ def feed_file(path, doc=None) -> tuple:
 
 def _mesh_of(path: Path):
     """The model file at ``path`` loaded and repaired by the core, as a FreeCAD mesh."""
-    from core import mesh_io
+    from core.io import meshes as mesh_io
 
     model = mesh_io.load_model(path)
     mesh = Mesh.Mesh()
@@ -478,11 +478,11 @@ CALIBRATION_ROLE = "CalibrationStrip"
 
 
 def make_calibration_strip(folder, doc=None, values=None):
-    """Write the calibration strip (:func:`core.calibration.write_strip`) into ``folder``
+    """Write the calibration strip (:func:`core.parts.calibration.write_strip`) into ``folder``
     and show it in ``doc`` (the active document, or a new one); returns the new object.
 
     The strip is made around the preferences' stud and socket fit
-    (:func:`core.calibration.column_values`) unless ``values`` (mm) are given.
+    (:func:`core.parts.calibration.column_values`) unless ``values`` (mm) are given.
     The object is a Part feature with the strip's exact solid, its ``Values``
     and the file to print (``PrintFile``); the Report view says which file to
     print and where the instructions are.  Raises

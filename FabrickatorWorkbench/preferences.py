@@ -21,7 +21,7 @@ import os
 import FreeCAD as App
 
 from core.colours import PALETTES
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 from core.request import DEFAULTS as DEFAULTS_TABLE
 
 #: Parameter group of the preferences.
@@ -109,7 +109,7 @@ def palette() -> str:
 
 
 def fit():
-    """The :class:`core.interfaces.Fit` of the preferences: their stud and socket fit,
+    """The :class:`core.parts.interfaces.Fit` of the preferences: their stud and socket fit,
     everything else Fit's defaults (not checked: :meth:`Fit.check` says what is wrong)."""
     return Fit(stud_fit=float(get("StudFit")), socket_fit=float(get("SocketFit")))
 

@@ -2,7 +2,7 @@
 
 Per model (no printed parts, on a table, as the CLI runs it): bricks, the
 force verdict and worst utilisation of the laid-out object before and after
-the layout uses the forces (:mod:`core.reinforce`), failing and unsupported
+the layout uses the forces (:mod:`core.layout.reinforce`), failing and unsupported
 bricks, whether every build step stands (unstable and moved steps, props, steps checked
 by the brick graph only), seconds
 of the force stage and of the build-order check, on a table and on a baseplate.  Then the synthetic rows:
@@ -26,7 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench import MODELS, UNITS, model_paths, table  # noqa: E402  (bench/bench.py)
-from core import build_order, catalog, forces, hollow, layout, pipeline, voxelize  # noqa: E402
+from core import catalog, forces, hollow, pipeline, voxelize  # noqa: E402
+from core.instructions import build_order  # noqa: E402
+from core.layout import greedy as layout  # noqa: E402
 from core.forces import limits  # noqa: E402
 from core.errors import InputError  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
@@ -43,7 +45,7 @@ UPRIGHT = {"stanford_bunny_open.obj": "y"}
 
 
 def _finished(finished: dict | None) -> str | None:
-    """The finished build with the props it keeps (:func:`core.build_order.finished_with_props`)."""
+    """The finished build with the props it keeps (:func:`core.instructions.build_order.finished_with_props`)."""
     if finished is None:
         return None
     if not finished["checked"]:

@@ -3,12 +3,12 @@
 Per model (the demo and every model in ../shared/models that loads): the
 greedy layout (``--effort fast``) and the improved one (``normal``, and
 ``best`` with ``--best``, which also starts from the relaxed layout,
-:func:`core.layout.relaxed_layout`, as the pipeline's does): bricks, the ratio to the exact-cover lower bound
+:func:`core.layout.greedy.relaxed_layout`, as the pipeline's does): bricks, the ratio to the exact-cover lower bound
 (integer program, ``--time-limit`` seconds, "yes" when proven) and to the
 bound of layouts in one piece per region without leaf bricks
-(:func:`core.improve.leaf_free_bound` with ``connected``, its lazy cuts: what a layout
+(:func:`core.layout.search.leaf_free_bound` with ``connected``, its lazy cuts: what a layout
 the targets accept needs at least; the larger of the two) and to the bound of the layout's
-own kind (:func:`core.improve.one_piece_bound`: one piece per region with no weak point,
+own kind (:func:`core.layout.search.one_piece_bound`: one piece per region with no weak point,
 or with at most as many as it has where they all hold a leaf brick on a one-cell-thin
 feature; none for other layouts; each bound has ``--time-limit`` seconds, and where it
 is proven its cover is such a layout with the fewest bricks), components
@@ -38,9 +38,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 import bench  # noqa: E402
-from core import catalog, improve, layout, pipeline, voxelize  # noqa: E402
+from core import catalog, pipeline, voxelize  # noqa: E402
+from core.layout import search as improve  # noqa: E402
+from core.layout import greedy as layout  # noqa: E402
 from core.errors import InputError  # noqa: E402
-from core.lower_bound import brick_lower_bound  # noqa: E402
+from core.layout.bounds import brick_lower_bound  # noqa: E402
 from core.stability import analyse  # noqa: E402
 
 #: The issue's targets.
@@ -50,7 +52,7 @@ SECONDS_TARGET = {2_000: 10.0, 20_000: 60.0}
 
 def measure(lay, start_s: float, bound, parts, time_limit: float, kinds: dict) -> dict:
     """Bricks, ratio, components, weak points (thin ones apart) of one layout, and the
-    bound of its kind (:func:`core.improve.one_piece_bound`; ``kinds`` keeps those found
+    bound of its kind (:func:`core.layout.search.one_piece_bound`; ``kinds`` keeps those found
     for the model's other layouts, by whether they are joined and their weak points)."""
     st = analyse(lay)
     forced = len(improve.thin_weak_points(lay))
@@ -106,7 +108,7 @@ def bench_model(path: Path, time_limit: float, efforts: list[str]) -> dict:
 
 
 def _stronger(found: dict, weaker: int | None) -> int | None:
-    """A bound of :func:`core.improve.leaf_free_bound`, or the ``weaker`` one where it is less;
+    """A bound of :func:`core.layout.search.leaf_free_bound`, or the ``weaker`` one where it is less;
     None where the program proved that no such layout exists."""
     if found["status"] == "infeasible":
         return None

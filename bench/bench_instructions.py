@@ -1,8 +1,8 @@
 """Benchmark of the assembly outputs (issue: instructions for 3,000 bricks in under 5 s).
 
-Times :func:`core.instructions.write_assembly` (build order, instructions.html,
+Times :func:`core.instructions.page.write_assembly` (build order, instructions.html,
 assembly.mpd, bom.csv, bricklink.xml) on layouts made by
-:func:`core.layout.lay_out` from box-shaped grids (hollow boxes with walls
+:func:`core.layout.greedy.lay_out` from box-shaped grids (hollow boxes with walls
 and floor 3 studs / plates thick; the largest has about 3,300 bricks) and on
 the bundled example with its two printed lens mounts, and on a few shared
 models (``../shared/models``, when present).  Prints a markdown
@@ -22,7 +22,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core import instructions, layout as layout_stage, pipeline  # noqa: E402
+from core import pipeline  # noqa: E402
+from core.instructions import page as instructions  # noqa: E402
+from core.layout import greedy as layout_stage  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
 
 HMD = ROOT / "examples" / "build" / "hmd.step"

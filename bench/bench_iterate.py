@@ -25,7 +25,9 @@ from scipy.spatial.transform import Rotation
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core import align, export, mesh_io, pipeline, result  # noqa: E402
+from core import align, pipeline, result  # noqa: E402
+from core.printing import export  # noqa: E402
+from core.io import meshes as mesh_io  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 OUT = ROOT / "bench" / "out"

@@ -2,7 +2,7 @@
 
 The paper found Boolean unions of coplanar faces slow and fragile and
 merged by removing the tagged faces between neighbours; this table times
-:func:`core.brick_solids.merged_solid` both ways on running-bond walls of
+:func:`core.parts.brick_solids.merged_solid` both ways on running-bond walls of
 2x4 bricks (2, 8 and 20 bricks, best of 3) and checks that both give the
 same volume.
 """
@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from OCP.BRepGProp import BRepGProp  # noqa: E402
 from OCP.GProp import GProp_GProps  # noqa: E402
 
-from core.brick_solids import merged_solid  # noqa: E402
+from core.parts.brick_solids import merged_solid  # noqa: E402
 
 
 def wall(n: int) -> tuple[list, list]:

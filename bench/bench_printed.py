@@ -38,8 +38,9 @@ sys.path.insert(0, str(ROOT))
 import manifold3d as m3  # noqa: E402
 import trimesh  # noqa: E402
 
-from core import mesh_io, pipeline  # noqa: E402
-from core.interfaces import Fit  # noqa: E402
+from core import pipeline  # noqa: E402
+from core.io import meshes as mesh_io  # noqa: E402
+from core.parts.interfaces import Fit  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 OUT = ROOT / "bench" / "out"

@@ -250,11 +250,11 @@ def memory_gib() -> float | None:
 
 def slicer_version() -> str:
     """The version of the PrusaSlicer the benchmarks slice with
-    (:func:`core.print_time.slicer_path`), or why there is none."""
+    (:func:`core.printing.print_time.slicer_path`), or why there is none."""
     try:
-        from core.print_time import slicer_path
+        from core.printing.print_time import slicer_path
     except ImportError as exc:
-        return f"unknown (core.print_time: {exc})"
+        return f"unknown (core.printing.print_time: {exc})"
     slicer = slicer_path()
     if slicer is None:
         return "not found"

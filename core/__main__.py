@@ -24,7 +24,7 @@ status = main()
 if threading.active_count() > 1:
     # stopped (Ctrl-C, SIGTERM; watch ends so too) while worker threads still wait on a
     # slicer: do not wait for them (the slicer dies with this process,
-    # core.print_time.dying_with_us); after a run that ended normally none is left
+    # core.printing.print_time.dying_with_us); after a run that ended normally none is left
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

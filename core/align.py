@@ -192,7 +192,7 @@ def brep_sides(shape) -> Sides:
     from OCP.GProp import GProp_GProps
     from OCP.TopAbs import TopAbs_REVERSED
 
-    from core.brick_solids import face_list
+    from core.parts.brick_solids import face_list
 
     normals, centroids, areas = [], [], []
     total = 0.0
@@ -449,7 +449,7 @@ def transform_brep(shape, transform: np.ndarray):
 
 
 def transform_model(model, transform: np.ndarray):
-    """A :class:`~core.mesh_io.LoadedModel` (mesh and B-rep) moved by ``transform``."""
+    """A :class:`~core.io.meshes.LoadedModel` (mesh and B-rep) moved by ``transform``."""
     brep = None if model.brep is None else transform_brep(model.brep, transform)
     return dataclasses.replace(model, mesh=transform_mesh(model.mesh, transform), brep=brep)
 

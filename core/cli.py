@@ -111,7 +111,7 @@ def _stability_parser(sub) -> None:
 
 def _calibration_parser(sub) -> None:
     """The ``calibration-strip`` command's options; its values default around Fit's."""
-    from core import calibration
+    from core.parts import calibration
 
     low, high = calibration.default_range()
     cal = sub.add_parser("calibration-strip",
@@ -316,7 +316,7 @@ def _stability(args) -> int:
     from pathlib import Path
 
     from core import forces
-    from core.layout_file import layout_from_document
+    from core.io.layout_file import layout_from_document
 
     path = Path(args.layout)
     text = _read_small_file(path, "layout.json")
@@ -372,12 +372,12 @@ _REPORT_KEYS = frozenset({"stable", "ground", "checked", "max_utilisation", "fai
 def _read_small_file(path, what: str) -> str:
     """The UTF-8 text of the regular file ``path``; InputError for a missing file, a folder,
     a named pipe, socket or device (refused before it is opened, as
-    :func:`core.mesh_io._check_file` does: reading a pipe waits for ever, a device may never
+    :func:`core.io.meshes._check_file` does: reading a pipe waits for ever, a device may never
     end), an unreadable file or one larger than :data:`_MAX_LAYOUT_BYTES`."""
     import stat
     from pathlib import Path
 
-    from core.mesh_io import _special_kind, regular_file
+    from core.io.meshes import _special_kind, regular_file
 
     regular_file(Path(path), what, f"a {what}")
     limit = f"larger than {_MAX_LAYOUT_BYTES // 2**20} MB, the most read as a {what}"
@@ -420,7 +420,7 @@ def _report_target(out_arg, layout_path):
     import stat
     from pathlib import Path
 
-    from core.mesh_io import _special_kind
+    from core.io.meshes import _special_kind
 
     out = Path(out_arg)
     try:
@@ -511,7 +511,8 @@ def _watch(args) -> int:
     """The ``watch`` command: each new file fabricated with the same settings as
     ``fabricate``, as an iteration on the last output of a version of the same model
     (:class:`core.watch.Versions`, the one version rule the workbench uses too)."""
-    from core import output_dir, pipeline, result, watch
+    from core import pipeline, result, watch
+    from core.io import output_dir
 
     _check_paths(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
@@ -558,7 +559,7 @@ def _naming(path, line: str) -> str:
 def _calibration_strip(args) -> int:
     """The ``calibration-strip`` command: one line per file written, or one error line
     and exit status 2."""
-    from core import calibration
+    from core.parts import calibration
 
     values = calibration.column_values(args.start, args.stop, args.step)
     _, written = calibration.write_strip(args.out, values)
@@ -569,7 +570,9 @@ def _calibration_strip(args) -> int:
 
 def _summary(doc: dict, out) -> None:
     """The short summary of one fabricate run on stdout."""
-    from core import build_order, forces, improve
+    from core import forces
+    from core.instructions import build_order
+    from core.layout import search as improve
 
     if doc["model"]["repaired"]:
         sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")

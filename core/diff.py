@@ -150,7 +150,7 @@ def changed_boxes(old: trimesh.Trimesh, new: trimesh.Trimesh, old_brep=None, new
     Regions that no box meets have the same surface in both versions.
     """
     if old_brep is not None and new_brep is not None:
-        from core.brick_solids import TessellationFailed
+        from core.parts.brick_solids import TessellationFailed
 
         a, b = _face_table(old_brep), _face_table(new_brep)
         keep_a, keep_b = _faces_matched(a, b, tol), _faces_matched(b, a, tol)
@@ -185,7 +185,7 @@ def _face_triangles(faces: list) -> np.ndarray:
     from OCP.BRep import BRep_Builder
     from OCP.TopoDS import TopoDS_Compound
 
-    from core.brick_solids import to_trimesh
+    from core.parts.brick_solids import to_trimesh
 
     compound = TopoDS_Compound()
     builder = BRep_Builder()
@@ -295,7 +295,7 @@ def _face_table(shape) -> _Faces:
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
-    from core.brick_solids import face_list
+    from core.parts.brick_solids import face_list
 
     kind, area, centroid, boxes, faces = [], [], [], [], []
     for face in face_list(shape):

@@ -8,7 +8,7 @@ volume; every brick with a touched filled cell becomes printed (paper,
 bricks of one connected region form one printed part (:func:`groups`);
 bricks are connected when they touch face to face, side by side or one on
 the other with overlapping footprints.  Marks by box or solid are made
-before the layout: :func:`core.layout.lay_out_around` lays out the marked cells and the
+before the layout: :func:`core.layout.greedy.lay_out_around` lays out the marked cells and the
 rest separately, so printed and LEGO bricks meet cleanly on the region's
 boundary and a printed part is no larger than the cells the region touches.
 """
@@ -22,7 +22,8 @@ import trimesh
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import mesh_io, voxelize
+from core import voxelize
+from core.io import meshes as mesh_io
 from core.errors import InputError
 from core.model import Grid, Layout
 
@@ -89,7 +90,7 @@ def box_cells(grid: Grid, box) -> np.ndarray:
 
 def load_region(region, units: str = "mm", scale: float = 1.0, up: str = "z") -> mesh_io.LoadedModel:
     """A region solid: ``region`` itself when already loaded, else the file loaded like a
-    model (:func:`core.mesh_io.load_model`, turned as its model, where it stands: the driver
+    model (:func:`core.io.meshes.load_model`, turned as its model, where it stands: the driver
     moves it with its model); InputError for a file that cannot be loaded."""
     if isinstance(region, mesh_io.LoadedModel):
         return region
@@ -101,7 +102,7 @@ def solid_cells(grid: Grid, path, units: str = "mm",
     """Grid-shaped bool array: the cells the region solid in file ``path`` shares volume with.
 
     ``path`` may also be a region already loaded (:func:`load_region`).
-    The solid is loaded like a model (:func:`core.mesh_io.load_model`) and
+    The solid is loaded like a model (:func:`core.io.meshes.load_model`) and
     legofied on the model's grid (same origin and shape), so the answer is
     exact in the same sense as legofy's.  Raises :class:`InputError` for a
     file that cannot be loaded.
@@ -134,7 +135,7 @@ class Regions:
     @classmethod
     def of(cls, boxes=(), regions=()) -> "Regions":
         """Regions of boxes (any form :func:`as_box` takes) and loaded region solids
-        (:class:`core.mesh_io.LoadedModel`); InputError for a bad box."""
+        (:class:`core.io.meshes.LoadedModel`); InputError for a bad box."""
         return cls(tuple(as_box(b) for b in boxes),
                    tuple((r.mesh, bool(r.watertight)) for r in regions))
 
@@ -200,7 +201,7 @@ def anchor(grid: Grid, cells: np.ndarray) -> np.ndarray:
     filled cell directly above (the region's lowest such layer) or, failing
     that, directly below (its highest); the printed part then reaches under
     (or over) its LEGO neighbours and clamps there through its connectors
-    (:mod:`core.connectors`).  Regions with a vertical contact, and regions
+    (:mod:`core.parts.connectors`).  Regions with a vertical contact, and regions
     no tab can anchor, are left as they are.  Returns a new bool array.
     """
     filled = np.asarray(grid.filled, dtype=bool)

@@ -22,7 +22,7 @@ iteration, in the same order as a fresh run's:
    :func:`core.diff.reprint_threshold`.
 6. The ``changes`` document (:func:`changes`): transform, cells added/removed, bricks
    kept/added/taken off, parts reprinted, and the instructions diff, which
-   :func:`core.changes_page.changes_page` writes as a self-contained HTML page.
+   :func:`core.instructions.changes_page.changes_page` writes as a self-contained HTML page.
 
 Brick ids are stable: a kept brick keeps its id, new bricks get ids above the previous
 largest, so "take off brick 17" means the brick 17 of the previous instructions.  The new
@@ -39,12 +39,14 @@ import numpy as np
 from scipy import ndimage
 
 from core import align as align_stage
-from core import connectors as connectors_stage
+from core.parts import connectors as connectors_stage
 from core import diff as diff_stage
-from core import high_res, hollow as hollow_stage, layout as layout_stage, mesh_io
-from core import printed as printed_stage
+from core import high_res, hollow as hollow_stage
+from core.layout import greedy as layout_stage
+from core.io import meshes as mesh_io
+from core.parts import printed as printed_stage
 from core import stability as stability_stage
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 from core.catalog import BY_NUMBER, Part
 from core.connectivity import FACE_STRUCTURE
 from core.model import Brick, Grid, Layout
@@ -255,7 +257,7 @@ def _relayout(previous: Previous, grid: Grid, plan: _Plan, marked: np.ndarray,
     """Kept bricks plus the freed neighbourhood laid out anew, grown ring by ring
     while the joined layout is less stable than the previous one (step 4).
 
-    LEGO and marked cells are laid out separately (:func:`core.layout.lay_out`).  While the
+    LEGO and marked cells are laid out separately (:func:`core.layout.greedy.lay_out`).  While the
     joined layout has more extra components than the previous layout, or new weak points
     that carry more than single leaf bricks (a brick standing alone on one brick), one ring
     of LEGO bricks around the freed cells (touching them face to face, also above and

@@ -10,14 +10,14 @@ and the painted bricks:
   :func:`core.high_res.groups` uses), so a separate painted group is a new part; parts stay
   apart where they were apart (a split edit holds).  ``unmark``: painted printed bricks
   become LEGO, and what is left of a part falls into its connected groups.  ``merge`` and
-  ``split`` group them as :func:`core.printed.merge` and :func:`core.printed.split` do.
-* **Features.**  Each part is cut as :func:`core.printed.build_part` cuts it (manifold3d),
+  ``split`` group them as :func:`core.parts.printed.merge` and :func:`core.parts.printed.split` do.
+* **Features.**  Each part is cut as :func:`core.parts.printed.build_part` cuts it (manifold3d),
   with its studs, sockets and LEGO's play but without the engraved id; its volume, area and
   height along the direction its pose printed up (the largest part's pose for a group that
   took parts in; upright for a new part) make one plate of
-  :func:`core.print_time.plate_features`.  A stroke cuts only the parts it changed.
+  :func:`core.printing.print_time.plate_features`.  A stroke cuts only the parts it changed.
 * **Time.**  The last result's print time (each part's ``print_s``, sliced or estimated)
-  plus the calibrated estimate's change (:data:`core.print_time.ESTIMATE_COEFFS`) from the
+  plus the calibrated estimate's change (:data:`core.printing.print_time.ESTIMATE_COEFFS`) from the
   parts as they are to the parts as changed: with nothing changed, the last result's time.
   The speed-up is the report's (:func:`core.pipeline.speedups`, ``fabrication``) for a fresh
   build of the changed layout, against the last whole-model print time.
@@ -43,10 +43,13 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import connectors as connectors_stage, high_res, pipeline, print_time, printed, result
+from core import high_res, pipeline, result
+from core.parts import connectors as connectors_stage
+from core.printing import print_time
+from core.parts import printed
 from core.errors import InputError
-from core.interfaces import Fit
-from core.mesh_io import LoadedModel
+from core.parts.interfaces import Fit
+from core.io.meshes import LoadedModel
 from core.model import Layout
 
 #: The brush modes an estimate is made for.
@@ -231,7 +234,7 @@ class Estimator:
     # --- measuring -------------------------------------------------------------------
 
     def _mesh(self, bricks: frozenset) -> trimesh.Trimesh:
-        """The part of ``bricks`` as :func:`core.printed.build_part` cuts it (no id, no
+        """The part of ``bricks`` as :func:`core.parts.printed.build_part` cuts it (no id, no
         thin-feature check); cut once per set of bricks (its studs and sockets depend on
         that set alone)."""
         if bricks not in self.cut:

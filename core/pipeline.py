@@ -5,7 +5,7 @@ also writes the output folder of the headless contract (DESIGN.md):
 ``report.json``, ``layout.json`` and ``layout.png``.  The folder is
 written to a temporary sibling and renamed into place only when complete,
 so a failed run never leaves a folder that looks finished
-(:class:`core.output_dir.OutputFolder`: the place is checked and locked
+(:class:`core.io.output_dir.OutputFolder`: the place is checked and locked
 before the run starts).
 """
 
@@ -23,16 +23,24 @@ from typing import Callable
 
 import numpy as np
 
-from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
-from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
+from core import catalog, colours, grid_fit
+from core.instructions import build_order
+from core.parts import connectors as connectors_stage
+from core import high_res as high_res_stage, hollow as hollow_stage
+from core.instructions import changes_page
 from core import iterate as iterate_stage
-from core import improve as improve_stage
-from core import layout as layout_stage, result
-from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
-from core import forces as forces_stage, reinforce as reinforce_stage
+from core.layout import search as improve_stage
+from core import result
+from core.layout import greedy as layout_stage
+from core.io import meshes as mesh_io
+from core.io import output_dir
+from core.parts import printed as printed_stage
+from core.printing import print_time as print_time_stage
+from core import forces as forces_stage
+from core.layout import reinforce as reinforce_stage
 from core import stability as stability_stage, voxelize
 from core.errors import InputError
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
 from core.request import UNITS, Request, request as request_of
 
@@ -122,7 +130,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
 
     The stages, in order (each returns new data):
 
-    1. **load** the model (:func:`core.mesh_io.load_model`); with
+    1. **load** the model (:func:`core.io.meshes.load_model`); with
        ``previous``, load that result (:func:`core.result.load_previous`) and
        align the model onto it (:func:`core.iterate.align_to`).  The run is
        then an *iteration*, unless the previous result cannot be reused
@@ -140,27 +148,27 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        and unless ``connectors`` is off, anchor tabs are added
        (:func:`core.high_res.anchor`).
     4. **layout**: fresh, marked and other cells laid out apart
-       (:func:`core.layout.lay_out_around`), and beside a shell the solid part
+       (:func:`core.layout.greedy.lay_out_around`), and beside a shell the solid part
        too when :func:`core.hollow.solid_layout_wanted` (an automatic shell is
        then kept only if it saves a third of the bricks, :func:`core.hollow.compared`);
        iterating, the previous bricks
        kept where they still fit and the rest laid out anew
        (:func:`core.iterate.lay_out`); then **improve**d window by window
-       as hard as ``effort`` says (:func:`core.improve.improve`; iterating,
+       as hard as ``effort`` says (:func:`core.layout.search.improve`; iterating,
        the kept bricks stay; ``best`` on a fresh layout also starts from the brick layers
        of the exact cover's relaxation where that is cheap,
-       :func:`core.layout.relaxed_brick_groups`) and measured (:func:`core.improve.layout_quality`,
+       :func:`core.layout.greedy.relaxed_brick_groups`) and measured (:func:`core.layout.search.layout_quality`,
        with the exact lower bound on request or when it is cheap).  A fresh
        layout is then re-merged around the joints the forces find failing or
-       loaded (:func:`core.reinforce.reinforce`).
+       loaded (:func:`core.layout.reinforce.reinforce`).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
-       by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
+       by ``part_edits``, become printed parts (:func:`core.parts.printed.build_parts`;
        iterating, kept parts stay and only changed ones are cut again,
        :func:`core.iterate.printed_parts`).
     6. **stability**: the brick graph (:func:`core.stability.analyse`) and the
        forces on ``ground`` with ``loads`` (:func:`core.forces.analyse`), 7. **build order**
-       (:func:`core.build_order.plan`; the layout's bricks get their steps),
+       (:func:`core.instructions.build_order.plan`; the layout's bricks get their steps),
        8. with an iteration, the **changes** (:func:`core.iterate.changes`),
        9. with printed parts and ``slice_parts``, **print times**
        (:func:`print_times`).
@@ -463,10 +471,10 @@ def _full_time(mesh, profile, slicer, work: str | None = None) -> print_time_sta
 
 
 def _plates_time(printing: list, profile, slicer, work: str | None = None) -> tuple[list, list]:
-    """The plates of the printed parts ``printing`` (:func:`core.export.plates`) and
+    """The plates of the printed parts ``printing`` (:func:`core.printing.export.plates`) and
     each plate's print time, two plates at a time, sliced under ``work`` (a scratch
     folder when None)."""
-    from core.export import plates
+    from core.printing.export import plates
     with _sliced_under(work) as folder:
         beds = plates(printing, profile=profile, slicer=slicer, workdir=folder)
         results = print_time_stage.in_parallel(lambda items: print_time_stage.print_time(
@@ -476,7 +484,7 @@ def _plates_time(printing: list, profile, slicer, work: str | None = None) -> tu
 
 def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabrication:
     """``fab`` with print times: the whole model (the baseline) and the plates of the
-    printed parts to print (:func:`core.export.plates`: one plate unless they do not
+    printed parts to print (:func:`core.printing.export.plates`: one plate unless they do not
     fit the bed) sliced, two at a time; the parts' time is the plates' sum.
     ``started`` holds what :func:`run` already set slicing in the background (the
     same slices, begun while the other stages ran); the rest is sliced now.
@@ -803,7 +811,7 @@ def force_line(force: dict | None, build: dict | None = None) -> str:
 def steps_record(order: build_order.BuildOrder, layout: Layout) -> dict:
     """The build order as plain JSON data: its steps, the bricks no step attaches, the
     printed parts placed early, each step's warning (by step number) and the props."""
-    from core import instructions
+    from core.instructions import page as instructions
 
     return {"steps": [s.to_json() for s in order.steps],
             "unattached": list(order.unattached),
@@ -862,13 +870,13 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     """Write ``report.json``, ``layout.json`` (and ``layout.png`` unless the request
     says no picture), the printed parts (``parts/``), the builder's files
     (``instructions.html``, ``assembly.mpd``, ``bom.csv``, ``bricklink.xml``,
-    :mod:`core.instructions`, in the run's build order), the iteration
+    :mod:`core.instructions.page`, in the run's build order), the iteration
     snapshot (``iteration/``) and after an iteration ``changes.html`` into
     ``out``; returns the report.  Reads ``fab`` only.
 
     Everything is written into a temporary sibling folder first and moved
     into place at the end, replacing an earlier output atomically
-    (:class:`core.output_dir.OutputFolder`; ``out`` may be one already open,
+    (:class:`core.io.output_dir.OutputFolder`; ``out`` may be one already open,
     as :func:`fabricate` opens it before the run).  ``report_doc`` is
     the report to write instead of :func:`report`'s (a stored result's,
     :func:`stored`), with its ``changes`` page written too.  Raises
@@ -885,21 +893,21 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     start = time.perf_counter()
     placed = {}
     if fab.printed:
-        from core import export
+        from core.printing import export
         progress(0.9, "export")
         _, parts = export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
                                        slicer="none" if fab.print_full is None else "auto",
                                        beds=fab.plates if fab.iteration is None else None)
         placed = {p.id: p for p in parts}
     progress(0.92, "instructions")
-    from core import instructions
+    from core.instructions import page as instructions
     assembly = instructions.write_assembly(
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
         seconds_per_part=fab.seconds_per_part, order=fab.order)
     (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
     if fab.request.picture:
         progress(0.95, "picture")
-        from core import render
+        from core.instructions import render
         render.render_layout(fab.layout, tmp / "layout.png",
                              title=f"{title}: {len(fab.layout.bricks)} bricks",
                              palette=fab.request.palette)
@@ -936,7 +944,7 @@ def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **s
     as Request fields) and write its outputs into ``out``; returns the report.
 
     The output place is checked and locked before the run starts
-    (:class:`core.output_dir.OutputFolder`): InputError in one line for one
+    (:class:`core.io.output_dir.OutputFolder`): InputError in one line for one
     that cannot be written, holds an input or other files, or another run
     is writing."""
     req = as_request(job, **settings)

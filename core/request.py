@@ -5,7 +5,7 @@ FreeCAD workbench hand to the driver (:func:`core.pipeline.run`).  Its
 fields' defaults are *the* defaults of Fabrickator: the CLI's options
 (:func:`add_options`), the workbench's preferences and the Fabrication's
 properties all read them from :data:`DEFAULTS`, so a default changes in
-one place.  The stud and socket fit default to :class:`core.interfaces.Fit`,
+one place.  The stud and socket fit default to :class:`core.parts.interfaces.Fit`,
 the table of the printed interfaces.
 """
 
@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 from core.colours import check_palette
 from core.errors import InputError
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 from core.model import UNITS, UP_AXES, Load
 
-#: How hard the layout is improved after the greedy pass (:mod:`core.improve`), cheapest first.
+#: How hard the layout is improved after the greedy pass (:mod:`core.layout.search`), cheapest first.
 EFFORTS = ("fast", "normal", "best")
 
 #: The --scale factors accepted: beyond them a model is nanometres or light years across.
@@ -135,7 +135,7 @@ class Request:
 
     @property
     def fit(self) -> Fit:
-        """The stud and socket :class:`~core.interfaces.Fit` of this request."""
+        """The stud and socket :class:`~core.parts.interfaces.Fit` of this request."""
         return Fit(stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit))
 
     def replace(self, **changes) -> "Request":
@@ -154,7 +154,7 @@ class Request:
         palette :func:`core.colours.check_palette` refuses, an effort not in
         :data:`EFFORTS`, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
-        where the model is loaded, :func:`core.mesh_io.load_model`).
+        where the model is loaded, :func:`core.io.meshes.load_model`).
         """
         if not self.model:
             raise InputError("no model file given")

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from core import high_res, printed as printed_stage
+from core import high_res
+from core.parts import printed as printed_stage
 from core.errors import InputError, check_path, shown_path
 from core.model import Grid, Layout
 
@@ -43,7 +44,7 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
     stability, the brick set, seed, units and scale, the stud and socket fit,
     the high-res region boxes, every printed part's record (bricks,
     studs, tubes, clamp cells, engraving) and the build order with its checks
-    (:meth:`core.build_order.BuildOrder.to_json`).  Reads ``fab`` only.
+    (:meth:`core.instructions.build_order.BuildOrder.to_json`).  Reads ``fab`` only.
     """
     out = Path(folder) / SNAPSHOT_DIR
     (out / "parts").mkdir(parents=True, exist_ok=True)
@@ -223,7 +224,7 @@ def _read_regions(record: dict | None, snap: Path) -> high_res.Regions | None:
 
 
 def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> printed_stage.PrintedPart:
-    """The :class:`~core.printed.PrintedPart` of a record and its geometry (fields
+    """The :class:`~core.parts.printed.PrintedPart` of a record and its geometry (fields
     the record lacks keep their defaults; fields it has that the class lacks are dropped)."""
     names = {f.name for f in dataclasses.fields(printed_stage.PrintedPart)} - {"solid", "mesh"}
     values = {k: v for k, v in rec.items() if k in names}

@@ -53,7 +53,7 @@ WHOLE_CELL_TOL_MM = 1e-6
 #: so a face meant to lie on a boundary (a re-export, a wall at whole millimetres)
 #: comes back some 1e-5 mm off it, and legofy would count that as filling the next
 #: cell.  Absolute: where the model sits does not change it (a model too far from
-#: the origin for float32 is moved to it when loaded, :mod:`core.mesh_io`).
+#: the origin for float32 is moved to it when loaded, :mod:`core.io.meshes`).
 LATTICE_SNAP_MM = 1e-4
 #: Sample point of each cell, in cells from the cell's min corner.
 SAMPLE_FRACTION = (0.5 + 0.1234567, 0.5 + 0.0765432, 0.5 + 0.1471)
@@ -76,7 +76,7 @@ def grid_frame(bounds: np.ndarray, cell=CELL_MM) -> tuple[np.ndarray, tuple[int,
     both sides).  At least one cell per axis.  A part extent that is a whole number
     of cells (within 1e-6 mm) gets exactly that many cells.  Raises ValueError for
     bounds that are not finite or not ordered (the model loader refuses such a
-    model first, :mod:`core.mesh_io`).
+    model first, :mod:`core.io.meshes`).
     """
     c = _cell_size(cell)
     b = np.asarray(bounds, dtype=np.float64)
@@ -215,7 +215,7 @@ def legofy(mesh: trimesh.Trimesh, cell=CELL_MM, origin=None, shape=None,
     closed meshes, six-way voting plus generalized winding numbers otherwise (see
     the module docstring).  Raises ValueError for a mesh without triangles, with
     non-finite coordinates, or a bad cell size, origin or shape: the user's
-    files are refused before, by :mod:`core.mesh_io`.
+    files are refused before, by :mod:`core.io.meshes`.
     """
     c = _cell_size(cell)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)

@@ -210,10 +210,10 @@ def _obj_complete(data: bytes) -> bool:
 
 def skip_reason(path: str | os.PathLike, unchanged_s: float) -> str:
     """Why the file at ``path``, unchanged for ``unchanged_s`` seconds yet not complete
-    (:func:`is_complete`), is skipped: the one line :func:`core.mesh_io.load_model` refuses
+    (:func:`is_complete`), is skipped: the one line :func:`core.io.meshes.load_model` refuses
     it with, as ``fabricate`` prints it (``x.stl: not a valid STL file (...)``), or, when it
     reads as a model, what makes it look incomplete (:data:`INCOMPLETE_WHY`)."""
-    from core import mesh_io
+    from core.io import meshes as mesh_io
 
     p = Path(path)
     try:

@@ -10,7 +10,7 @@ Defaults: the bundle installed with the ``prusa-slicer`` on PATH (Debian:
 core uses where no bundle is installed.
 
 Slicing does not need this: the core resolves the presets from the
-installed bundle at run time (:mod:`core.slicer_profile`).  The committed
+installed bundle at run time (:mod:`core.printing.slicer_profile`).  The committed
 fallback was written from PrusaSlicer 2.5's bundle (config_version 1.5.1);
 the estimate's coefficients were fitted with it.  The output is also a
 config file for ``prusa-slicer --load``.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from core import slicer_profile  # noqa: E402
+from core.printing import slicer_profile  # noqa: E402
 
 
 def main(argv: list[str]) -> int:

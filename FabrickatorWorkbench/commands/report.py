@@ -53,7 +53,7 @@ def summary(fab) -> list[str]:
               "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
     quality = doc.get("layout_quality") or {}
     if "one_piece" in (quality.get("lower_bound") or {}):
-        from core import improve
+        from core.layout import search as improve
         lines.append(improve.bound_words(quality))
     if st.get("force"):
         from core import pipeline

@@ -23,7 +23,7 @@ import FreeCAD as App
 
 from core import request as core_request
 from core.errors import InputError, memory_shortage
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 from core.model import CELL_MM
 from FabrickatorWorkbench import bridge, deps, log, preferences
 from FabrickatorWorkbench.objects import high_res_region, load, tree
@@ -64,7 +64,7 @@ def cell_size() -> App.Vector:
 
 
 def fit(obj):
-    """The :class:`core.interfaces.Fit` of Fabrication ``obj``: its StudFit and SocketFit,
+    """The :class:`core.parts.interfaces.Fit` of Fabrication ``obj``: its StudFit and SocketFit,
     the rest Fit's defaults; raises InputError naming a setting out of range."""
     return Fit(stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value)).check()
 
@@ -321,7 +321,7 @@ def _slicer(slice_parts: bool):
     Without slicing, the core's estimate stands in (``FABRICKATOR_SLICER=none``);
     with slicing, the preferences' slicer path when set.
     """
-    from core.print_time import SLICER_ENV
+    from core.printing.print_time import SLICER_ENV
 
     before = os.environ.get(SLICER_ENV)
     chosen = preferences.get("SlicerPath") if slice_parts else "none"

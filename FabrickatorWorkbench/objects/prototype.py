@@ -4,7 +4,7 @@ Every LEGO brick in the tree is an ``App::Link`` to the prototype of its
 part and colour, so 3,000 bricks share a few dozen shapes.  A prototype is
 a plain ``Part::Feature`` (FreeCAD 0.20 does not draw links to
 ``Part::FeaturePython`` objects) holding the real brick solid (studs,
-hollow underside, tubes; :func:`core.brick_solids.brick_solid`) with its
+hollow underside, tubes; :func:`core.parts.brick_solids.brick_solid`) with its
 min corner at the origin and its footprint (short side first) along x, y,
 and the properties PartNumber and Color.  The prototypes sit in one group
 that the tree view does not show (:func:`hide_group`): a user sees bricks,

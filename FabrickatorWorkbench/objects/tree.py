@@ -584,7 +584,7 @@ class Prototypes:
             if same is not None:
                 self.shapes[part] = same.Shape
             else:
-                from core.brick_solids import brick_solid
+                from core.parts.brick_solids import brick_solid
 
                 spec = BY_NUMBER[part]
                 solid = brick_solid(spec.footprint[0], spec.footprint[1], spec.layers)

@@ -117,7 +117,7 @@ class AssemblyPanel:
 
     def _show_props(self, step: int) -> None:
         """Purple columns for the props standing at ``step`` (replacing earlier ones)."""
-        from core import build_order
+        from core.instructions import build_order
 
         graph = Gui.ActiveDocument.ActiveView.getSceneGraph()
         if self.prop_node is not None:

@@ -15,7 +15,7 @@ from core.forces import limits
 
 #: HiGHS's interior point where its answer itself is used, not only its bound: the force
 #: model's programs (whose work limits count its iterations) and the relaxation whose
-#: values choose the relaxed start's brick layers (:func:`core.lower_bound.relaxed_cover`).
+#: values choose the relaxed start's brick layers (:func:`core.layout.bounds.relaxed_cover`).
 #: HiGHS 1.15's default interior point (HiPO) stopped with status "Unknown" on the force
 #: programs; the bounds use it (``"ipm"``: faster on the large exact-cover relaxations).
 INTERIOR_POINT = "ipx"

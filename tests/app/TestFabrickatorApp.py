@@ -243,7 +243,7 @@ class TestFabrication(FabrickatorTestCase):
         the bounds ``--lower-bound`` gives for the same 5 x 3 stud box two bricks high (six
         bricks at least, proven, and six in one piece without weak points), and the words
         the command line prints."""
-        from core import improve
+        from core.layout import search as improve
         from core.request import DEFAULTS
         from FabrickatorWorkbench.objects import fabricate
 
@@ -830,7 +830,7 @@ def socket_widths(shape, z: float) -> list[tuple[float, float]]:
 
 
 class TestFit(FabrickatorTestCase):
-    """StudFit and SocketFit: defaults from core.interfaces.Fit, preferences, the printed
+    """StudFit and SocketFit: defaults from core.parts.interfaces.Fit, preferences, the printed
     parts, old documents with a Clearance, and the calibration strip."""
 
     def setUp(self):
@@ -847,7 +847,7 @@ class TestFit(FabrickatorTestCase):
         super().tearDown()
 
     def test_defaults_come_from_the_one_table(self):
-        from core.interfaces import Fit
+        from core.parts.interfaces import Fit
 
         self.assertEqual(self.preferences.get("StudFit"), Fit.stud_fit)
         self.assertEqual(self.preferences.get("SocketFit"), Fit.socket_fit)
@@ -899,7 +899,7 @@ class TestFit(FabrickatorTestCase):
         self.assertEqual(f.LayoutJson, layout)
 
     def test_an_old_document_with_a_clearance_opens_and_recomputes(self):
-        from core.interfaces import Fit
+        from core.parts.interfaces import Fit
 
         body, _, _ = padded_body(self.doc)
         f = fab().make_fabrication(body)

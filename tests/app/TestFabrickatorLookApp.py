@@ -20,7 +20,8 @@ class TestLookApp(FabrickatorTestCase):
         return f
 
     def test_stored_brick_colour_is_the_bom_colour_and_follows_the_palette(self):
-        from core import bom, colours
+        from core import colours
+        from core.instructions import bom
         from FabrickatorWorkbench import preferences
         from FabrickatorWorkbench.objects import tree
         from FabrickatorWorkbench.objects.prototype import rgb_key

@@ -40,7 +40,7 @@ def _bug_logs_in_tmp(tmp_path, monkeypatch):
 
 @pytest.fixture(autouse=True)
 def _no_slice_cache(monkeypatch):
-    """Each test slices afresh (core.slice_cache off), so what it checks comes from the
+    """Each test slices afresh (core.printing.slice_cache off), so what it checks comes from the
     slicer itself and never from an earlier test's answer; a test of the cache sets
     FABRICKATOR_CACHE to a folder of its own."""
     monkeypatch.setenv("FABRICKATOR_CACHE", "none")

@@ -11,7 +11,9 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from core import align, diff, export, mesh_io, voxelize
+from core import align, diff, voxelize
+from core.printing import export
+from core.io import meshes as mesh_io
 
 MODELS = Path(__file__).resolve().parents[2].parent / "shared" / "models"
 

@@ -1,4 +1,4 @@
-"""Tests of core.bom: bom.csv and the BrickLink wanted list add up to the layout."""
+"""Tests of core.instructions.bom: bom.csv and the BrickLink wanted list add up to the layout."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 from lxml import etree
 
-from core import bom, ldraw, pipeline
+from core import pipeline
+from core.instructions import bom
+from core.instructions import ldraw
 from core.catalog import BY_NUMBER
 from core.errors import InputError
 

@@ -1,4 +1,4 @@
-"""Tests for core.brick_solids: exact LEGO brick solids with tagged faces."""
+"""Tests for core.parts.brick_solids: exact LEGO brick solids with tagged faces."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.GeomAbs import GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.TopAbs import TopAbs_REVERSED
 
-from core.brick_solids import (SIDE_TAGS, BrickGeometry, brick_solid, face_list,
+from core.parts.brick_solids import (SIDE_TAGS, BrickGeometry, brick_solid, face_list,
                                facing_sides, to_trimesh)
 from core.catalog import CATALOG
 from core.errors import InputError
@@ -314,7 +314,7 @@ MERGES = {
 def _fused(cells, sizes):
     """The Boolean union (computed here, independently) of the bricks built as merging builds them."""
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-    from core.brick_solids import part_contacts
+    from core.parts.brick_solids import part_contacts
     solids = [brick_solid(*s, GEO, tuple(np.array(c) * [8.0, 8.0, 3.2]), k.flush, k.no_studs, k.solid_under).shape
               for c, s, k in zip(cells, sizes, part_contacts(cells, sizes))]
     out = solids[0]
@@ -368,7 +368,7 @@ def _on_boundary(face, solid) -> bool:
 @pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(MERGES))
 def test_merge_by_face_removal_is_the_union_without_internal_faces(case):
-    from core.brick_solids import merged_solid
+    from core.parts.brick_solids import merged_solid
     cells, sizes = MERGES[case]
     merged = merged_solid(cells, sizes, method="remove")
     assert merged.method == "face removal" and merged.removed_faces >= 2
@@ -381,7 +381,7 @@ def test_merge_by_face_removal_is_the_union_without_internal_faces(case):
     assert len(shape.Faces()) <= len(union.Faces())
     faces = face_list(merged.shape)
     assert all(_on_boundary(f, union) for f in faces), "a face of the merged solid is not on the outside"
-    from core.brick_solids import _face_map
+    from core.parts.brick_solids import _face_map
     fmap = _face_map(merged.shape)
     tagged = {fmap.FindIndex(f) for f, _ in merged.tagged}
     assert tagged == set(range(1, len(faces) + 1)), "every face keeps a tag, every tag is on a face"
@@ -392,7 +392,7 @@ def test_merge_by_face_removal_is_the_union_without_internal_faces(case):
 
 
 def test_fuse_fallback_gives_the_same_solid_and_split_restores_faces():
-    from core.brick_solids import merged_solid
+    from core.parts.brick_solids import merged_solid
     cells, sizes = MERGES["2x4 beside 2x2 offset one stud"]
     removed, fused = merged_solid(cells, sizes), merged_solid(cells, sizes, method="fuse")
     assert removed.method == "face removal" and fused.method == "fuse"
@@ -416,13 +416,13 @@ def test_fuse_fallback_gives_the_same_solid_and_split_restores_faces():
     ([], []),
 ])
 def test_merge_refuses_bad_groups(cells, sizes):
-    from core.brick_solids import merged_solid
+    from core.parts.brick_solids import merged_solid
     with pytest.raises(ValueError):
         merged_solid(cells, sizes)
 
 
 def test_failed_face_removal_falls_back_to_the_fuse(monkeypatch):
-    from core import brick_solids
+    from core.parts import brick_solids
     cells, sizes = MERGES["stacked"]
     good = brick_solids.merged_solid(cells, sizes)
 

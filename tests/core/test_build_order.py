@@ -1,4 +1,4 @@
-"""Tests of core.build_order: steps checked by an independent brute-force function."""
+"""Tests of core.instructions.build_order: steps checked by an independent brute-force function."""
 
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from core import build_order, layout as layout_stage, pipeline
+from core import pipeline
+from core.instructions import build_order
+from core.layout import greedy as layout_stage
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 

@@ -4,7 +4,7 @@ Known answers: the default strip has the seven values -0.10 .. +0.20 mm in
 steps of 0.05; a stud of value v is 4.8 + v across, a socket 4.8 + v between
 opposite walls, 2.0 mm deep under a 1.0 mm roof, the stud 1.7 mm high on the
 3.0 mm block.  Everything is read off the STL with sections, not taken from
-core.calibration.
+core.parts.calibration.
 """
 
 from __future__ import annotations

@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from core import bom, colours, ldraw, request
+from core import colours, request
+from core.instructions import bom
+from core.instructions import ldraw
 from core.errors import InputError
 from core.model import CELL_MM, Brick, Grid, Layout
-from core.render import SHADE, render_layout
+from core.instructions.render import SHADE, render_layout
 
 
 def layout_of(bricks, shape) -> Layout:

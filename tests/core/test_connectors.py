@@ -7,7 +7,8 @@ import manifold3d as m3
 import numpy as np
 import pytest
 
-from core import connectors, pipeline
+from core import pipeline
+from core.parts import connectors
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 

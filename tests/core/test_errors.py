@@ -15,8 +15,10 @@ import pytest
 import trimesh
 
 import core
-from core import catalog, layout, render, voxelize
-from core.brick_solids import brick_solid, to_trimesh
+from core import catalog, voxelize
+from core.layout import greedy as layout
+from core.instructions import render
+from core.parts.brick_solids import brick_solid, to_trimesh
 from core.errors import InputError, bug_message, log_bug, log_folders
 from core.model import Grid, Layout
 
@@ -151,12 +153,12 @@ def test_the_users_choices_stay_input_errors(call, words):
 
 BOOM = """
 import sys
-import core.layout
+import core.layout.greedy
 
 def boom(*args, **kwargs):
     raise ValueError("boom: the layout stage broke\\nand said more")
 
-core.layout.lay_out = boom
+core.layout.greedy.lay_out = boom
 from core import cli
 sys.exit(cli.main(sys.argv[1:]))
 """

@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import export, print_time, printed
-from core.mesh_io import LoadedModel
+from core.printing import export
+from core.printing import print_time
+from core.parts import printed
+from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -182,7 +182,7 @@ def test_printed_part_weight_turns_a_marginal_layout_unstable():
 def test_printed_mass_matches_prusaslicers_filament_weight(tmp_path, size):
     """The mass a printed part weighs in the force check is within 5 % of the filament
     PrusaSlicer itself says it uses, with the profile the parts are sliced with."""
-    from core import print_time
+    from core.printing import print_time
     mesh = trimesh.creation.box(size)
     stl = tmp_path / "part.stl"
     mesh.export(stl)
@@ -260,7 +260,7 @@ def test_build_order_whose_third_step_tips_is_reordered():
     """Planned one brick a step, bottom-up: the arm (step 3) would tip the 1x2 brick over (by
     hand: centre of mass (0.81 * 4 + 1.57 * 2) / 2.38 = 2.68, left of its footprint's edge
     at 3); with the counterweight first (centre 4.5) and then the arm (3.27) it stands."""
-    from core import build_order
+    from core.instructions import build_order
     layout = t_layout()
     planned = build_order.plan(layout, bricks_per_step=1)
     assert [s.bricks for s in planned.steps] == [[1], [2], [3], [4]]
@@ -276,7 +276,7 @@ def test_build_order_whose_third_step_tips_is_reordered():
 def test_build_order_that_cannot_stand_names_the_step():
     """Without the counterweight nothing keeps the arm from tipping the brick over: the
     order stays and the step is named."""
-    from core import build_order
+    from core.instructions import build_order
     layout = layout_of(t_layout().bricks[:3])
     planned = build_order.plan(layout, bricks_per_step=1)
     order = build_order.standing(layout, planned, forces.BuildChecker(layout, ground="table").stands)
@@ -306,7 +306,7 @@ def test_a_bridge_is_built_out_from_both_towers(monkeypatch):
     (known since StableLego's staircase: the clutch holds a limited overhang).  Built out
     from both towers in turn (each unit by its reach), every step carries at most half the
     span, and stands."""
-    from core import build_order
+    from core.instructions import build_order
     lay = long_bridge(12)
     assert forces.analyse(lay, ground="baseplate").stable
     both = build_order.standing(lay, build_order.plan(lay, bricks_per_step=1),
@@ -327,7 +327,8 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
     table under its far stud, on that prop (x 0..1) and on the brick (x 3..5): its centre
     (x 2) lies between them, so it stands in pure compression (utilisation 0).  The
     finished build tips without the prop, so the prop stays."""
-    from core import build_order, instructions
+    from core.instructions import build_order
+    from core.instructions import page as instructions
     layout = layout_of(t_layout().bricks[:3])
     checker = forces.BuildChecker(layout, ground="table")
     assert checker.stands(np.ones(3, bool), np.array([[0, 0, 3]])) == (True, 0.0)
@@ -349,7 +350,7 @@ def test_the_finished_build_is_judged_with_the_props_it_keeps_and_what_it_carrie
     compression.  Judged with a load on the arm's middle studs (x 1..3), the prop and the
     brick carry it and the arm bends between them: its utilisation grows with the load
     (twice the load, twice the utilisation: its own weight only presses), and 100 kg break it."""
-    from core import build_order
+    from core.instructions import build_order
     layout = layout_of(t_layout().bricks[:3])
     checker = forces.BuildChecker(layout, ground="table")
     order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
@@ -381,7 +382,7 @@ def test_the_finished_build_is_judged_with_the_props_it_keeps_and_what_it_carrie
 
 def built_without_and_with_props(lay: Layout, ground: str):
     """The checked build orders of ``lay`` (one brick a step) without props and with them."""
-    from core import build_order
+    from core.instructions import build_order
     plan = build_order.plan(lay, bricks_per_step=1)
     return tuple(build_order.standing(lay, plan, forces.BuildChecker(lay, ground=ground).stands,
                                       props=props, ground=ground) for props in (False, True))
@@ -400,7 +401,7 @@ def test_a_bridge_too_long_for_its_halves_is_closed_on_a_baseplate_over_a_prop()
     assert prop["step"] == bare.unstable[0]["step"]
     assert prop["removed_after"] == len(order.steps)                    # once it is closed
     assert abs(prop["cell"][0] - lay.grid.shape[0] / 2) <= 8             # near the middle
-    from core import build_order
+    from core.instructions import build_order
     assert prop["on"] == "baseplate"
     assert " on the baseplate under stud " in build_order.prop_words(build_order.numbered(lay, order), prop)
 
@@ -429,7 +430,8 @@ def test_props_in_a_channel_the_bridge_closes_stay_inside():
     either side: the air under the bridge is closed in by the walls, the towers and the
     bridge itself.  Its props stand in that air; when the bridge is closed, and stands
     without them, nothing can take them out: they stay, and the words say so."""
-    from core import build_order, instructions
+    from core.instructions import build_order
+    from core.instructions import page as instructions
     bridge = long_bridge(12)
     length = bridge.grid.shape[0]
     bricks = [dataclasses.replace(b, cell=(b.cell[0], b.cell[1] + 1, b.cell[2])) for b in bridge.bricks]
@@ -460,7 +462,8 @@ def test_build_checker_agrees_with_the_analysis_on_every_prefix():
 
 
 def test_instructions_warn_at_the_step_that_does_not_stand():
-    from core import build_order, instructions
+    from core.instructions import build_order
+    from core.instructions import page as instructions
     layout = layout_of(t_layout().bricks[:3])
     order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
                                  forces.BuildChecker(layout, ground="table").stands)
@@ -552,7 +555,7 @@ def arm_of_plates() -> Layout:
 def test_reinforce_re_merges_around_the_failing_joint():
     """45 g at the arm's tip pulls the arm's 1x2 plates off the tower (utilisation > 1);
     merged again around the failing joint the arm holds, covering the same cells."""
-    from core import reinforce
+    from core.layout import reinforce
     layout = arm_of_plates()
     load = ["72,0,28.8,80,8,40:45"]
     assert not forces.analyse(layout, ground="baseplate", loads=load).stable
@@ -571,7 +574,7 @@ def test_reinforce_re_merges_around_the_failing_joint():
 def test_the_verdict_alone_never_judges_a_layout_worse_than_the_detail():
     """reinforce screens candidates on the verdict alone (detail=False): it has the same
     worst utilisation as the detail, and stands whenever the detail does."""
-    from core import reinforce
+    from core.layout import reinforce
     load = ["72,0,28.8,80,8,40:45"]
     layout = arm_of_plates()
     for candidate in (layout, reinforce.reinforce(layout, ground="baseplate", loads=load).layout):
@@ -583,7 +586,7 @@ def test_the_verdict_alone_never_judges_a_layout_worse_than_the_detail():
 
 
 def test_reinforce_leaves_a_standing_layout_alone():
-    from core import reinforce
+    from core.layout import reinforce
     layout = arm_of_plates()
     result = reinforce.reinforce(layout, ground="baseplate")
     assert result.layout is layout and result.attempts == 0
@@ -593,7 +596,7 @@ def test_reinforce_leaves_a_build_judged_in_height_bands_alone(monkeypatch):
     """The 19-level staircase works its second brick at 0.93, above LOADED: a site to work
     around.  Judged in height bands each brick has only its band's worst (and each judgement
     would be bands again): reinforce leaves it as it is."""
-    from core import reinforce
+    from core.layout import reinforce
     layout = staircase(19)
     assert reinforce.reinforce(layout, ground="baseplate").attempts > 0
     monkeypatch.setattr(limits, "MAX_HANGING", 0)
@@ -668,7 +671,8 @@ def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
     """The checker keeps 'every present cell rests on a present cell' up to date brick by
     brick; asked in any order (prefixes, trials taken back, random sets), its answer is the
     direct count over all brick pairs."""
-    from core import catalog, layout as layout_stage
+    from core import catalog
+    from core.layout import greedy as layout_stage
     rng = np.random.default_rng(3)
     # columns of random heights: every cell rests on a cell, so built bottom up every
     # prefix is supported
@@ -694,7 +698,8 @@ def test_build_checker_knows_a_supported_prefix_from_any_earlier_question():
 def slab_over_box(outer=(22, 22, 24), wall=2, rim=4) -> Layout:
     """A hollow box standing on the table under a slab of six plate layers reaching
     ``rim`` studs out all round: the slab hangs, the walls stand in pure compression."""
-    from core import catalog, layout as layout_stage
+    from core import catalog
+    from core.layout import greedy as layout_stage
     filled = np.zeros(outer, dtype=bool)
     filled[rim:-rim, rim:-rim, :-6] = True
     filled[rim + wall:-rim - wall, rim + wall:-rim - wall, :-6] = False
@@ -794,7 +799,8 @@ def test_a_hollow_cubes_roof_is_checked_in_pieces_that_rest_on_walls_and_pillars
     """A 21 cm hollow cube's roof (on its walls and the hollow stage's pillars) cut in plan
     into groups: each stands on what is under it, so the cube stands, with a worst
     utilisation at least the whole program's."""
-    from core import catalog, hollow, layout as layout_stage
+    from core import catalog, hollow
+    from core.layout import greedy as layout_stage
     solid = Grid(np.zeros(3), CELL.copy(), np.ones((26, 26, 40), dtype=bool))
     lay = layout_stage.lay_out(hollow.hollow(solid, 2)[0], catalog.CATALOG, seed=0)
     monkeypatch.setattr(limits, "EXACT_BODIES", limits.MAX_BODIES)
@@ -836,7 +842,8 @@ def test_a_ledge_on_a_thin_wall_is_checked_with_the_wall_under_it(monkeypatch):
     press, the ledge and the wall's top levels tip over the wall's inner edge; taking more
     of the wall in (its own studs pull) it stands, no better than the whole program says.
     Past MAX_BODIES, without that, only height bands give a verdict."""
-    from core import catalog, layout as layout_stage
+    from core import catalog
+    from core.layout import greedy as layout_stage
     filled = np.zeros((16, 6, 42), dtype=bool)
     filled[:, :2, :39] = True
     filled[:, :, 39:] = True
@@ -863,7 +870,7 @@ def test_build_prefixes_checked_on_the_hanging_part_agree_with_the_whole_program
     ``margin`` levels under it) while every present brick outside it rests on present
     cells: step by step the same verdicts as the whole program, and a worst utilisation
     no lower."""
-    from core import build_order
+    from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
     monkeypatch.setattr(limits, "EXACT_BODIES", limits.MAX_BODIES)
@@ -895,7 +902,8 @@ def test_steps_past_the_work_budget_are_checked_by_the_graph_and_the_report_says
     need one are NaN (checked by the brick graph); the steps before keep the programs'
     answers, the steps in pure compression stay 0, and the report gives the budget reason."""
     import dataclasses
-    from core import build_order, pipeline
+    from core import pipeline
+    from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
     full_checker = forces.BuildChecker(lay)
@@ -919,7 +927,7 @@ def test_the_work_budget_counts_solver_iterations_so_a_slow_machine_gets_the_sam
     programs and the same ones by the graph as on this one.  The work is HiGHS's own count
     of its iterations: the first (cold) program's interior-point and crossover iterations."""
     import time as clock
-    from core import build_order
+    from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
     first = forces.BuildChecker(lay)
@@ -944,7 +952,8 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     """Past MAX_BODIES no program is solved for a build step: a step whose every brick rests
     on bricks or the ground gets 0, as the programs give it; a step that would need one is
     NaN (joined to the ground: the graph's verdict), and the report counts those steps."""
-    from core import build_order, pipeline
+    from core import pipeline
+    from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
     full = build_order.standing(lay, order, forces.BuildChecker(lay).stands)
@@ -963,7 +972,7 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     assert "brick graph only" in doc["graph_only_why"]
     assert "graph_only_steps" not in pipeline.build_stability(full, len(lay.bricks))
     # the builder reads it once, at the first step of each run of such steps
-    from core import instructions
+    from core.instructions import page as instructions
     notes = {n for n, text in instructions.step_warnings(graph, lay).items() if "Not force-checked" in text}
     runs = {n + 1 for n in range(len(g)) if np.isnan(g[n]) and (n == 0 or not np.isnan(g[n - 1]))}
     assert notes == runs and first in notes
@@ -1005,7 +1014,8 @@ def test_a_hanging_piece_no_cut_splits_is_not_solved_whole_past_max_bodies(monke
     solved as one program (a bunny scaled x3 hangs almost whole: 360 s for one program):
     past what height bands take too, it is reported unchecked at once, saying where and
     why."""
-    from core import catalog, layout as layout_stage
+    from core import catalog
+    from core.layout import greedy as layout_stage
     filled = np.zeros((20, 20, 18), dtype=bool)
     filled[9:11, 9:11, :] = True
     filled[:, :, -6:] = True

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import high_res, layout
+from core import high_res
+from core.layout import greedy as layout
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 

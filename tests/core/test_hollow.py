@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import catalog, hollow, layout as layout_stage, pipeline, stability
+from core import catalog, hollow, pipeline, stability
+from core.layout import greedy as layout_stage
 from core.errors import InputError
 from core.model import Grid
 from core.request import request

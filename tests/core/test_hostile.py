@@ -20,7 +20,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import mesh_io, output_dir, pipeline, watch
+from core import pipeline, watch
+from core.io import meshes as mesh_io
+from core.io import output_dir
 from core.cli import main
 from core.errors import InputError
 

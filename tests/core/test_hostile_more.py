@@ -162,7 +162,7 @@ def test_a_model_named_with_an_emoji_draws_its_picture_without_warnings(box_stl,
 
 
 def test_drawable_titles_replace_what_the_font_lacks():
-    from core.render import _drawable
+    from core.instructions.render import _drawable
 
     assert _drawable("box \u00fc \udcc3\udcbc \U000e0001") == "box \u00fc ?? ?"
 

@@ -1,4 +1,4 @@
-"""The improvement stage (core/improve.py): same cells, allowed parts, never worse, deterministic,
+"""The improvement stage (core/layout/search.py): same cells, allowed parts, never worse, deterministic,
 and the hand-computed optimum on small shapes."""
 
 from __future__ import annotations
@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings, strategies as st
 
-from core import catalog, improve, layout as layout_stage
+from core import catalog
+from core.layout import search as improve
+from core.layout import greedy as layout_stage
 from core.errors import InputError
 from core.model import CELL_MM, Brick, Grid, Layout
 
@@ -340,7 +342,7 @@ def test_ring_reaches_eight_bricks():
 @pytest.mark.parametrize("effort", ["normal", "best"])
 def test_frozen_bricks_stay_and_new_ids_follow(effort):
     """``best`` too: its seeds' searches and its longer search keep the frozen bricks (the
-    merge of what they found, :func:`core.improve._merged`, is tried; here it finds no
+    merge of what they found, :func:`core.layout.search._merged`, is tried; here it finds no
     layout better than the best of them)."""
     grid = grid_of(np.ones((2, 8, 6), bool))
     start = unit_plates(grid)
@@ -543,7 +545,7 @@ def test_leaf_free_bound_of_a_column_is_the_hand_count():
     rest on two 2x2s, so by hand at least 1 + 2 + 1 + 2 + 1 = 7; and without weak points
     the middle layer is split too (else its 2x4 joins the halves alone): 8, which the
     bound does not exceed."""
-    from core.lower_bound import brick_lower_bound
+    from core.layout.bounds import brick_lower_bound
     grid = grid_of(np.ones((2, 4, 15), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3001", "3003"))
     assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 5
@@ -566,7 +568,7 @@ def test_bound_of_a_strip_finds_no_layout_of_its_kind():
     neighbour over two cells or more.  The strip's 16 cells are more than two plates can
     fill, so that neighbour is a weak point, and not a thin one: no layout in one piece
     with only thin weak points (or none) exists, and the bound says so."""
-    from core.lower_bound import brick_lower_bound
+    from core.layout.bounds import brick_lower_bound
     grid = grid_of(np.ones((1, 8, 2), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3710", "3023"))
     assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 4
@@ -731,7 +733,7 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     """Validity: any layout the targets accept (one component per region, no weak point but
     thin ones) has at least the bound's bricks; and the bound is at least the plain cover's.
     Where the bound finds no such layout at all, the improved one is not one either."""
-    from core.lower_bound import brick_lower_bound
+    from core.layout.bounds import brick_lower_bound
     grid = grid_of(filled)
     lay = improve.improve(layout_stage.lay_out(grid, catalog.CATALOG, seed=0), catalog.CATALOG,
                           "normal", 0)
@@ -894,7 +896,7 @@ def test_fixed_leaf_targets_of_a_hand_made_window():
 def test_rows_of_finds_each_current_brick_among_the_placements_or_none():
     """Against a dictionary of the placements: the row of every current brick that is one,
     None for one that is not (a brick of another shape, or outside the window)."""
-    from core.improve import _rows_of
+    from core.layout.search import _rows_of
     rng = np.random.default_rng(0)
     for _ in range(200):
         boxes = np.unique(rng.integers(0, 6, (int(rng.integers(0, 50)), 6)), axis=0).reshape(-1, 6)

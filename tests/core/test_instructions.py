@@ -1,4 +1,4 @@
-"""Tests of core.instructions: drawing order, the self-contained page and write_assembly."""
+"""Tests of core.instructions.page: drawing order, the self-contained page and write_assembly."""
 
 from __future__ import annotations
 
@@ -11,7 +11,12 @@ import numpy as np
 import trimesh
 import pytest
 
-from core import build_order, instructions, layout as layout_stage, ldraw, picture, pipeline
+from core import pipeline
+from core.instructions import build_order
+from core.instructions import page as instructions
+from core.layout import greedy as layout_stage
+from core.instructions import ldraw
+from core.instructions import picture
 from core.errors import InputError
 from core.model import Grid
 

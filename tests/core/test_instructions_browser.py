@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from core import instructions, pipeline
+from core import pipeline
+from core.instructions import page as instructions
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
@@ -184,7 +185,8 @@ def test_a_prop_shows_from_the_step_it_is_stood_before_to_the_step_it_goes(brows
     the build order say why).  The page draws each prop, says where to stand it at its step
     and when to take it away, and shows it from the one step to the other."""
     from test_forces import layout_of, long_bridge
-    from core import build_order, forces
+    from core import forces
+    from core.instructions import build_order
     from core.model import Brick
     bridge = long_bridge(3)
     lay = layout_of(bridge.bricks + [Brick(len(bridge.bricks) + 1 + n, "3001", (4, 2, 3), (4 * n, 0, 5))

@@ -15,7 +15,9 @@ import trimesh
 from cadquery import exporters
 from scipy.spatial.transform import Rotation
 
-from core import align, changes_page, export, high_res, iterate, pipeline, result
+from core import align, high_res, iterate, pipeline, result
+from core.instructions import changes_page
+from core.printing import export
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from core import layout as layout_stage
+from core.layout import greedy as layout_stage
 from core.catalog import BY_NUMBER, CATALOG, select
 from core.errors import InputError
-from core.layout import lay_out
+from core.layout.greedy import lay_out
 from core.model import CELL_MM, Grid
 from core.stability import analyse
 
@@ -186,7 +186,8 @@ def test_progress_is_reported_between_0_and_1():
 def test_real_model_is_held_together(name):
     if not (MODELS / name).exists():
         pytest.skip(f"test models not found at {MODELS}")
-    from core import mesh_io, voxelize
+    from core import voxelize
+    from core.io import meshes as mesh_io
     model = mesh_io.load_model(MODELS / name)
     grid = voxelize.legofy(model.mesh, closed=model.watertight)
     layout = lay_out(grid)

@@ -52,8 +52,8 @@ def test_mesh_fabricate_without_printed_parts_imports_no_opencascade(box_stl, tm
 
 
 def test_importing_the_stages_imports_no_opencascade():
-    names = ("core.cli", "core.pipeline", "core.printed", "core.export", "core.iterate",
-             "core.instructions", "core.render", "core.calibration", "core.diff", "core.align")
+    names = ("core.cli", "core.pipeline", "core.parts.printed", "core.printing.export", "core.iterate",
+             "core.instructions.page", "core.instructions.render", "core.parts.calibration", "core.diff", "core.align")
     code = ("import importlib, sys\n"
             f"for name in {names!r}:\n"
             "    importlib.import_module(name)\n"

@@ -1,4 +1,4 @@
-"""Tests of core.ldraw: conventions, the MPD writer and its round trip through the parser."""
+"""Tests of core.instructions.ldraw: conventions, the MPD writer and its round trip through the parser."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core import build_order, ldraw, pipeline
+from core import pipeline
+from core.instructions import build_order
+from core.instructions import ldraw
 from core.catalog import BY_NUMBER, CATALOG
 from core.errors import InputError
 from core.model import Brick, Grid, Layout

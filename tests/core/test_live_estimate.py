@@ -1,11 +1,11 @@
-"""The brush panel's live estimate (core.live_estimate) against the parts core.printed cuts.
+"""The brush panel's live estimate (core.live_estimate) against the parts core.parts.printed cuts.
 
 The reference for a painted change is independent of the estimate's grouping and
 measuring: the pipeline's own grouping of the printed bricks
-(:func:`core.high_res.groups`), the parts :func:`core.printed.build_parts` cuts for
+(:func:`core.high_res.groups`), the parts :func:`core.parts.printed.build_parts` cuts for
 it (studs, sockets, play and engraving included: the estimate cuts each part the
 same way, without the id), and
-:func:`core.print_time.estimate_seconds` of those parts on one plate as they were
+:func:`core.printing.print_time.estimate_seconds` of those parts on one plate as they were
 cut (upright).  The last result's print time is that same reference for the parts
 as they are, so the estimate's change is checked, not its anchor.
 """
@@ -18,7 +18,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import high_res, live_estimate, pipeline, print_time, printed
+from core import high_res, live_estimate, pipeline
+from core.printing import print_time
+from core.parts import printed
 from core.errors import InputError
 from core.request import Request
 
@@ -46,7 +48,7 @@ def fab(tmp_path_factory):
 
 
 def reference_s(fab, ids) -> tuple[float, int]:
-    """estimate_seconds of the parts core.printed cuts for the printed bricks ``ids``
+    """estimate_seconds of the parts core.parts.printed cuts for the printed bricks ``ids``
     (one plate, as cut), and how many parts."""
     layout = dataclasses.replace(fab.layout, bricks=[
         dataclasses.replace(b, kind="lego", printed_part=None) for b in fab.layout.bricks])

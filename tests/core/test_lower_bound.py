@@ -1,4 +1,4 @@
-"""Tests of core.lower_bound: known minimum covers, a brute-force check, validity."""
+"""Tests of core.layout.bounds: known minimum covers, a brute-force check, validity."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from core import lower_bound
+from core.layout import bounds as lower_bound
 from core.catalog import BY_NUMBER, CATALOG, select
 from core.errors import InputError
-from core.lower_bound import brick_lower_bound, certified_bound, part_shapes
+from core.layout.bounds import brick_lower_bound, certified_bound, part_shapes
 from core.model import CELL_MM, Grid
 
 

@@ -1,4 +1,4 @@
-"""core.mesh_io: every format loads, units apply, bad input is refused, repairs are done and said."""
+"""core.io.meshes: every format loads, units apply, bad input is refused, repairs are done and said."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from core.errors import InputError
-from core.mesh_io import UNITS, load_model, repair, size_warnings
+from core.io.meshes import UNITS, load_model, repair, size_warnings
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"
@@ -652,7 +652,8 @@ def test_the_bunny_stands_upright_on_a_table_with_up_y():
     """The Stanford bunny's file is y-up: as given (z up) it lies on its side on a 2 x 3 stud
     foot and tips over on a table; turned with up y it sits on its base and stands (the
     force check of the greedy layout, on a table)."""
-    from core import forces, layout as layout_stage, voxelize
+    from core import forces, voxelize
+    from core.layout import greedy as layout_stage
     path = models_or_skip() / "stanford_bunny_open.obj"
     verdicts = {}
     for up in ("z", "y"):

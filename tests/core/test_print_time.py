@@ -3,7 +3,7 @@
 Tests that slice skip when prusa-slicer is not installed (Debian package
 ``prusa-slicer``); tests on real models skip when ../shared/models is absent.
 :func:`calibration_plates` is also the set ``ESTIMATE_COEFFS`` in
-core/print_time.py was fitted on.
+core/printing/print_time.py was fitted on.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from core import print_time as pt
-from core import slicer_profile
+from core.printing import print_time as pt
+from core.printing import slicer_profile
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -274,7 +274,7 @@ def test_arrange_sets_overlapping_parts_apart_on_the_bed():
     centre = (np.min([b[0, :2] for b in boxes], axis=0) + np.max([b[1, :2] for b in boxes], axis=0)) / 2
     assert np.allclose(centre, bed.mean(axis=0))
     assert cube.bounds[0, 0] == -10                         # the input is not changed
-    # parts already apart on the bed (a plate core.export laid out) stay where they are
+    # parts already apart on the bed (a plate core.printing.export laid out) stay where they are
     apart = [trimesh.creation.box((20, 20, 20)).apply_translation((20, 20, 10)),
              trimesh.creation.box((20, 20, 20)).apply_translation((60, 20, 10))]
     assert all(np.allclose(a.bounds, b.bounds) for a, b in zip(apart, pt.arrange(apart, config)))
@@ -567,7 +567,7 @@ def test_an_unchanged_plate_is_sliced_once_and_a_changed_one_again(tmp_path, mon
 
 
 def test_the_slice_cache_is_off_when_told_and_survives_a_broken_entry(tmp_path, monkeypatch):
-    from core import slice_cache
+    from core.printing import slice_cache
     monkeypatch.setenv("FABRICKATOR_CACHE", "none")
     assert slice_cache.folder() is None and slice_cache.get("x") is None
     slice_cache.put("x", {"seconds": 1.0})

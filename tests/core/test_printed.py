@@ -14,10 +14,10 @@ import trimesh
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 from OCP.gp import gp_Pnt
 
-from core import printed
+from core.parts import printed
 from core.errors import InputError
-from core.interfaces import Fit
-from core.mesh_io import LoadedModel
+from core.parts.interfaces import Fit
+from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
 
 CELL = np.array([8.0, 8.0, 3.2])
@@ -85,7 +85,7 @@ def test_sections_show_the_set_stud_diameter_and_socket_width(kind):
 
 
 def test_step_studs_are_true_cylinders_of_the_setting(tmp_path):
-    from core.export import write_step
+    from core.printing.export import write_step
     lay, block = _sandwich()
     for stud_fit in (0.05, 0.15):
         (part,) = printed.build_parts(lay, [[1]], _source("brep", block), Fit(stud_fit=stud_fit),
@@ -233,7 +233,7 @@ def test_engraving_prints_no_fontconfig_error():
     env = {k: v for k, v in os.environ.items() if not k.startswith("FONTCONFIG")}
     code = ("import numpy as np, trimesh\n"
             "from core import printed\n"
-            "from core.mesh_io import LoadedModel\n"
+            "from core.io.meshes import LoadedModel\n"
             "from core.model import Brick, Grid, Layout\n"
             "m = trimesh.creation.box(bounds=[[0, 0, 0], [16, 32, 9.6]])\n"
             "src = printed.model_solid(LoadedModel(mesh=m, path='m.stl', format='stl', triangles=12, watertight=True))\n"

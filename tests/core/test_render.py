@@ -1,4 +1,4 @@
-"""Tests of core.render: a real PNG of the asked size, occlusion, colours."""
+"""Tests of core.instructions.render: a real PNG of the asked size, occlusion, colours."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from core.model import CELL_MM, Brick, Grid, Layout
-from core.render import PRINTED_RGB, SHADE, brick_colours, render_layout
+from core.instructions.render import PRINTED_RGB, SHADE, brick_colours, render_layout
 
 
 def layout_of(bricks: list[tuple], shape) -> Layout:

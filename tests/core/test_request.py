@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from core import build_order, cli, pipeline, request
+from core import cli, pipeline, request
+from core.instructions import build_order
 from core.errors import InputError
-from core.interfaces import Fit
+from core.parts.interfaces import Fit
 
 
 def test_the_command_line_defaults_are_the_table():

@@ -1,4 +1,4 @@
-"""Thin-feature report (core/thickness.py): known answers from geometry built here.
+"""Thin-feature report (core/parts/thickness.py): known answers from geometry built here.
 
 A 0.3 mm wall is thinner than the 0.4 mm a nozzle prints; a 5 mm box is
 not, edges included.  Areas count thin *surface*: both sides of a wall.
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from core.thickness import _first_hits, _planes, thin_features
+from core.parts.thickness import _first_hits, _planes, thin_features
 
 
 def box(extents, centre=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:

@@ -276,7 +276,7 @@ class TestExampleAndPreferences(GuiTestCase):
             preferences.set("BrickSet", "all")
 
     def test_preferences_page_shows_the_fit_defaults_and_saves_a_changed_fit(self):
-        from core.interfaces import Fit
+        from core.parts.interfaces import Fit
         from FabrickatorWorkbench import preferences
 
         shown = {}

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from core import print_time
-from core.print_time import Pose
-from core.printed import PrintedPart
+from core.printing import print_time
+from core.printing.print_time import Pose
+from core.parts.printed import PrintedPart
 
 #: Gap (mm) between parts on a plate, and between the parts and the bed's edge:
 #: the slicer's least gap (supports spread beyond their part; PrusaSlicer 2.9
@@ -57,7 +57,7 @@ def print_pose(mesh: trimesh.Trimesh, studs: bool = True, clamping: bool = True,
     """The print orientation of a part (its mesh in model mm, studs along +z).
 
     The pose that prints fastest with the supports it needs
-    (:func:`core.print_time.fastest_pose`: upright, upside down, the four
+    (:func:`core.printing.print_time.fastest_pose`: upright, upside down, the four
     sideways poses and the most probable resting poses, the best by
     estimate sliced with PrusaSlicer, each with supports exactly when it
     needs them; by the estimate alone without a slicer, ``slicer`` as
@@ -87,7 +87,7 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
     clamping penalty when it has studs or sockets (they clamp the bricks
     above and below) and the engraving rule when its id is engraved; a
     bare mesh is treated as a part with studs and no engraving.  The copy is marked posed
-    (:func:`core.print_time.posed`), so :func:`core.print_time.print_time`
+    (:func:`core.printing.print_time.posed`), so :func:`core.printing.print_time.print_time`
     slices it as it stands, with the supports its pose needs.  The poses are sliced
     under ``workdir`` (a temporary folder when None).
     """
@@ -109,7 +109,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     rule gives.
 
     ``bed`` is the printable (x, y) in mm (default: the profile's,
-    :func:`core.print_time.build_volume`).  Shelf packing: each part is
+    :func:`core.printing.print_time.build_volume`).  Shelf packing: each part is
     turned about z so its longer side runs along the bed's longer side
     when that fits, the parts are taken tallest footprint (y) first and
     set left to right in rows, SPACING_MM apart and from the bed's edges; a
@@ -270,10 +270,10 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     returned for these ``parts``, so that the poses are not searched again):
     ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
     printed with as PrusaSlicer's project config
-    (:func:`core.print_time.plate_3mf`): the
-    profile's, with :data:`core.print_time.SUPPORT_SETTINGS` when a part on
+    (:func:`core.printing.print_time.plate_3mf`): the
+    profile's, with :data:`core.printing.print_time.SUPPORT_SETTINGS` when a part on
     it is posed with supports, so PrusaSlicer opening it prints what
-    :func:`core.print_time.print_time` timed.
+    :func:`core.printing.print_time.print_time` timed.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

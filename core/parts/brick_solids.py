@@ -4,8 +4,8 @@ These are real LEGO bricks (studs, hollow underside, tubes, pins) as the workben
 them and as the paper's merge works on them: merging neighbouring bricks removes the faces
 where they touch, found by tag, and sews the rest into one solid (:func:`merged_solid`;
 "Merging and splitting").  Printed parts are not made from these solids: they keep the
-model whole and get studs and sockets only where they meet LEGO (:mod:`core.printed`,
-:mod:`core.interfaces`).  The solid is built with OpenCascade (through cadquery's OCP) and
+model whole and get studs and sockets only where they meet LEGO (:mod:`core.parts.printed`,
+:mod:`core.parts.interfaces`).  The solid is built with OpenCascade (through cadquery's OCP) and
 every face is tagged from the construction history of the Boolean operations, never by
 guessing from positions afterwards.
 
@@ -23,7 +23,7 @@ FreeCAD), but not an operation that rebuilds it (a Boolean, a fillet, a re-impor
 **Clearance.**  ``BrickGeometry.clearance`` (a diameter, default 0: real LEGO) shrinks the
 stud, the tube's outside and the pin by it, widens the tube's inside by it and thins the
 cavity's walls by half of it; the outer size stays ``n * pitch - 2 * play``.  Printed parts
-do not use it: their fit is :class:`core.interfaces.Fit`.
+do not use it: their fit is :class:`core.parts.interfaces.Fit`.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape, TopoDS_Shell
 from OCP.TopTools import TopTools_IndexedMapOfShape, TopTools_ListOfShape
 
-from core import output_dir
+from core.io import output_dir
 
 #: The four outer side tags, by axis and direction.
 SIDE_TAGS = ("side-x", "side+x", "side-y", "side+y")

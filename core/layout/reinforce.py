@@ -1,10 +1,10 @@
 """Reinforce stage: the layout re-merged around the joints the force check finds failing.
 
-The layout stage (:mod:`core.layout`) makes bricks hold together as a graph;
+The layout stage (:mod:`core.layout.greedy`) makes bricks hold together as a graph;
 :mod:`core.forces` says which joints cannot carry what hangs on them.  This
 stage takes the failing and the most loaded bricks as sites and, around each,
 frees a window (a few studs across, a brick's height above and below) and
-merges its cells again (:func:`core.layout.lay_out` on the window, other
+merges its cells again (:func:`core.layout.greedy.lay_out` on the window, other
 seeds): longer parts that span the old seams, overlaps further from the
 tipping edge.  A change is kept when the whole layout gets better on
 (components, stands, worst utilisation, weak points, bricks), compared in
@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core import forces as forces_stage, layout as layout_stage, stability as stability_stage
+from core import forces as forces_stage, stability as stability_stage
+from core.layout import greedy as layout_stage
 from core.catalog import CATALOG, Part
 from core.model import Layout
 

@@ -42,7 +42,7 @@ from scipy import ndimage
 from core.catalog import BRICK_LAYERS, CATALOG, PLATE_LAYERS, Part
 from core.errors import InputError
 from core.connectivity import articulation_points, component_labels, regions
-from core.lower_bound import part_shapes, placement_count, relaxed_cover
+from core.layout.bounds import part_shapes, placement_count, relaxed_cover
 from core.model import Brick, Grid, Layout
 
 Progress = Callable[[float, str], None]
@@ -273,7 +273,7 @@ def relaxed_layout(grid: Grid, cells: np.ndarray | None, parts: tuple[Part, ...]
 def relaxed_brick_groups(filled: np.ndarray, parts: tuple[Part, ...]) -> np.ndarray | None:
     """Brick groups (as :func:`brick_group_candidates` gives them) read off the LP
     relaxation of the exact cover of ``filled`` by ``parts``
-    (:func:`core.lower_bound.relaxed_cover`), or None where it is not solved within
+    (:func:`core.layout.bounds.relaxed_cover`), or None where it is not solved within
     :data:`RELAXED_TIME_S`.
 
     The brick placements (three layers tall) that the relaxation gives more than
@@ -1080,7 +1080,7 @@ def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATA
     """The layout of ``grid`` with no brick straddling the boundary of the marked ``cells``.
 
     The filled cells outside ``cells`` and those inside are laid out on
-    their own (:func:`core.layout.lay_out`, same parts, seed and ``relaxed``), and the two
+    their own (:func:`core.layout.greedy.lay_out`, same parts, seed and ``relaxed``), and the two
     brick lists joined (ids renumbered 0..n-1, the outside bricks first).
     So the bricks touching ``cells`` cover exactly the marked filled cells.
     ``progress`` hears of the outside's layout (the bulk of the work).

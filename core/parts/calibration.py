@@ -2,7 +2,7 @@
 
 ``python -m core calibration-strip --out DIR`` writes a strip to print on
 the user's own printer and test against real LEGO, to find the two fit
-settings of :class:`core.interfaces.Fit`:
+settings of :class:`core.parts.interfaces.Fit`:
 
 * ``calibration_strip.stl`` and ``calibration_strip.3mf``: one watertight
   solid in its print pose (flat side on the bed, studs up, no supports
@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from core.errors import InputError
-from core.interfaces import LEGO_STUD_DIAMETER, PITCH, Fit
+from core.parts.interfaces import LEGO_STUD_DIAMETER, PITCH, Fit
 
 #: Default step between two columns' values (mm).
 STEP_MM = 0.05
@@ -169,7 +169,7 @@ def build_strip(values, fit: Fit = Fit()) -> Strip:
     """
     import cadquery as cq
 
-    from core.brick_solids import to_trimesh
+    from core.parts.brick_solids import to_trimesh
 
     values = tuple(_tidy(v) for v in values)
     if not values:
@@ -269,7 +269,7 @@ def write_strip(out, values=None, fit: Fit = Fit()) -> tuple[Strip, list[Path]]:
     around ``fit``) and write STL_NAME, THREEMF_NAME and README_NAME into the folder
     ``out``; returns the strip and the three paths.
 
-    The values are checked, and the folder (:class:`core.output_dir.OutputFolder`:
+    The values are checked, and the folder (:class:`core.io.output_dir.OutputFolder`:
     new, empty or an earlier strip's, made when missing, writable, not being written
     by another run) before anything is built.  The files are written into a
     temporary folder beside ``out`` that replaces it whole at the end, so a folder
@@ -278,7 +278,7 @@ def write_strip(out, values=None, fit: Fit = Fit()) -> tuple[Strip, list[Path]]:
     """
     import trimesh
 
-    from core import output_dir
+    from core.io import output_dir
 
     values = column_values(fit=fit) if values is None else tuple(values)
     for value in values:
@@ -316,10 +316,10 @@ def _box(x0, y0, z0, x1, y1, z1) -> "cq.Solid":
 
 def _text_solid(text: str, height: float) -> cq.Shape:
     """``text`` at LABEL_FONT_MM, bold, centred on the origin, extruded ``height`` up
-    (the font and set-up of the printed parts' engraved ids, :func:`core.printed.text_shape`)."""
+    (the font and set-up of the printed parts' engraved ids, :func:`core.parts.printed.text_shape`)."""
     import cadquery as cq
 
-    from core.printed import text_shape
+    from core.parts.printed import text_shape
 
     return text_shape(text, LABEL_FONT_MM, cq.Plane.XY(), height)
 

@@ -1,7 +1,7 @@
 """Connectors: the cells where a printed part meets another brick directly above or below.
 
 A printed part clamps onto LEGO only through studs and sockets
-(:mod:`core.interfaces`).  A part gets one wherever the geometry allows:
+(:mod:`core.parts.interfaces`).  A part gets one wherever the geometry allows:
 a **stud** on every cell of its top layer that carries a brick of another
 part (LEGO or printed), a **socket** in every cell of its bottom layer
 that stands on one.  Bricks side by side do not clamp (LEGO does not), so

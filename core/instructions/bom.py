@@ -8,7 +8,7 @@ standing at once, :func:`prop_counts`) and one row per printed part (kind
 ``printed``: its ID, bricks replaced, volume, print time and STL file).
 A printed part's print time is the slicer's share when the pipeline sliced
 (``PrintedPart.print_s``), else the calibrated estimate of
-:func:`core.print_time.estimate_seconds` for that part alone, and the
+:func:`core.printing.print_time.estimate_seconds` for that part alone, and the
 ``print_method`` column says which.
 
 ``bricklink.xml`` is a BrickLink wanted list (Wanted > Upload, BrickLink
@@ -83,7 +83,7 @@ def lego_colour_counts(layout: Layout) -> dict[tuple[str, int], int]:
 
 
 def prop_counts(props) -> dict[str, int]:
-    """Design number -> how many the props (:attr:`core.build_order.BuildOrder.props`) use
+    """Design number -> how many the props (:attr:`core.instructions.build_order.BuildOrder.props`) use
     at most at one time: a prop taken away frees its parts for a later one."""
     events = sorted([(p["step"], 1, p) for p in props]
                     + [(p["removed_after"] + 0.5, -1, p) for p in props if p["removed_after"] is not None],
@@ -110,7 +110,7 @@ def lines(layout: Layout, printed_parts=(), props=()) -> list[BomLine]:
     the LEGO counts add up to the layout's LEGO bricks, and there is one printed
     row per printed part.
     """
-    from core.print_time import ESTIMATE_METHOD, estimate_seconds
+    from core.printing.print_time import ESTIMATE_METHOD, estimate_seconds
 
     counts = lego_colour_counts(layout)
     order = {n: i for i, n in enumerate(BY_NUMBER)}

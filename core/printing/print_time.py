@@ -3,7 +3,7 @@
 :func:`print_time` puts all given meshes on one plate, slices them with the
 ``prusa-slicer`` command line and the MK3S, 0.20 mm QUALITY, Prusament PLA
 presets resolved from the vendor bundle installed with that slicer
-(:mod:`core.slicer_profile`: PrusaSlicer 2.5's and 2.9's bundles alike; the
+(:mod:`core.printing.slicer_profile`: PrusaSlicer 2.5's and 2.9's bundles alike; the
 committed fallback profile where none is found), and reads the slicer's
 own estimate from the G-code.  The parts are placed apart on the bed here
 (:func:`arrange`) and sliced with ``--dont-arrange``, which every version
@@ -14,7 +14,7 @@ on the plate needs them (:func:`needs_supports`); a plate the slicer still
 refuses for want of support is sliced again with supports, then with
 supports on a raft.
 
-A mesh that is not in a print pose yet (the whole model: ``core.export``
+A mesh that is not in a print pose yet (the whole model: ``core.printing.export``
 marks the parts it lays flat with :data:`POSE_KEY`) is first turned into
 the pose that prints fastest (:func:`fastest_pose`): the candidate poses
 are ranked by the calibrated estimate plus their supports, the best
@@ -51,11 +51,13 @@ import numpy as np
 import trimesh
 from scipy.optimize import nnls
 
-from core import output_dir, slice_cache, slicer_profile
+from core.io import output_dir
+from core.printing import slice_cache
+from core.printing import slicer_profile
 from core.errors import InputError
 
 #: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
-#: (:mod:`core.slicer_profile`); a ``profile`` of None means the bundle's presets.
+#: (:mod:`core.printing.slicer_profile`); a ``profile`` of None means the bundle's presets.
 FALLBACK_PROFILE = slicer_profile.FALLBACK_PROFILE
 
 #: Environment variable naming the slicer binary, or ``none`` to disable it.
@@ -182,7 +184,7 @@ class PrintEstimate:
     ``supports`` says whether the time includes supports, ``pose`` names
     the pose :func:`print_time` turned the mesh into (several meshes'
     joined by ", "), None when every mesh came in its print pose.
-    ``cached`` says the slicer's answer came from :mod:`core.slice_cache`
+    ``cached`` says the slicer's answer came from :mod:`core.printing.slice_cache`
     (the same plate sliced before; no G-code then).
     """
 
@@ -306,7 +308,7 @@ def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = 
 
     ``profile`` None is the default: the presets resolved from the vendor
     bundle installed with the slicer ``slicer`` names (as in
-    :func:`resolve_slicer`; :func:`core.slicer_profile.bundle_profile`), or
+    :func:`resolve_slicer`; :func:`core.printing.slicer_profile.bundle_profile`), or
     FALLBACK_PROFILE when there is no slicer, no bundle beside it, or the
     bundle lacks the presets.  Raises InputError when a given file cannot
     be read.
@@ -660,11 +662,11 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     """Slice all ``meshes`` on one plate with PrusaSlicer; the time from its G-code.
 
     Writes the plate as a 3MF carrying its settings (:func:`plate_3mf`,
-    the file ``core.export`` writes for the user) and the G-code into a new
+    the file ``core.printing.export`` writes for the user) and the G-code into a new
     folder under ``workdir``, and slices it as a user would
     (``prusa-slicer --dont-arrange --export-gcode plate.3mf``), the parts
     where :func:`arrange` puts them (as given when they lie apart on the
-    bed, as ``core.export``'s plates do), each in its orientation.  The
+    bed, as ``core.printing.export``'s plates do), each in its orientation.  The
     settings are the profile's (:func:`plate_config`; ``profile`` None: the
     slicer's own bundle), with SUPPORT_SETTINGS when
     ``supports`` is True, or, for None, when :func:`plate_supports` says a
@@ -678,7 +680,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     _SlicerFailed with a one-line reason when a part exceeds the build
     volume, the parts do not fit the bed together, the slicer fails (also
     with every retry setting) or exceeds SLICER_TIMEOUT_S.  A plate sliced before (the
-    same meshes on the bed, settings and binary: :mod:`core.slice_cache`) is not sliced
+    same meshes on the bed, settings and binary: :mod:`core.printing.slice_cache`) is not sliced
     again: its stored answer comes back, ``cached`` and without G-code.
     """
     slicer = slicer or slicer_path()
@@ -827,7 +829,7 @@ def arrange(meshes, config: dict[str, str]) -> list[trimesh.Trimesh]:
     their footprints on the profile's bed and apart.
 
     Meshes whose footprints already lie on the bed, ARRANGE_GAP_MM or
-    more apart, keep their x and y (a plate ``core.export`` laid out).
+    more apart, keep their x and y (a plate ``core.printing.export`` laid out).
     Otherwise they are set in rows, deepest footprint (y) first, left to
     right ARRANGE_GAP_MM apart, each mesh in its orientation, and the rows
     are centred on the bed, as PrusaSlicer's own arrange would centre
@@ -899,7 +901,7 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike | 
     """Print time of all ``meshes`` (Trimesh objects or mesh files) on ONE plate.
 
     With ``pose_search``, every mesh not marked as posed (:data:`POSE_KEY`,
-    set by ``core.export`` for the parts it lays flat) is first turned into
+    set by ``core.printing.export`` for the parts it lays flat) is first turned into
     its fastest pose (:func:`fastest_pose`, no pose forbidden); the others,
     and all without ``pose_search``, are sliced as given (the slicer places
     them on the bed).  With a slicer (``slicer="auto"``:

@@ -18,7 +18,7 @@ The file is an MPD (``assembly.mpd``): the main model with one line-type-1 refer
 LEGO brick and ``0 STEP`` between the assembly steps, then one embedded subfile per printed
 part (``0 FILE printed_P1.ldr``) holding its triangles (line type 3, colour 16), referenced
 once, in its step, with the identity transform (its coordinates are already in place).
-The build's props (:attr:`core.build_order.BuildOrder.props`) are in the step they are stood
+The build's props (:attr:`core.instructions.build_order.BuildOrder.props`) are in the step they are stood
 in, each after a comment that says what it holds; one taken away later carries LeoCAD's
 ``0 !LEOCAD PIECE STEP_HIDE <step>`` (the first step it is gone in), which LeoCAD honours
 and other programs ignore, showing it to the end.
@@ -145,13 +145,13 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
           props=()) -> Path:
     """Write ``layout`` as an MPD file at ``path``; returns the path.
 
-    ``steps`` is a list of brick-id lists (or :class:`core.build_order.Step`
+    ``steps`` is a list of brick-id lists (or :class:`core.instructions.build_order.Step`
     objects), one per assembly step, covering every brick once;
-    ``printed_parts`` are :class:`core.printed.PrintedPart` s (their ``mesh``
+    ``printed_parts`` are :class:`core.parts.printed.PrintedPart` s (their ``mesh``
     in model mm).  Each step's LEGO bricks become type-1 references to
     ``<design number>.dat`` in :data:`LEGO_COLOR`; a printed part becomes one
     reference to its embedded subfile, in the step of its first brick.
-    ``props`` (:attr:`core.build_order.BuildOrder.props`) go into the step each is stood
+    ``props`` (:attr:`core.instructions.build_order.BuildOrder.props`) go into the step each is stood
     before (see the module's text).
     Raises ValueError when a brick is in no step or in two, a step names a
     brick that is not in the layout, or a printed brick has no printed part

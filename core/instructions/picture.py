@@ -1,8 +1,8 @@
 """The instructions' isometric view, and printed parts drawn as what they are.
 
-:func:`screen` is the picture projection of :mod:`core.instructions` (view
+:func:`screen` is the picture projection of :mod:`core.instructions.page` (view
 from the front left, above: direction ``(1, 1, -1)``, the view of
-:mod:`core.render`).  A printed part is not a block: it is the model inside
+:mod:`core.instructions.render`).  A printed part is not a block: it is the model inside
 its bricks, with holes, rings and curved faces.  :func:`part_faces` draws
 its mesh as flat-shaded triangles, cut along the grid planes so that every
 piece lies inside one brick (or one column of a split brick) and can be

@@ -1,6 +1,6 @@
 """Where a printed part meets LEGO: the studs and sockets it gets, and their fit.
 
-A printed part is the model inside its bricks' envelopes, kept whole (:mod:`core.printed`).
+A printed part is the model inside its bricks' envelopes, kept whole (:mod:`core.parts.printed`).
 Brick geometry is *added* only where the part meets a brick of another part directly above
 or below it:
 
@@ -150,7 +150,7 @@ def plan(origin, cell, mine: np.ndarray, other: np.ndarray, bricks, top_cells, b
     grid of the part's cells; ``other``: bool grid of the cells of every
     other brick (LEGO or another printed part); ``bricks``: ((i, j, k), (sx,
     sy, sz)) of the part's bricks; ``top_cells`` / ``bottom_cells``: (n, 3)
-    cells of the part that get a stud / a socket (:func:`core.connectors.find`);
+    cells of the part that get a stud / a socket (:func:`core.parts.connectors.find`);
     ``model_extent(lo, hi)``: the (min corner, max corner) of the model's
     bounding box inside the box (lo, hi), or None where the model is absent.
 

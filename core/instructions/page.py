@@ -2,10 +2,10 @@
 
 The page holds a single isometric SVG picture of the whole model in which every brick is
 drawn once, as the three visible faces of its box (top, -x and -y side; view from the front
-left, above, as :mod:`core.render`), and a little script shows one step at a time by
+left, above, as :mod:`core.instructions.render`), and a little script shows one step at a time by
 switching each brick's class: bricks of earlier steps grey, the step's bricks blue (dropping
 in when played), later bricks hidden.  Printed parts are their meshes shaded in orange
-(:mod:`core.picture`) with their ID on top; the one being inserted is bright, its outline
+(:mod:`core.instructions.picture`) with their ID on top; the one being inserted is bright, its outline
 drawn over everything (so it shows where it goes even behind other bricks), those in place
 pale.  Studs are an SVG pattern per layer on the top faces (an affine pattern transform maps
 the stud lattice of the plane z = top onto the picture), which keeps big models' pages small.
@@ -25,8 +25,8 @@ play/pause; a swipe left or right on a touch screen; a slider and buttons;
 design number, name, colour), the layer being built and the time estimate.
 
 :func:`write_assembly` is the pipeline's entry point: it orders the steps
-(:mod:`core.build_order`), sets ``brick.step`` and writes ``instructions.html``,
-``assembly.mpd`` (:mod:`core.ldraw`), ``bom.csv`` and ``bricklink.xml`` (:mod:`core.bom`).
+(:mod:`core.instructions.build_order`), sets ``brick.step`` and writes ``instructions.html``,
+``assembly.mpd`` (:mod:`core.instructions.ldraw`), ``bom.csv`` and ``bricklink.xml`` (:mod:`core.instructions.bom`).
 """
 
 from __future__ import annotations
@@ -43,9 +43,12 @@ from numba import njit, prange
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import bom, build_order, ldraw, picture
+from core.instructions import bom
+from core.instructions import build_order
+from core.instructions import ldraw
+from core.instructions import picture
 from core.catalog import BY_NUMBER
-from core.picture import SQ2, SQ6, VIEW, fmt, screen
+from core.instructions.picture import SQ2, SQ6, VIEW, fmt, screen
 from core.model import Layout
 
 #: Stud radius and height (mm) as drawn.
@@ -446,7 +449,7 @@ def _prop_pictures(layout: Layout, order: build_order.BuildOrder, current: int) 
     under the bricks, which hide them where they are in front; dashed edges, drawn over
     the bricks, so that a hidden prop still shows).  One ``<g class="pr">`` per prop in
     each, with ``data-s`` (the step it is stood before) and ``data-e`` (the last step it
-    stands, :func:`core.build_order.prop_last_step`), shown from the one to the other."""
+    stands, :func:`core.instructions.build_order.prop_last_step`), shown from the one to the other."""
     if not order.props:
         return "", ""
     cell = np.asarray(layout.grid.cell, dtype=float)
@@ -473,8 +476,8 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
     ``data-id``, or one such group per column where :func:`drawing_pieces`
     split it.  A brick of a printed part in ``printed_parts`` (objects with
     ``id``, ``bricks`` and ``mesh``) draws the part's mesh inside it
-    (:func:`core.picture.part_faces`), not a box; each such part also has
-    its outline (:func:`core.picture.outline`) in ``<g id="outlines">``,
+    (:func:`core.instructions.picture.part_faces`), not a box; each such part also has
+    its outline (:func:`core.instructions.picture.outline`) in ``<g id="outlines">``,
     drawn over everything, which the page shows while the part is being
     inserted.  Printed bricks of other parts are orange boxes."""
     grid = layout.grid
@@ -556,7 +559,7 @@ def svg_picture(layout: Layout, order: build_order.BuildOrder, current: int = 1,
 
 def _meshed_parts(layout: Layout, printed_parts, pieces: np.ndarray, owner: np.ndarray) -> dict:
     """Per printed part with a mesh: its brick indices, its faces per drawing piece
-    (:func:`core.picture.part_faces`) and its outline path data."""
+    (:func:`core.instructions.picture.part_faces`) and its outline path data."""
     index = {b.id: n for n, b in enumerate(layout.bricks)}
     cell = np.asarray(layout.grid.cell, float)
     out = {}
@@ -602,8 +605,8 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
 
 def step_warnings(order: build_order.BuildOrder, layout: Layout) -> dict[int, str]:
     """Step number -> the warning the builder reads at that step: the partial build does
-    not stand after it (:func:`core.build_order.standing`'s ``unstable``), or it stands with
-    its hardest joint above :data:`core.build_order.FRAGILE` of its clutch; or, at the first
+    not stand after it (:func:`core.instructions.build_order.standing`'s ``unstable``), or it stands with
+    its hardest joint above :data:`core.instructions.build_order.FRAGILE` of its clutch; or, at the first
     of a run of steps checked by the brick graph only (a NaN utilisation), that the forces
     of the partial builds from there on were not checked.  The props of ``order`` (bricks of
     ``layout``) come first: where to stand one, before its step; that it can go, after the
@@ -708,12 +711,12 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     ``layers``, ``bricks_per_step``, ``assembly_s`` (``seconds_per_brick``
     per LEGO brick + ``seconds_per_part`` per printed part, both echoed),
     ``unattached_bricks`` and ``early_parts`` (see
-    :class:`core.build_order.BuildOrder`), ``split_bricks`` (bricks the
+    :class:`core.instructions.build_order.BuildOrder`), ``split_bricks`` (bricks the
     picture draws as columns, see :func:`drawing_pieces`), ``files`` (role ->
     file name) and ``timings_s``.  Raises
     FileNotFoundError for a folder that does not exist (the caller makes
     it), InputError for seconds per brick or part that are not a number of
-    seconds >= 0 (the user's settings, :func:`core.build_order.assembly_seconds`)
+    seconds >= 0 (the user's settings, :func:`core.instructions.build_order.assembly_seconds`)
     and ValueError for a bad ``bricks_per_step``.
     """
     folder = Path(folder)

@@ -9,8 +9,8 @@ geometry the user marked as exact.  Here a printed part is
 where the envelope is the part's cells (held back by LEGO's 0.1 mm play
 only on the sides that face a brick of another part), and the connector
 material, the studs and the socket holes exist only where the part meets a
-brick of another part directly above or below it (:mod:`core.connectors`
-finds those cells, :func:`core.interfaces.plan` lays the solids out).  No
+brick of another part directly above or below it (:mod:`core.parts.connectors`
+finds those cells, :func:`core.parts.interfaces.plan` lays the solids out).  No
 cavity anywhere else: over air, on the grid's bottom and over other bricks
 of the same part the model is kept exactly.
 
@@ -41,10 +41,13 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from core import connectors as connectors_stage, high_res, interfaces, thickness
+from core import high_res
+from core.parts import connectors as connectors_stage
+from core.parts import interfaces
+from core.parts import thickness
 from core.errors import InputError
-from core.interfaces import Fit
-from core.mesh_io import LoadedModel
+from core.parts.interfaces import Fit
+from core.io.meshes import LoadedModel
 from core.model import Brick, Layout
 
 if TYPE_CHECKING:  # OpenCascade and cadquery are imported where B-rep parts are made
@@ -113,7 +116,7 @@ class PrintedPart:
     envelope (before studs and sockets), ``envelope_mm3`` the part's cells'
     volume; ``joins`` the bars that join loose pieces; ``method`` which
     Booleans made it; ``thin`` where the printed part is thinner than a
-    0.4 mm nozzle prints (:func:`core.thickness.thin_features`).  ``engraved`` says
+    0.4 mm nozzle prints (:func:`core.parts.thickness.thin_features`).  ``engraved`` says
     whether the id is cut into a side; ``engraving`` is then a dict saying
     where (brick, side, centre, outward normal, text size, font size,
     depth), else the reason why not.  ``stl``, ``step``, ``pose`` and
@@ -222,7 +225,7 @@ def _fused(solids: list, path) -> TopoDS_Shape:
     OpenCascade cannot fuse them (the model's geometry defeats the Boolean)."""
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
 
-    from core.brick_solids import BooleanFailed, run_boolean
+    from core.parts.brick_solids import BooleanFailed, run_boolean
     try:
         return _unify(run_boolean(BRepAlgoAPI_Fuse(), solids[0], list(solids[1:]), None, True))
     except BooleanFailed:
@@ -276,7 +279,7 @@ def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit
     groups (ValueError: the caller's groups are wrong).  With ``connectors``
     every cell where a part meets a brick of another group or a LEGO brick
     directly above or below gets a stud or a socket; ``links`` are those
-    cells when the caller already has them (:func:`core.connectors.find` of
+    cells when the caller already has them (:func:`core.parts.connectors.find` of
     ``groups``).  Does not change ``layout``; see :func:`apply`.
     """
     seen: set[int] = set()
@@ -327,12 +330,12 @@ def build_part(part_id: str, bricks: list[Brick], layout: Layout, source: ModelS
     """The printed part made of ``bricks`` (one connected group of the layout).
 
     ``links`` are the connector cells of the layout's printed parts
-    (:func:`core.connectors.find`; found for ``bricks`` alone when None).
+    (:func:`core.parts.connectors.find`; found for ``bricks`` alone when None).
     Without ``engrave`` the id is not cut in; without ``thin`` its thin features
     are not looked for (``thin`` stays empty).
     Promises: the result is one valid closed solid (its mesh watertight)
     that equals the model inside the envelope except for the studs, the
-    sockets and the material that carries them (:func:`core.interfaces.plan`)
+    sockets and the material that carries them (:func:`core.parts.interfaces.plan`)
     and the bars that join loose pieces; it lies inside the bricks' cells
     but for the studs on top.  Raises :class:`InputError` when nothing of
     the model lies in the bricks, or its pieces cannot be joined inside them.
@@ -394,7 +397,7 @@ class _InvalidSolid(Exception):
 
 
 def _cut(part_id: str, engine, layout_plan, lo_all, hi_all, grid, mine, fit: Fit):
-    """The part's solid from its :class:`core.interfaces.Plan` with ``engine``:
+    """The part's solid from its :class:`core.parts.interfaces.Plan` with ``engine``:
     (solid, its mesh, envelope, model volume kept in the envelope, joins)."""
     envelope = engine.cut(engine.union([engine.box(lo, hi) for lo, hi in layout_plan.envelope]),
                           [engine.box(lo, hi) for lo, hi in layout_plan.play])
@@ -675,14 +678,14 @@ class _Brep:
         return _solids(solid)[0]
 
     def mesh(self, shape) -> trimesh.Trimesh:
-        from core.brick_solids import to_trimesh
+        from core.parts.brick_solids import to_trimesh
         return to_trimesh(shape, MESH_TOL_MM, MESH_ANGLE_RAD)
 
 
 def _solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
     from OCP.TopAbs import TopAbs_SOLID
 
-    from core.brick_solids import sub_shapes
+    from core.parts.brick_solids import sub_shapes
     return sub_shapes(shape, TopAbs_SOLID)
 
 
@@ -693,11 +696,11 @@ def _volume(shape: TopoDS_Shape) -> float:
 
 
 def _occ(op, argument, tools):
-    """:func:`core.brick_solids.run_boolean` inside a part's construction: a failure
+    """:func:`core.parts.brick_solids.run_boolean` inside a part's construction: a failure
     makes the part on the mesh instead (:class:`_InvalidSolid`).  Faces closer than
     :data:`FUZZY_MM` count as one (a model aligned onto an earlier version lies a
     rounding error off the cell planes)."""
-    from core.brick_solids import BooleanFailed, run_boolean
+    from core.parts.brick_solids import BooleanFailed, run_boolean
     op.SetFuzzyValue(FUZZY_MM)
     try:
         return run_boolean(op, argument, list(tools), None, True)
@@ -732,7 +735,7 @@ def _engrave(part: PrintedPart, bricks: list[Brick], grid, mine: np.ndarray, oth
     ``engraving`` (where, or why not) and updates the part's solid, mesh and
     volume.
     """
-    from core.brick_solids import SIDE_TAGS, to_trimesh
+    from core.parts.brick_solids import SIDE_TAGS, to_trimesh
     sizes = {f: _text_size(part.id, f) for f in ENGRAVE_FONT_SIZES}
     candidates = []
     for b in bricks:

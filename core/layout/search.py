@@ -1,7 +1,7 @@
 """Improvement stage: a large neighbourhood search over the greedy layout.
 
 :func:`improve` takes a finished :class:`~core.model.Layout` (the greedy layout with its
-repairs, :mod:`core.layout`) and makes it better window by window, after Kollsker &
+repairs, :mod:`core.layout.greedy`) and makes it better window by window, after Kollsker &
 Malaguti's MIP repair of a constructive layout:
 
 1. **Choose a window.**  Sites are bricks, weak ones first (articulation points and leaves
@@ -46,7 +46,7 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, component_labels, pairs_csr, regions
 from core.errors import InputError
-from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
+from core.layout.bounds import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
                                _summed_volume, cover_matrix, fitting_boxes, more_time)
 from core.model import Brick, Layout
 from core.request import EFFORTS
@@ -74,7 +74,7 @@ class Effort:
     ``weak_windows``: while weak points remain, the most windows (as ``best`` tries them)
     tried at the end (:func:`_repair_weak`); ``relaxed_start``: the search also runs from the
     layout whose brick layers the exact cover's relaxation chooses, where that is cheap
-    (:func:`core.layout.relaxed_brick_groups`, the ``others`` of :func:`improve`);
+    (:func:`core.layout.greedy.relaxed_brick_groups`, the ``others`` of :func:`improve`);
     ``work``: the most simplex iterations (HiGHS's, over all window programs) the whole
     effort spends, ``normal``'s searches from several seeds included (0: no such limit;
     :func:`improve`).
@@ -412,9 +412,9 @@ EARLY_BOUND_S = 1.0
 
 
 def early_bound(grid, parts: tuple[Part, ...] = CATALOG) -> dict | None:
-    """:func:`core.lower_bound.brick_lower_bound` of ``grid`` when its program is small
+    """:func:`core.layout.bounds.brick_lower_bound` of ``grid`` when its program is small
     (:data:`EARLY_VARIABLES`), within :data:`EARLY_BOUND_S`; None otherwise."""
-    from core import lower_bound as lb_stage
+    from core.layout import bounds as lb_stage
 
     if lb_stage.placement_count(grid, parts, stop_above=EARLY_VARIABLES) > EARLY_VARIABLES:
         return None
@@ -442,7 +442,7 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     ``improved`` (their :func:`quality` keys by name), ``seconds`` per phase
     (from ``timings``: layout, improve, and with ``best`` layout_relaxed, the layout from
     the relaxation's brick layers, where it was made; and the lower bound's) and
-    ``lower_bound``: the exact-cover bound (:func:`core.lower_bound.brick_lower_bound`)
+    ``lower_bound``: the exact-cover bound (:func:`core.layout.bounds.brick_lower_bound`)
     with its ``time_limit_s``, whether it is ``proven`` optimal and the
     ``ratio`` bricks / bound.  The bound is computed when ``lower_bound`` is
     asked for (:data:`LOWER_BOUND_S`), else only when the program is small
@@ -451,7 +451,7 @@ def layout_quality(greedy: Layout, layout: Layout, parts: tuple[Part, ...] = CAT
     (:func:`early_bound`) is taken as it is.  When asked for, ``lower_bound.one_piece`` is
     :func:`one_piece_bound` too.
     """
-    from core import lower_bound as lb_stage
+    from core.layout import bounds as lb_stage
 
     timings = timings or {}
     before, after = quality(greedy, failing_joints), quality(layout, failing_joints)
@@ -558,7 +558,7 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     component per region and no weak point but those holding a leaf on a one-cell-thin
     feature (:func:`thin_weak_points`).
 
-    The exact-cover program (:mod:`core.lower_bound`) with what such a layout cannot have:
+    The exact-cover program (:mod:`core.layout.bounds`) with what such a layout cannot have:
     a brick touching nothing above or below in a region it does not fill alone (it would
     be a component of its own), and, in regions of more than twice the cells of the largest
     of ``parts`` (which need three bricks or more), a brick that touches cells on one side only, at
@@ -586,10 +586,10 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     covers made of them, and ``cover`` is such a layout with the fewest of them
     (:func:`_merged`).
     Returns ``{"bound", "optimal", "objective", "status", "seconds", "variables", "rounds",
-    "cuts", "cover"}`` as :func:`core.lower_bound.brick_lower_bound`; ``bound`` is the larger of the
+    "cuts", "cover"}`` as :func:`core.layout.bounds.brick_lower_bound`; ``bound`` is the larger of the
     relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
     bounds, rounded up (0 when neither came in ``time_limit_s``; None past
-    :data:`core.lower_bound.MAX_VARIABLES` placements, ``status`` "too large"),
+    :data:`core.layout.bounds.MAX_VARIABLES` placements, ``status`` "too large"),
     ``objective`` the bricks of the best such cover found or None (with ``connected``, only a
     cover that passes the cuts), ``cover`` its placements as ``[x, y, z, sx, sy, sz]`` cell
     boxes (or None), ``rounds`` the programs solved and ``cuts`` the cuts added.

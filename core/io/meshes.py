@@ -32,7 +32,7 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import output_dir
+from core.io import output_dir
 from core.errors import InputError, shown_path
 from core.model import CELL_MM, UNITS, UP_AXES
 
