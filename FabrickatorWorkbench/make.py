@@ -30,8 +30,8 @@ import FreeCAD as App
 import Mesh
 import Part
 
-from core.parts import calibration
 from core.errors import InputError
+from core.parts import calibration
 from core.watch import model_name, same_model
 from FabrickatorWorkbench import bridge, deps, log, preferences
 from FabrickatorWorkbench.objects import tree

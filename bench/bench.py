@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core import catalog, pipeline, stability, voxelize  # noqa: E402
-from core.layout import greedy as layout  # noqa: E402
 from core.errors import InputError  # noqa: E402
+from core.layout import greedy as layout  # noqa: E402
 from core.layout.bounds import brick_lower_bound  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
 

@@ -27,10 +27,10 @@ sys.path.insert(0, str(ROOT))
 
 from bench import MODELS, UNITS, model_paths, table  # noqa: E402  (bench/bench.py)
 from core import catalog, forces, hollow, pipeline, voxelize  # noqa: E402
+from core.errors import InputError  # noqa: E402
+from core.forces import limits  # noqa: E402
 from core.instructions import build_order  # noqa: E402
 from core.layout import greedy as layout  # noqa: E402
-from core.forces import limits  # noqa: E402
-from core.errors import InputError  # noqa: E402
 from core.model import CELL_MM, Grid  # noqa: E402
 
 

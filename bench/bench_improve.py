@@ -39,9 +39,9 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 import bench  # noqa: E402
 from core import catalog, pipeline, voxelize  # noqa: E402
-from core.layout import search as improve  # noqa: E402
-from core.layout import greedy as layout  # noqa: E402
 from core.errors import InputError  # noqa: E402
+from core.layout import greedy as layout  # noqa: E402
+from core.layout import search as improve  # noqa: E402
 from core.layout.bounds import brick_lower_bound  # noqa: E402
 from core.stability import analyse  # noqa: E402
 

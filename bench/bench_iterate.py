@@ -26,8 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core import align, pipeline, result  # noqa: E402
-from core.printing import export  # noqa: E402
 from core.io import meshes as mesh_io  # noqa: E402
+from core.printing import export  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 OUT = ROOT / "bench" / "out"

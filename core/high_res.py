@@ -23,8 +23,8 @@ from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 
 from core import voxelize
-from core.io import meshes as mesh_io
 from core.errors import InputError
+from core.io import meshes as mesh_io
 from core.model import Grid, Layout
 
 #: A box must overlap a cell by more than this (mm) along every axis to touch it.

@@ -39,17 +39,17 @@ import numpy as np
 from scipy import ndimage
 
 from core import align as align_stage
-from core.parts import connectors as connectors_stage
 from core import diff as diff_stage
 from core import high_res, hollow as hollow_stage
-from core.layout import greedy as layout_stage
-from core.io import meshes as mesh_io
-from core.parts import printed as printed_stage
 from core import stability as stability_stage
-from core.parts.interfaces import Fit
 from core.catalog import BY_NUMBER, Part
 from core.connectivity import FACE_STRUCTURE
+from core.io import meshes as mesh_io
+from core.layout import greedy as layout_stage
 from core.model import Brick, Grid, Layout
+from core.parts import connectors as connectors_stage
+from core.parts import printed as printed_stage
+from core.parts.interfaces import Fit
 from core.result import Previous
 
 #: Rings of LEGO bricks the re-laid-out neighbourhood may grow by.

@@ -44,13 +44,13 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
 from core import high_res, pipeline, result
-from core.parts import connectors as connectors_stage
-from core.printing import print_time
-from core.parts import printed
 from core.errors import InputError
-from core.parts.interfaces import Fit
 from core.io.meshes import LoadedModel
 from core.model import Layout
+from core.parts import connectors as connectors_stage
+from core.parts import printed
+from core.parts.interfaces import Fit
+from core.printing import print_time
 
 #: The brush modes an estimate is made for.
 MODES = ("high-res", "unmark", "merge", "split")

@@ -24,24 +24,24 @@ from typing import Callable
 import numpy as np
 
 from core import catalog, colours, grid_fit
-from core.instructions import build_order
-from core.parts import connectors as connectors_stage
-from core import high_res as high_res_stage, hollow as hollow_stage
-from core.instructions import changes_page
-from core import iterate as iterate_stage
-from core.layout import search as improve_stage
-from core import result
-from core.layout import greedy as layout_stage
-from core.io import meshes as mesh_io
-from core.io import output_dir
-from core.parts import printed as printed_stage
-from core.printing import print_time as print_time_stage
 from core import forces as forces_stage
-from core.layout import reinforce as reinforce_stage
+from core import high_res as high_res_stage, hollow as hollow_stage
+from core import iterate as iterate_stage
+from core import result
 from core import stability as stability_stage, voxelize
 from core.errors import InputError
-from core.parts.interfaces import Fit
+from core.instructions import build_order
+from core.instructions import changes_page
+from core.io import meshes as mesh_io
+from core.io import output_dir
+from core.layout import greedy as layout_stage
+from core.layout import reinforce as reinforce_stage
+from core.layout import search as improve_stage
 from core.model import CELL_MM, Grid, Layout
+from core.parts import connectors as connectors_stage
+from core.parts import printed as printed_stage
+from core.parts.interfaces import Fit
+from core.printing import print_time as print_time_stage
 from core.request import UNITS, Request, request as request_of
 
 Progress = Callable[[float, str], None]

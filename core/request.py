@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 from core.colours import check_palette
 from core.errors import InputError
-from core.parts.interfaces import Fit
 from core.model import UNITS, UP_AXES, Load
+from core.parts.interfaces import Fit
 
 #: How hard the layout is improved after the greedy pass (:mod:`core.layout.search`), cheapest first.
 EFFORTS = ("fast", "normal", "best")

@@ -21,9 +21,9 @@ import numpy as np
 import trimesh
 
 from core import high_res
-from core.parts import printed as printed_stage
 from core.errors import InputError, check_path, shown_path
 from core.model import Grid, Layout
+from core.parts import printed as printed_stage
 
 #: Folder inside an output folder that holds the iteration snapshot.
 SNAPSHOT_DIR = "iteration"

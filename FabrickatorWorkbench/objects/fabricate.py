@@ -23,8 +23,8 @@ import FreeCAD as App
 
 from core import request as core_request
 from core.errors import InputError, memory_shortage
-from core.parts.interfaces import Fit
 from core.model import CELL_MM
+from core.parts.interfaces import Fit
 from FabrickatorWorkbench import bridge, deps, log, preferences
 from FabrickatorWorkbench.objects import high_res_region, load, tree
 

@@ -14,14 +14,14 @@ import numpy as np
 
 from core.catalog import BY_NUMBER
 from core.errors import InputError
-from core.model import Layout
-from core.request import parse_load
 from core.forces import joints, limits
 from core.forces.bodies import Bodies
 from core.forces.decompose import Decompositions
 from core.forces.limits import worst_of
 from core.forces.program import ProgramRows
 from core.forces.verdict import Forces
+from core.model import Layout
+from core.request import parse_load
 
 
 def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import escape
 
+from core import colours
 from core.catalog import BY_NUMBER
 from core.errors import InputError
-from core import colours
 from core.model import Layout
 
 #: Columns of bom.csv, in order.

@@ -40,9 +40,9 @@ from numba import njit
 from scipy import ndimage, sparse
 
 from core import forces
-from core.forces import limits
 from core.catalog import BY_NUMBER
 from core.errors import InputError
+from core.forces import limits
 from core.model import Layout
 from core.request import DEFAULTS
 

@@ -43,11 +43,11 @@ from numba import njit, prange
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from core.catalog import BY_NUMBER
 from core.instructions import bom
 from core.instructions import build_order
 from core.instructions import ldraw
 from core.instructions import picture
-from core.catalog import BY_NUMBER
 from core.instructions.picture import SQ2, SQ6, VIEW, fmt, screen
 from core.model import Layout
 

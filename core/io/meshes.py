@@ -32,8 +32,8 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core.io import output_dir
 from core.errors import InputError, shown_path
+from core.io import output_dir
 from core.model import CELL_MM, UNITS, UP_AXES
 
 #: Length of one file unit in mm, for ``load_model(units=...)``.

@@ -40,8 +40,8 @@ from numba import njit
 from scipy import ndimage
 
 from core.catalog import BRICK_LAYERS, CATALOG, PLATE_LAYERS, Part
-from core.errors import InputError
 from core.connectivity import articulation_points, component_labels, regions
+from core.errors import InputError
 from core.layout.bounds import part_shapes, placement_count, relaxed_cover
 from core.model import Brick, Grid, Layout
 

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from core import forces as forces_stage, stability as stability_stage
-from core.layout import greedy as layout_stage
 from core.catalog import CATALOG, Part
+from core.layout import greedy as layout_stage
 from core.model import Layout
 
 #: Sites tried per round (the worst first), windows per site, rounds.

@@ -42,13 +42,13 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from core import high_res
+from core.errors import InputError
+from core.io.meshes import LoadedModel
+from core.model import Brick, Layout
 from core.parts import connectors as connectors_stage
 from core.parts import interfaces
 from core.parts import thickness
-from core.errors import InputError
 from core.parts.interfaces import Fit
-from core.io.meshes import LoadedModel
-from core.model import Brick, Layout
 
 if TYPE_CHECKING:  # OpenCascade and cadquery are imported where B-rep parts are made
     import cadquery as cq

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from core.parts.printed import PrintedPart
 from core.printing import print_time
 from core.printing.print_time import Pose
-from core.parts.printed import PrintedPart
 
 #: Gap (mm) between parts on a plate, and between the parts and the bed's edge:
 #: the slicer's least gap (supports spread beyond their part; PrusaSlicer 2.9

@@ -51,10 +51,10 @@ import numpy as np
 import trimesh
 from scipy.optimize import nnls
 
+from core.errors import InputError
 from core.io import output_dir
 from core.printing import slice_cache
 from core.printing import slicer_profile
-from core.errors import InputError
 
 #: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
 #: (:mod:`core.printing.slicer_profile`); a ``profile`` of None means the bundle's presets.

@@ -28,7 +28,7 @@ import re
 from pathlib import Path
 
 #: The committed flat profile used when no vendor bundle is installed.
-FALLBACK_PROFILE = Path(__file__).resolve().parent / "data" / "prusa_mk3s_0.20mm_quality_pla.ini"
+FALLBACK_PROFILE = Path(__file__).resolve().parents[1] / "data" / "prusa_mk3s_0.20mm_quality_pla.ini"
 
 #: File name of Prusa Research's vendor bundle.
 VENDOR_BUNDLE = "PrusaResearch.ini"

@@ -12,8 +12,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from core import align, diff, voxelize
-from core.printing import export
 from core.io import meshes as mesh_io
+from core.printing import export
 
 MODELS = Path(__file__).resolve().parents[2].parent / "shared" / "models"
 

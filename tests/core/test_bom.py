@@ -10,10 +10,10 @@ import pytest
 from lxml import etree
 
 from core import pipeline
-from core.instructions import bom
-from core.instructions import ldraw
 from core.catalog import BY_NUMBER
 from core.errors import InputError
+from core.instructions import bom
+from core.instructions import ldraw
 
 from conftest import HMD_HIGH_RES
 

@@ -12,9 +12,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from core import pipeline
+from core.errors import InputError
 from core.instructions import build_order
 from core.layout import greedy as layout_stage
-from core.errors import InputError
 from core.model import Brick, Grid, Layout
 
 from conftest import HMD_HIGH_RES

@@ -10,11 +10,11 @@ import pytest
 from PIL import Image
 
 from core import colours, request
+from core.errors import InputError
 from core.instructions import bom
 from core.instructions import ldraw
-from core.errors import InputError
-from core.model import CELL_MM, Brick, Grid, Layout
 from core.instructions.render import SHADE, render_layout
+from core.model import CELL_MM, Brick, Grid, Layout
 
 
 def layout_of(bricks, shape) -> Layout:

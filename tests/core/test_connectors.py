@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from core import pipeline
-from core.parts import connectors
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
+from core.parts import connectors
 
 #: A wall 64 mm long, 3 mm thick, 12 plates high: thinner than a stud is wide.
 WALL = (64.0, 3.0, 38.4)

@@ -16,11 +16,11 @@ import trimesh
 
 import core
 from core import catalog, voxelize
-from core.layout import greedy as layout
-from core.instructions import render
-from core.parts.brick_solids import brick_solid, to_trimesh
 from core.errors import InputError, bug_message, log_bug, log_folders
+from core.instructions import render
+from core.layout import greedy as layout
 from core.model import Grid, Layout
+from core.parts.brick_solids import brick_solid, to_trimesh
 
 ROOT = Path(__file__).resolve().parents[2]
 

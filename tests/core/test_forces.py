@@ -14,13 +14,13 @@ import pytest
 import trimesh
 
 from core import forces
+from core.catalog import MASS_G
+from core.errors import InputError
 from core.forces import joints, limits, solver, verdict
 from core.forces.analyse import _Model
 from core.forces.solver import Program
-from core.request import parse_load
-from core.catalog import MASS_G
-from core.errors import InputError
 from core.model import Brick, Grid, Layout
+from core.request import parse_load
 
 CELL = np.array([8.0, 8.0, 3.2])
 #: The clutch in grams-force (the programs' unit): 0.98 N.

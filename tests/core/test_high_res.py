@@ -5,8 +5,8 @@ import pytest
 import trimesh
 
 from core import high_res
-from core.layout import greedy as layout
 from core.errors import InputError
+from core.layout import greedy as layout
 from core.model import Brick, Grid, Layout
 
 

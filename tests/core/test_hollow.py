@@ -17,8 +17,8 @@ import pytest
 import trimesh
 
 from core import catalog, hollow, pipeline, stability
-from core.layout import greedy as layout_stage
 from core.errors import InputError
+from core.layout import greedy as layout_stage
 from core.model import Grid
 from core.request import request
 

@@ -12,12 +12,12 @@ import trimesh
 import pytest
 
 from core import pipeline
-from core.instructions import build_order
-from core.instructions import page as instructions
-from core.layout import greedy as layout_stage
-from core.instructions import ldraw
-from core.instructions import picture
 from core.errors import InputError
+from core.instructions import build_order
+from core.instructions import ldraw
+from core.instructions import page as instructions
+from core.instructions import picture
+from core.layout import greedy as layout_stage
 from core.model import Grid
 
 from conftest import HMD_HIGH_RES

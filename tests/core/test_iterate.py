@@ -16,9 +16,9 @@ from cadquery import exporters
 from scipy.spatial.transform import Rotation
 
 from core import align, high_res, iterate, pipeline, result
+from core.errors import InputError
 from core.instructions import changes_page
 from core.printing import export
-from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"

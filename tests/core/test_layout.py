@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from core.layout import greedy as layout_stage
 from core.catalog import BY_NUMBER, CATALOG, select
 from core.errors import InputError
+from core.layout import greedy as layout_stage
 from core.layout.greedy import lay_out
 from core.model import CELL_MM, Grid
 from core.stability import analyse

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from core import pipeline
-from core.instructions import build_order
-from core.instructions import ldraw
 from core.catalog import BY_NUMBER, CATALOG
 from core.errors import InputError
+from core.instructions import build_order
+from core.instructions import ldraw
 from core.model import Brick, Grid, Layout
 
 from conftest import HMD_HIGH_RES

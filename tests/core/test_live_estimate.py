@@ -19,9 +19,9 @@ import pytest
 import trimesh
 
 from core import high_res, live_estimate, pipeline
-from core.printing import print_time
-from core.parts import printed
 from core.errors import InputError
+from core.parts import printed
+from core.printing import print_time
 from core.request import Request
 
 #: How far (relative) the estimate may be from the reference: the estimate does not

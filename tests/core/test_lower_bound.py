@@ -7,9 +7,9 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from core.layout import bounds as lower_bound
 from core.catalog import BY_NUMBER, CATALOG, select
 from core.errors import InputError
+from core.layout import bounds as lower_bound
 from core.layout.bounds import brick_lower_bound, certified_bound, part_shapes
 from core.model import CELL_MM, Grid
 

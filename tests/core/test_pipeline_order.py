@@ -1,44 +1,88 @@
-"""Data flows one way: no module of core imports one that comes after it in the pipeline."""
+"""Data flows one way: no module of core imports one that comes after it in the pipeline,
+and no package of core imports one that imports it back."""
 
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
+import networkx as nx
+
 CORE = Path(__file__).resolve().parents[2] / "core"
 
-#: The modules of core in pipeline order: shared data and utilities first, then the
-#: stages as the driver runs them (regions are read before the grid is fitted to them),
-#: then the exports, then the drivers and tools that use them all.  The exact-cover
-#: program (lower_bound) comes before the layout, which reads brick layers off its relaxation.
+#: The modules of core (dotted below ``core``; a package by its own name is its
+#: ``__init__``) in pipeline order: shared data and utilities first, then the stages as
+#: the driver runs them (regions are read before the grid is fitted to them), then the
+#: exports, then the drivers and tools that use them all.  The force model comes before
+#: the layout: the exact-cover bounds solve with its HiGHS settings and reinforce asks it.
 ORDER = [
-    "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
-    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
-    "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "slice_cache", "print_time", "export", "render", "picture",
-    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
-    "iterate", "pipeline", "live_estimate", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
+    "io", "parts", "layout", "printing", "instructions",
+    "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog",
+    "connectivity", "parts.brick_solids", "parts.thickness", "io.meshes", "voxelize", "hollow",
+    "high_res", "grid_fit",
+    "forces.limits", "forces.joints", "forces.solver", "forces.verdict", "forces.bodies",
+    "forces.program", "forces.decompose", "forces.analyse", "forces.build_steps", "forces",
+    "layout.bounds", "layout.greedy", "layout.search", "align", "diff", "parts.connectors",
+    "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
+    "printing.slicer_profile", "printing.slice_cache", "printing.print_time", "printing.export",
+    "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom",
+    "instructions.page", "instructions.changes_page", "picking", "face_region",
+    "iterate", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",
+    "cli", "__main__", "__init__",
 ]
 
 
-def _imports(path: Path) -> set[str]:
+def _modules() -> dict[str, Path]:
+    """Every module of core by its dotted name below ``core``."""
+    out = {}
+    for path in CORE.rglob("*.py"):
+        parts = path.relative_to(CORE).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" and len(parts) > 1 else parts)
+        out[name] = path
+    return out
+
+
+def _imports(path: Path, known) -> set[str]:
     """The core modules ``path`` imports, at module level or inside functions."""
     out = set()
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module == "core":
-            out |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("core."):
-            out.add(node.module.split(".")[1])
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
+                and (node.module == "core" or node.module.startswith("core.")):
+            base = node.module.removeprefix("core").removeprefix(".")
+            for a in node.names:
+                full = f"{base}.{a.name}" if base else a.name
+                out.add(full if full in known else base)
         elif isinstance(node, ast.Import):
-            out |= {a.name.split(".")[1] for a in node.names if a.name.startswith("core.")}
-    return out & set(ORDER)
+            out |= {a.name.removeprefix("core.") for a in node.names if a.name.startswith("core.")}
+    return out & set(known)
 
 
 def test_every_core_module_has_its_place():
-    assert sorted(p.stem for p in CORE.glob("*.py")) == sorted(ORDER)
+    assert sorted(_modules()) == sorted(ORDER)
 
 
 def test_no_module_imports_a_later_one():
     place = {name: n for n, name in enumerate(ORDER)}
-    later = {name: sorted(m for m in _imports(CORE / f"{name}.py") if place[m] > place[name])
-             for name in ORDER}
+    known = _modules()
+    later = {name: sorted(m for m in _imports(path, known) if place[m] > place[name])
+             for name, path in known.items()}
     assert not {k: v for k, v in later.items() if v}, "imports of modules later in the pipeline"
+
+
+def test_no_import_circle_between_packages():
+    """Each package (and each single-module stage) is one node: a package's modules may use
+    each other, but no two packages depend on each other."""
+    known = _modules()
+    graph = nx.DiGraph()
+    for name, path in known.items():
+        for m in _imports(path, known):
+            if m.split(".")[0] != name.split(".")[0]:
+                graph.add_edge(name.split(".")[0], m.split(".")[0])
+    assert nx.is_directed_acyclic_graph(graph), nx.find_cycle(graph)
+
+
+def test_each_package_states_its_contract():
+    """A package's ``__init__`` opens with a docstring of what it holds and promises."""
+    for init in CORE.glob("*/__init__.py"):
+        doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+        assert len(doc.split()) >= 20 and "TODO" not in doc, init

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 import trimesh
 
+from core.errors import InputError
 from core.printing import print_time as pt
 from core.printing import slicer_profile
-from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"

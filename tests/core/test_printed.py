@@ -14,11 +14,11 @@ import trimesh
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 from OCP.gp import gp_Pnt
 
-from core.parts import printed
 from core.errors import InputError
-from core.parts.interfaces import Fit
 from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
+from core.parts import printed
+from core.parts.interfaces import Fit
 
 CELL = np.array([8.0, 8.0, 3.2])
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from core.model import CELL_MM, Brick, Grid, Layout
 from core.instructions.render import PRINTED_RGB, SHADE, brick_colours, render_layout
+from core.model import CELL_MM, Brick, Grid, Layout
 
 
 def layout_of(bricks: list[tuple], shape) -> Layout:

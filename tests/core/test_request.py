@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from core import cli, pipeline, request
-from core.instructions import build_order
 from core.errors import InputError
+from core.instructions import build_order
 from core.parts.interfaces import Fit
 
 

@@ -6,9 +6,9 @@ import networkx as nx
 import numpy as np
 import pytest
 
+from core.connectivity import articulation_points, regions
 from core.layout.greedy import lay_out
 from core.model import CELL_MM, Brick, Grid, Layout
-from core.connectivity import articulation_points, regions
 from core.stability import analyse, brick_graph
 
 
