@@ -67,7 +67,6 @@ SCRIPTS = (
     Script("bench/bench_printed.py"),
     Script("bench/bench_forces.py"),
     Script("bench/bench_grid_fit.py"),
-    Script("bench/bench_merge.py"),
     Script("bench/bench_instructions.py"),
     Script("bench/bench_iterate.py"),
     Script("bench/bench_big.py"),

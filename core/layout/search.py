@@ -47,7 +47,7 @@ from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, component_labels, pairs_csr, regions
 from core.errors import InputError
 from core.layout.bounds import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
-                               _summed_volume, cover_matrix, fitting_boxes, more_time)
+                                _summed_volume, cover_matrix, fitting_boxes, more_time)
 from core.model import Brick, Layout
 from core.request import EFFORTS
 

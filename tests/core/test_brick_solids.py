@@ -9,8 +9,6 @@ from dataclasses import replace
 import cadquery as cq
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from OCP.Bnd import Bnd_Box
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepBndLib import BRepBndLib
@@ -18,10 +16,9 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.GeomAbs import GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.TopAbs import TopAbs_REVERSED
 
-from core.parts.brick_solids import (SIDE_TAGS, BrickGeometry, brick_solid, face_list,
-                               facing_sides, to_trimesh)
 from core.catalog import CATALOG
 from core.errors import InputError
+from core.parts.brick_solids import SIDE_TAGS, BrickGeometry, brick_solid, face_list, to_trimesh
 
 GEO = BrickGeometry()
 FOOTPRINTS = sorted({(sx, sy, p.layers) for p in CATALOG for sx, sy in p.orientations()})
@@ -200,62 +197,13 @@ def test_face_order_is_stable():
         assert bbox(f) + [[8, 0, 0], [8, 0, 0]] == pytest.approx(bbox(g), abs=1e-9)
 
 
-def test_flush_sides_meet_neighbour_exactly():
-    a = brick_solid(2, 4, 3, flush={"side+x"})
-    b = brick_solid(2, 2, 3, origin=(16.0, 8.0, 0.0), flush={"side-x"})
-    pair = facing_sides((0, 0, 0), (2, 4, 3), (2, 1, 0), (2, 2, 3))
-    assert pair == ("side+x", "side-x")
-    (fa,), (fb,) = a.faces(pair[0]), b.faces(pair[1])
-    assert bbox(fa)[:, 0] == pytest.approx([16.0, 16.0]) and bbox(fb)[:, 0] == pytest.approx([16.0, 16.0])
-    assert bbox(a.shape)[0] == pytest.approx([0.1, 0.1, 0.0])
-    assert BRepCheck_Analyzer(a.shape.wrapped).IsValid()
-    assert a.shape.Volume() > brick_solid(2, 4, 3).shape.Volume()
-
-
-@pytest.mark.parametrize("a_cell, a_size, b_cell, b_size, want", [
-    ((0, 0, 0), (2, 4, 3), (2, 0, 0), (1, 2, 1), ("side+x", "side-x")),
-    ((2, 0, 0), (1, 2, 1), (0, 0, 0), (2, 4, 3), ("side-x", "side+x")),
-    ((0, 0, 0), (2, 4, 3), (1, 4, 2), (2, 2, 3), ("side+y", "side-y")),
-    ((0, 5, 0), (2, 2, 3), (0, 0, 0), (2, 5, 3), ("side-y", "side+y")),
-    ((0, 0, 0), (2, 4, 3), (0, 0, 3), (2, 4, 3), None),   # stacked
-    ((0, 0, 0), (2, 2, 3), (2, 2, 0), (2, 2, 3), None),   # corner only
-    ((0, 0, 0), (2, 2, 3), (2, 0, 3), (2, 2, 3), None),   # edge only
-    ((0, 0, 0), (2, 2, 3), (3, 0, 0), (2, 2, 3), None),   # apart
-    ((0, 0, 0), (2, 2, 3), (1, 0, 0), (2, 2, 3), None),   # overlapping
-    ((0, 0), (2, 4), (0, 4), (1, 1), ("side+y", "side-y")),
-])
-def test_facing_sides(a_cell, a_size, b_cell, b_size, want):
-    assert facing_sides(a_cell, a_size, b_cell, b_size) == want
-
-
-box = st.tuples(st.tuples(*[st.integers(-4, 4)] * 3), st.tuples(*[st.integers(1, 4)] * 3))
-
-
-@settings(max_examples=300, deadline=None)
-@given(box, box)
-def test_facing_sides_symmetric_and_consistent(a, b):
-    pair = facing_sides(*a, *b)
-    back = facing_sides(*b, *a)
-    assert back == (None if pair is None else pair[::-1])
-    if pair is not None:
-        axis = "xy".index(pair[0][-1])
-        sign = 1 if pair[0][-2] == "+" else -1
-        a_face = a[0][axis] + (a[1][axis] if sign > 0 else 0)
-        b_face = b[0][axis] + (0 if sign > 0 else b[1][axis])
-        assert a_face == b_face
-        assert pair[1] == ("side-" if sign > 0 else "side+") + "xy"[axis]
-
-
 @pytest.mark.parametrize("call", [
     lambda: brick_solid(0, 2, 3),
     lambda: brick_solid(2, 2, 2.5),
-    lambda: brick_solid(2, 2, 3, flush={"side+z"}),
     lambda: brick_solid(2, 2, 3, origin=(0, float("nan"), 0)),
     lambda: brick_solid(2, 2, 3, replace(GEO, clearance=5.0)),
     lambda: brick_solid(2, 2, 1, replace(GEO, top=3.2)),
     lambda: brick_solid(2, 2, 1, replace(GEO, wall=float("inf"))),
-    lambda: facing_sides((0, 0, 0), (0, 1, 1), (1, 0, 0), (1, 1, 1)),
-    lambda: facing_sides((0, 0, 0), (1, 1), (1, 0, 0), (1, 1, 1)),
     lambda: to_trimesh("not a shape"),
     lambda: to_trimesh(brick_solid(1, 1, 1).shape, tolerance=0),
 ])
@@ -264,40 +212,6 @@ def test_bad_arguments_are_value_or_type_errors(call):
         call()
     assert not isinstance(err.value, InputError)  # a wrong call of ours, not the user's input
     assert "\n" not in str(err.value)
-
-
-def test_no_studs_and_solid_underside_cells():
-    b = brick_solid(2, 4, 3, no_studs={(0, 0), (1, 0)}, solid_under={(0, 0), (1, 0), (0, 1), (1, 1)})
-    assert BRepCheck_Analyzer(b.shape.wrapped).IsValid()
-    assert sorted(t for t in b.tags if t.startswith("stud:")) == sorted(
-        f"stud:{a},{c}" for a in range(2) for c in range(1, 4))
-    # Tube 0,0 stands over solid cells only: gone; tube 0,1 is half over them: kept, clipped.
-    assert sorted(t for t in b.tags if t.startswith("tube:")) == ["tube:0,1", "tube:0,2"]
-    for face in b.faces("tube:0,1"):
-        assert bbox(face)[0][1] >= 16.0 - 1e-6
-    # The underside is solid over y < 16: the bottom face is the rim plus that rectangle whole
-    # (the clipped tube's half annulus next to it keeps its tube tag).
-    bottom = sum(cq.Face(f).Area() for f in b.faces("bottom"))
-    rim = 15.8 * 31.8 - (15.8 - 2 * GEO.printed_wall) * (31.8 - 2 * GEO.printed_wall)
-    solid_part = (15.8 - 2 * GEO.printed_wall) * (16.0 - 0.1 - GEO.printed_wall)
-    assert bottom == pytest.approx(rim + solid_part, rel=1e-9)
-    half_annulus = math.pi * ((GEO.printed_tube_outer / 2) ** 2 - (GEO.printed_tube_inner / 2) ** 2) / 2
-    tube_bottom = [cq.Face(f).Area() for f in b.faces("tube:0,1") if np.allclose(bbox(f)[:, 2], 0.0)]
-    assert sum(tube_bottom) == pytest.approx(half_annulus, rel=1e-9)
-
-
-def test_joint_rectangle_becomes_one_face():
-    rect = ((16.0, 8.1, 3.2), (16.0, 23.9, 9.6))
-    b = brick_solid(2, 4, 3, flush={"side+x"}, joints={"j": rect})
-    assert BRepCheck_Analyzer(b.shape.wrapped).IsValid()
-    (i,) = b.joints["j"]
-    face = face_list(b.shape)[i]
-    assert bbox(face) == pytest.approx(np.array(rect), abs=1e-9)
-    assert cq.Face(face).Area() == pytest.approx(15.8 * 6.4)
-    assert b.tag_of()[i] == "side+x" and len(b.faces("side+x")) == 2  # the rest is one U-shaped face
-    assert b.shape.Volume() == pytest.approx(brick_solid(2, 4, 3, flush={"side+x"}).shape.Volume())
-    with pytest.raises(ValueError):
-        brick_solid(2, 4, 3, joints={"bad": ((0, 0, 0), (1, 1, 1))})
 
 
 #: Merge cases: (grid cells, sizes) of face-to-face connected bricks.
@@ -309,18 +223,6 @@ MERGES = {
     "1x4 on a 1x2 and a plate beside": ([(0, 0, 0), (0, 0, 3), (1, 0, 0)], [(1, 2, 3), (1, 4, 3), (1, 2, 1)]),
     "L of three with a cap": ([(0, 0, 0), (2, 0, 0), (1, 1, 3)], [(2, 2, 3), (1, 2, 3), (2, 2, 3)]),
 }
-
-
-def _fused(cells, sizes):
-    """The Boolean union (computed here, independently) of the bricks built as merging builds them."""
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
-    from core.parts.brick_solids import part_contacts
-    solids = [brick_solid(*s, GEO, tuple(np.array(c) * [8.0, 8.0, 3.2]), k.flush, k.no_studs, k.solid_under).shape
-              for c, s, k in zip(cells, sizes, part_contacts(cells, sizes))]
-    out = solids[0]
-    for s in solids[1:]:
-        out = cq.Shape.cast(BRepAlgoAPI_Fuse(out.wrapped, s.wrapped).Shape())
-    return out
 
 
 def _exposed_studs(n, cells, sizes):
@@ -365,73 +267,3 @@ def _on_boundary(face, solid) -> bool:
     return states == [TopAbs_OUT, TopAbs_IN]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("case", sorted(MERGES))
-def test_merge_by_face_removal_is_the_union_without_internal_faces(case):
-    from core.parts.brick_solids import merged_solid
-    cells, sizes = MERGES[case]
-    merged = merged_solid(cells, sizes, method="remove")
-    assert merged.method == "face removal" and merged.removed_faces >= 2
-    shape = cq.Shape.cast(merged.shape)
-    assert shape.ShapeType() == "Solid" and BRepCheck_Analyzer(merged.shape).IsValid()
-    assert len(shape.Shells()) == 1 and shape.Shells()[0].Closed()
-    union = _fused(cells, sizes)
-    assert len(union.Solids()) == 1
-    assert shape.Volume() == pytest.approx(union.Volume(), rel=1e-9)
-    assert len(shape.Faces()) <= len(union.Faces())
-    faces = face_list(merged.shape)
-    assert all(_on_boundary(f, union) for f in faces), "a face of the merged solid is not on the outside"
-    from core.parts.brick_solids import _face_map
-    fmap = _face_map(merged.shape)
-    tagged = {fmap.FindIndex(f) for f, _ in merged.tagged}
-    assert tagged == set(range(1, len(faces) + 1)), "every face keeps a tag, every tag is on a face"
-    studs = {t for _, t in merged.tagged if ":stud:" in t}
-    assert studs == {f"{n}:{t}" for n, (c, s) in enumerate(zip(cells, sizes)) for t in _exposed_studs(n, cells, sizes)}
-    mesh = to_trimesh(merged.shape)
-    assert mesh.is_watertight and mesh.volume == pytest.approx(union.Volume(), rel=5e-3)
-
-
-def test_fuse_fallback_gives_the_same_solid_and_split_restores_faces():
-    from core.parts.brick_solids import merged_solid
-    cells, sizes = MERGES["2x4 beside 2x2 offset one stud"]
-    removed, fused = merged_solid(cells, sizes), merged_solid(cells, sizes, method="fuse")
-    assert removed.method == "face removal" and fused.method == "fuse"
-    assert cq.Shape.cast(fused.shape).Volume() == pytest.approx(cq.Shape.cast(removed.shape).Volume(), rel=1e-9)
-    # Merged: no face on the joint plane x = 16 over the 2x2's span; split: each brick has its side back.
-    on_joint = [f for f in face_list(removed.shape)
-                if np.allclose(bbox(f)[:, 0], 16.0) and bbox(f)[0][1] < 16 < bbox(f)[1][1]]
-    assert not on_joint
-    alone = [merged_solid([c], [s]) for c, s in zip(cells, sizes)]
-    assert [a.method for a in alone] == ["single brick"] * 2
-    for a, (c, s) in zip(alone, zip(cells, sizes)):
-        plain = brick_solid(*s, origin=tuple(np.array(c) * [8.0, 8.0, 3.2]))
-        assert cq.Shape.cast(a.shape).Volume() == pytest.approx(plain.shape.Volume(), rel=1e-12)
-    assert any(np.allclose(bbox(f)[:, 0], 15.9) for f in face_list(alone[0].shape))
-
-
-@pytest.mark.parametrize("cells, sizes", [
-    ([(0, 0, 0), (1, 0, 0)], [(2, 2, 3), (2, 2, 3)]),   # overlapping
-    ([(0, 0, 0), (3, 0, 0)], [(2, 2, 3), (2, 2, 3)]),   # apart
-    ([(0, 0, 0), (2, 2, 0)], [(2, 2, 3), (2, 2, 3)]),   # corner only
-    ([], []),
-])
-def test_merge_refuses_bad_groups(cells, sizes):
-    from core.parts.brick_solids import merged_solid
-    with pytest.raises(ValueError):
-        merged_solid(cells, sizes)
-
-
-def test_failed_face_removal_falls_back_to_the_fuse(monkeypatch):
-    from core.parts import brick_solids
-    cells, sizes = MERGES["stacked"]
-    good = brick_solids.merged_solid(cells, sizes)
-
-    def refuse(bricks, tagged):
-        raise brick_solids._MergeFailed("sewing left 2 free and 0 multiple edges")
-    monkeypatch.setattr(brick_solids, "_sew", refuse)
-    fallback = brick_solids.merged_solid(cells, sizes)
-    assert fallback.method == "fuse (face removal failed: sewing left 2 free and 0 multiple edges)"
-    assert cq.Shape.cast(fallback.shape).Volume() == pytest.approx(cq.Shape.cast(good.shape).Volume(), rel=1e-9)
-    assert BRepCheck_Analyzer(fallback.shape).IsValid()
-    with pytest.raises(RuntimeError, match="face removal failed"):
-        brick_solids.merged_solid(cells, sizes, method="remove")
