@@ -38,17 +38,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from core import align as align_stage
-from core import diff as diff_stage
-from core import high_res, hollow as hollow_stage
+from core import align as align_stage, diff as diff_stage, high_res, hollow as hollow_stage
 from core import stability as stability_stage
 from core.catalog import BY_NUMBER, Part
 from core.connectivity import FACE_STRUCTURE
 from core.io import meshes as mesh_io
 from core.layout import greedy as layout_stage
 from core.model import Brick, Grid, Layout
-from core.parts import connectors as connectors_stage
-from core.parts import printed as printed_stage
+from core.parts import connectors as connectors_stage, printed as printed_stage
 from core.parts.interfaces import Fit
 from core.result import Previous
 

@@ -47,8 +47,7 @@ from core import high_res, pipeline, result
 from core.errors import InputError
 from core.io.meshes import LoadedModel
 from core.model import Layout
-from core.parts import connectors as connectors_stage
-from core.parts import printed
+from core.parts import connectors as connectors_stage, printed
 from core.parts.interfaces import Fit
 from core.printing import print_time
 

@@ -23,23 +23,16 @@ from typing import Callable
 
 import numpy as np
 
-from core import catalog, colours, grid_fit
-from core import forces as forces_stage
-from core import high_res as high_res_stage, hollow as hollow_stage
-from core import iterate as iterate_stage
-from core import result
-from core import stability as stability_stage, voxelize
+from core import catalog, colours, forces as forces_stage, grid_fit
+from core import high_res as high_res_stage, hollow as hollow_stage, iterate as iterate_stage
+from core import result, stability as stability_stage, voxelize
 from core.errors import InputError
-from core.instructions import build_order
-from core.instructions import changes_page
-from core.io import meshes as mesh_io
-from core.io import output_dir
-from core.layout import greedy as layout_stage
-from core.layout import reinforce as reinforce_stage
+from core.instructions import build_order, changes_page
+from core.io import meshes as mesh_io, output_dir
+from core.layout import greedy as layout_stage, reinforce as reinforce_stage
 from core.layout import search as improve_stage
 from core.model import CELL_MM, Grid, Layout
-from core.parts import connectors as connectors_stage
-from core.parts import printed as printed_stage
+from core.parts import connectors as connectors_stage, printed as printed_stage
 from core.parts.interfaces import Fit
 from core.printing import print_time as print_time_stage
 from core.request import UNITS, Request, request as request_of

@@ -12,9 +12,9 @@ from scipy.sparse.csgraph import connected_components
 
 from core.catalog import MASS_G
 from core.errors import InputError
-from core.model import Layout, Load
 from core.forces import joints
 from core.forces.joints import contact_directions, printed_mass_g, solid_pla_g
+from core.model import Layout, Load
 
 
 def touched_cells(layout: Layout, load: Load, lab: np.ndarray) -> list[tuple[int, int, int]]:

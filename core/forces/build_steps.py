@@ -13,14 +13,14 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core.model import Layout
-from core.request import parse_load
 from core.forces import joints, limits
 from core.forces.analyse import _Model
 from core.forces.joints import bending_capacity_nmm
 from core.forces.limits import worst_of
 from core.forces.solver import INTERIOR_POINT, run_highs, solver_work
 from core.forces.verdict import GRAPH_ONLY, graph_only_why
+from core.model import Layout
+from core.request import parse_load
 
 
 class _Warm:

@@ -12,11 +12,11 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core.model import Grid, Layout
 from core.forces import limits
 from core.forces.bodies import reach
 from core.forces.solver import SolverTrouble, work_words
 from core.forces.verdict import Forces
+from core.model import Grid, Layout
 
 
 def cut_margins(cuts: np.ndarray, axis: int, xy: np.ndarray, mass: np.ndarray,

@@ -44,10 +44,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
 from core.catalog import BY_NUMBER
-from core.instructions import bom
-from core.instructions import build_order
-from core.instructions import ldraw
-from core.instructions import picture
+from core.instructions import bom, build_order, ldraw, picture
 from core.instructions.picture import SQ2, SQ6, VIEW, fmt, screen
 from core.model import Layout
 

@@ -35,8 +35,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from scipy import ndimage
 
-from core.colours import PRINTED_COLOR, rgb as colour_rgb
-from core.colours import brick_colours as decided_colours
+from core.colours import PRINTED_COLOR, brick_colours as decided_colours, rgb as colour_rgb
 from core.model import Layout
 
 #: Colour of printed bricks: the printed parts' colour of every output.

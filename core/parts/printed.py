@@ -45,9 +45,7 @@ from core import high_res
 from core.errors import InputError
 from core.io.meshes import LoadedModel
 from core.model import Brick, Layout
-from core.parts import connectors as connectors_stage
-from core.parts import interfaces
-from core.parts import thickness
+from core.parts import connectors as connectors_stage, interfaces, thickness
 from core.parts.interfaces import Fit
 
 if TYPE_CHECKING:  # OpenCascade and cadquery are imported where B-rep parts are made

@@ -53,8 +53,7 @@ from scipy.optimize import nnls
 
 from core.errors import InputError
 from core.io import output_dir
-from core.printing import slice_cache
-from core.printing import slicer_profile
+from core.printing import slice_cache, slicer_profile
 
 #: The flat PrusaSlicer config used where the slicer's vendor bundle is not found
 #: (:mod:`core.printing.slicer_profile`); a ``profile`` of None means the bundle's presets.

@@ -12,8 +12,7 @@ from lxml import etree
 from core import pipeline
 from core.catalog import BY_NUMBER
 from core.errors import InputError
-from core.instructions import bom
-from core.instructions import ldraw
+from core.instructions import bom, ldraw
 
 from conftest import HMD_HIGH_RES
 

@@ -11,8 +11,7 @@ from PIL import Image
 
 from core import colours, request
 from core.errors import InputError
-from core.instructions import bom
-from core.instructions import ldraw
+from core.instructions import bom, ldraw
 from core.instructions.render import SHADE, render_layout
 from core.model import CELL_MM, Brick, Grid, Layout
 

@@ -15,8 +15,7 @@ import trimesh
 from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
 from core.parts import printed
-from core.printing import export
-from core.printing import print_time
+from core.printing import export, print_time
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "examples" / "build" / "hmd.step"

@@ -327,8 +327,7 @@ def test_a_prop_under_the_arm_lets_it_stand_and_stays():
     table under its far stud, on that prop (x 0..1) and on the brick (x 3..5): its centre
     (x 2) lies between them, so it stands in pure compression (utilisation 0).  The
     finished build tips without the prop, so the prop stays."""
-    from core.instructions import build_order
-    from core.instructions import page as instructions
+    from core.instructions import build_order, page as instructions
     layout = layout_of(t_layout().bricks[:3])
     checker = forces.BuildChecker(layout, ground="table")
     assert checker.stands(np.ones(3, bool), np.array([[0, 0, 3]])) == (True, 0.0)
@@ -430,8 +429,7 @@ def test_props_in_a_channel_the_bridge_closes_stay_inside():
     either side: the air under the bridge is closed in by the walls, the towers and the
     bridge itself.  Its props stand in that air; when the bridge is closed, and stands
     without them, nothing can take them out: they stay, and the words say so."""
-    from core.instructions import build_order
-    from core.instructions import page as instructions
+    from core.instructions import build_order, page as instructions
     bridge = long_bridge(12)
     length = bridge.grid.shape[0]
     bricks = [dataclasses.replace(b, cell=(b.cell[0], b.cell[1] + 1, b.cell[2])) for b in bridge.bricks]
@@ -462,8 +460,7 @@ def test_build_checker_agrees_with_the_analysis_on_every_prefix():
 
 
 def test_instructions_warn_at_the_step_that_does_not_stand():
-    from core.instructions import build_order
-    from core.instructions import page as instructions
+    from core.instructions import build_order, page as instructions
     layout = layout_of(t_layout().bricks[:3])
     order = build_order.standing(layout, build_order.plan(layout, bricks_per_step=1),
                                  forces.BuildChecker(layout, ground="table").stands)

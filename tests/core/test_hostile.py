@@ -23,8 +23,7 @@ import trimesh
 from core import pipeline, watch
 from core.cli import main
 from core.errors import InputError
-from core.io import meshes as mesh_io
-from core.io import output_dir
+from core.io import meshes as mesh_io, output_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0

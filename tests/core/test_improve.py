@@ -11,8 +11,7 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from core import catalog
 from core.errors import InputError
-from core.layout import greedy as layout_stage
-from core.layout import search as improve
+from core.layout import greedy as layout_stage, search as improve
 from core.model import CELL_MM, Brick, Grid, Layout
 
 

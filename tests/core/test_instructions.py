@@ -13,10 +13,7 @@ import pytest
 
 from core import pipeline
 from core.errors import InputError
-from core.instructions import build_order
-from core.instructions import ldraw
-from core.instructions import page as instructions
-from core.instructions import picture
+from core.instructions import build_order, ldraw, page as instructions, picture
 from core.layout import greedy as layout_stage
 from core.model import Grid
 

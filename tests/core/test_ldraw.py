@@ -12,8 +12,7 @@ import pytest
 from core import pipeline
 from core.catalog import BY_NUMBER, CATALOG
 from core.errors import InputError
-from core.instructions import build_order
-from core.instructions import ldraw
+from core.instructions import build_order, ldraw
 from core.model import Brick, Grid, Layout
 
 from conftest import HMD_HIGH_RES

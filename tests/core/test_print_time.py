@@ -18,8 +18,7 @@ import pytest
 import trimesh
 
 from core.errors import InputError
-from core.printing import print_time as pt
-from core.printing import slicer_profile
+from core.printing import print_time as pt, slicer_profile
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"

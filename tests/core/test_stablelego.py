@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from core import forces
-from core.forces import joints
 from core.catalog import MASS_G
+from core.forces import joints
 from core.model import Brick, Grid, Layout
 
 #: LEGO bricks by footprint (x, y studs).
