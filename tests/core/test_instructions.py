@@ -13,7 +13,7 @@ import pytest
 
 from core import pipeline
 from core.errors import InputError
-from core.instructions import build_order, ldraw, page as instructions, picture
+from core.instructions import build_order, drawing_order, ldraw, page as instructions, picture
 from core.layout import greedy as layout_stage
 from core.model import Grid
 
@@ -77,7 +77,7 @@ def assert_valid_order(boxes, order):
 
 
 def assert_pieces_cover_bricks(layout, pieces, owner):
-    boxes = instructions.brick_boxes(layout)
+    boxes = drawing_order.brick_boxes(layout)
     volume = np.prod(pieces[:, 1] - pieces[:, 0], axis=1)
     assert np.allclose(np.bincount(owner, weights=volume, minlength=len(boxes)),
                        np.prod(boxes[:, 1] - boxes[:, 0], axis=1))
@@ -87,7 +87,7 @@ def assert_pieces_cover_bricks(layout, pieces, owner):
 @pytest.mark.slow
 def test_drawing_order_is_valid_on_the_real_model(hmd):
     fab, _, result = hmd
-    pieces, owner, order, split = instructions.drawing_pieces(fab.layout)
+    pieces, owner, order, split = drawing_order.drawing_pieces(fab.layout)
     assert sorted(order.tolist()) == list(range(len(pieces)))
     assert split == result["split_bricks"]
     assert_pieces_cover_bricks(fab.layout, pieces, owner)
@@ -101,10 +101,10 @@ def test_bricks_on_occlusion_cycles_are_split_into_columns():
     filled = np.ones((40, 40, 30), dtype=bool)
     filled[3:-3, 3:-3, 3:] = False
     lay = layout_stage.lay_out(Grid(np.zeros(3), np.array([8.0, 8.0, 3.2]), filled), seed=0)
-    boxes = instructions.brick_boxes(lay)
-    _, cycles = instructions.painter_order(boxes)
+    boxes = drawing_order.brick_boxes(lay)
+    _, cycles = drawing_order.painter_order(boxes)
     assert cycles > 0
-    pieces, owner, order, split = instructions.drawing_pieces(lay)
+    pieces, owner, order, split = drawing_order.drawing_pieces(lay)
     assert split > 0 and len(pieces) > len(boxes)
     columns = np.bincount(owner) > 1
     assert np.allclose(pieces[columns[owner], 1, :2] - pieces[columns[owner], 0, :2], [8.0, 8.0])
@@ -116,7 +116,7 @@ def test_an_occlusion_cycle_is_broken_and_counted():
     boxes = np.array([[[2.0, 1, 2], [5, 5, 7]], [[5.0, 0, 3], [6, 3, 7]], [[4.0, 0, 2], [7, 1, 3]]])
     hides = occlusion(boxes)
     assert hides[0, 1] and hides[1, 2] and hides[2, 0]   # a real cycle
-    order, cycles = instructions.painter_order(boxes)
+    order, cycles = drawing_order.painter_order(boxes)
     assert sorted(order.tolist()) == [0, 1, 2] and cycles == 1
 
 
@@ -137,7 +137,7 @@ def test_page_draws_every_brick_with_its_step(hmd):
     fab, out, result = hmd
     text = (out / "instructions.html").read_text(encoding="utf-8")
     groups = re.findall(r'<g class="b( pp)? (done|now|todo)" data-s="(\d+)" data-id="(\d+)">', text)
-    pieces, owner, _, _ = instructions.drawing_pieces(fab.layout)
+    pieces, owner, _, _ = drawing_order.drawing_pieces(fab.layout)
     assert len(groups) == len(pieces)
     step = {b.id: b.step for b in fab.layout.bricks}
     assert {(int(i), int(s)) for _, _, s, i in groups} == set(step.items())

@@ -25,7 +25,7 @@ ORDER = [
     "layout.bounds", "layout.greedy", "layout.search", "align", "diff", "parts.connectors",
     "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
     "printing.slicer_profile", "printing.slice_cache", "printing.print_time", "printing.export",
-    "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom",
+    "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom", "instructions.drawing_order",
     "instructions.page", "instructions.changes_page", "picking", "face_region",
     "iterate", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",
     "cli", "__main__", "__init__",
