@@ -15,35 +15,27 @@ inside-out closed pieces outward.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import math
 import os
 import re
 import stat
-import sys
-import zipfile
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import trimesh
-from scipy import sparse
-from scipy.sparse.csgraph import connected_components
 
 from core.errors import InputError, shown_path
-from core.io import output_dir
+from core.io.brep import (first_line, read_brep, read_fcstd, read_step, scaled_turned_shape, tessellate,
+                           translated_shape)
+from core.io.repair import count_words, repair
 from core.model import CELL_MM, UNITS, UP_AXES
-
-#: Length of one file unit in mm, for ``load_model(units=...)``.
 
 #: File suffix (lower case) -> format name.
 FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".3mf": "3mf",
            ".step": "step", ".stp": "step", ".brep": "brep", ".fcstd": "fcstd"}
 
-#: Angular deflection (rad) of the B-rep tessellation.
-ANGULAR_DEFLECTION = 0.3
 
 #: A part larger than this (mm) is probably in a smaller unit than assumed.
 LARGEST_PLAUSIBLE_MM = 2000.0
@@ -56,15 +48,6 @@ ABSURD_MM = 1.0e9
 #: further from the origin (131 m and more) is moved to it (:func:`load_model`).
 PRECISE_MM = 0.01
 
-#: A piece of surface whose corners spread less than this across (mm, standard deviation)
-#: and less than a millionth of the model's size is flat: it encloses no volume and is
-#: dropped (:func:`repair`).
-FLAT_MM = 1e-3
-
-#: FreeCAD link properties through which one object consumes another's shape
-#: (a Body its features and Tip, a Boolean its inputs, a pattern its originals).
-_CONSUMING = frozenset({"Group", "Tip", "BaseFeature", "Base", "Tool", "Shapes",
-                        "Links", "Objects", "Source", "Originals"})
 
 _FORMAT_NAMES = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "3mf": "3MF",
                  "step": "STEP", "brep": "BREP", "fcstd": "FreeCAD document"}
@@ -131,10 +114,10 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
     read: list[str] = []
     brep = None
     if fmt in ("step", "brep", "fcstd"):
-        readers = {"step": _read_step, "brep": _read_brep}
-        shape = readers[fmt](file) if fmt in readers else _read_fcstd(file, warnings)
-        brep = _scaled_turned_shape(shape, factor, file.name, turn)
-        vertices, faces = _tessellate(brep, tolerance_mm, file.name)
+        readers = {"step": read_step, "brep": read_brep}
+        shape = readers[fmt](file) if fmt in readers else read_fcstd(file, warnings)
+        brep = scaled_turned_shape(shape, factor, file.name, turn)
+        vertices, faces = tessellate(brep, tolerance_mm, file.name)
     else:
         vertices, faces = _read_mesh(file, fmt, read)
         with np.errstate(over="ignore", invalid="ignore"):    # non-finite: _check_arrays says so
@@ -154,7 +137,7 @@ def load_model(path: str | os.PathLike, units: str = "mm", scale: float = 1.0,
         offset = 0.0 - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         mesh = mesh.copy()
         mesh.apply_translation(offset)
-        brep = None if brep is None else _translated_shape(brep, offset, file.name)
+        brep = None if brep is None else translated_shape(brep, offset, file.name)
         repaired.append(f"moved by {', '.join(f'{v:.6g}' for v in offset)} mm to the origin: its "
                         f"coordinates reach {reach:.6g} mm, where a 32-bit float (STL, the printed "
                         f"parts' files) holds only {float(np.spacing(np.float32(reach))):g} mm steps")
@@ -241,12 +224,6 @@ def _special_kind(mode: int) -> str:
             if stat.S_ISBLK(mode) else "a special file")
 
 
-def _first_line(exc: BaseException) -> str:
-    """A short one-line description of an exception from a reader library."""
-    text = str(exc).strip().splitlines()
-    return (text[0][:160] if text else type(exc).__name__)
-
-
 #: An OBJ face corner with vertex index 0 (OBJ counts from 1): a face line with a 0 token.
 _OBJ_ZERO = re.compile(rb"(?m)^[ \t]*f[ \t][^\r\n]*?(?<![\w.+-])0(?=[/ \t\r\n]|$)")
 _OBJ_FACE = re.compile(rb"(?m)^([ \t]*f[ \t])([^\r\n#]*)")
@@ -288,7 +265,7 @@ def _read_mesh(file: Path, fmt: str, repaired: list[str] | None = None) -> tuple
                          f"(binary content that is not {_FORMAT_NAMES[fmt]} data)") from None
     except Exception as exc:
         raise InputError(f"{file.name}: cannot be read as {_FORMAT_NAMES[fmt]}: "
-                         f"{_first_line(exc)}") from None
+                         f"{first_line(exc)}") from None
     unit = (getattr(loaded, "metadata", None) or {}).get("units") if fmt == "3mf" else None
     if unit is not None and str(unit) not in THREEMF_UNITS and str(unit) != "millimeters":
         raise InputError(f"{file.name}: the 3MF model's unit {str(unit)[:40]!r} is not a 3MF "
@@ -321,345 +298,6 @@ def _check_arrays(vertices: np.ndarray, faces: np.ndarray, name: str) -> None:
 
 
 # --- B-rep input (OCP) -------------------------------------------------------
-
-def _solids(shape, name: str, what: str):
-    """The solids of ``shape``: the solid itself if one, else a compound of them."""
-    from OCP.BRep import BRep_Builder
-    from OCP.TopAbs import TopAbs_SOLID
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS_Compound
-
-    found = []
-    explorer = TopExp_Explorer(shape, TopAbs_SOLID)
-    while explorer.More():
-        found.append(explorer.Current())
-        explorer.Next()
-    if not found:
-        raise InputError(f"{name}: {what} contains no solid")
-    if len(found) == 1:
-        return found[0]
-    compound = TopoDS_Compound()
-    builder = BRep_Builder()
-    builder.MakeCompound(compound)
-    for solid in found:
-        builder.Add(compound, solid)
-    return compound
-
-
-@contextlib.contextmanager
-def _quiet_stdout():
-    """Standard output (the file descriptor: OpenCascade's C++ prints there) sent to the null
-    device for the ``with`` block: the STEP parser prints its complaints about a broken
-    file (``**** ERR StepFile ...``), which the one line of the InputError says instead."""
-    try:
-        sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError, AttributeError):
-        yield
-        return
-    try:
-        null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(null, 1)
-        os.close(null)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-
-
-def _read_step(file: Path):
-    """The solid(s) of a STEP file as an OCP shape in mm."""
-    from OCP.IFSelect import IFSelect_RetDone
-    from OCP.STEPControl import STEPControl_Reader
-
-    try:
-        reader = STEPControl_Reader()
-        with _quiet_stdout():
-            status = reader.ReadFile(str(file))
-        if status != IFSelect_RetDone:
-            raise InputError(f"{file.name}: not a valid STEP file (the STEP reader gave up)")
-        reader.TransferRoots()
-        shape = reader.OneShape()
-    except InputError:
-        raise
-    except Exception as exc:
-        raise InputError(f"{file.name}: cannot be read as STEP: {_first_line(exc)}") from None
-    if shape is None or shape.IsNull():
-        raise InputError(f"{file.name}: the STEP file contains no shape")
-    return _solids(shape, file.name, "the STEP file")
-
-
-def _read_brep(file: Path):
-    """The solid(s) of an OCC BREP text file as an OCP shape in mm."""
-    from OCP.BRep import BRep_Builder
-    from OCP.BRepTools import BRepTools
-    from OCP.TopoDS import TopoDS_Shape
-
-    shape = TopoDS_Shape()
-    try:
-        read = BRepTools.Read_s(shape, str(file), BRep_Builder())
-    except Exception as exc:
-        raise InputError(f"{file.name}: cannot be read as BREP: {_first_line(exc)}") from None
-    if not read or shape.IsNull():
-        raise InputError(f"{file.name}: not a valid BREP file (the BREP reader gave up)")
-    return _solids(shape, file.name, "the BREP file")
-
-
-def _scaled_turned_shape(shape, factor: float, name: str, turn: np.ndarray | None = None):
-    """``shape`` scaled by ``factor`` and turned by the rotation ``turn`` (3 x 3) about the
-    origin (the shape itself if neither changes it)."""
-    turn = np.eye(3) if turn is None else np.asarray(turn, dtype=float)
-    if factor == 1.0 and np.array_equal(turn, np.eye(3)):
-        return shape
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-    from OCP.gp import gp_Trsf
-
-    trsf = gp_Trsf()
-    m = factor * turn
-    trsf.SetValues(*m[0], 0.0, *m[1], 0.0, *m[2], 0.0)
-    try:
-        return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
-    except Exception as exc:
-        raise InputError(f"{name}: the solid cannot be scaled by {factor:g}: "
-                         f"{_first_line(exc)}") from None
-
-
-def _translated_shape(shape, offset, name: str):
-    """``shape`` moved by the vector ``offset`` (mm)."""
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-    from OCP.gp import gp_Trsf, gp_Vec
-
-    trsf = gp_Trsf()
-    trsf.SetTranslation(gp_Vec(*(float(v) for v in offset)))
-    try:
-        return BRepBuilderAPI_Transform(shape, trsf, True).Shape()
-    except Exception as exc:
-        raise InputError(f"{name}: the solid cannot be moved to the origin: "
-                         f"{_first_line(exc)}") from None
-
-
-def _tessellate(shape, tolerance_mm: float, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Triangles of ``shape`` meshed at linear deflection ``tolerance_mm``.
-
-    Meshes with ``BRepMesh_IncrementalMesh`` (in parallel) and lets OCP's
-    STL writer collect the triangles of all faces, correctly oriented, in
-    one pass in C++; the STL is read back with trimesh.
-    """
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
-    from OCP.BRepTools import BRepTools
-    from OCP.StlAPI import StlAPI_Writer
-
-    failed = InputError(f"{name}: the solid could not be tessellated")
-    writer = StlAPI_Writer()
-    writer.ASCIIMode = False
-    with output_dir.scratch("stl") as tmp:
-        out = os.path.join(tmp, "tessellation.stl")
-        try:
-            BRepTools.Clean_s(shape)
-            mesher = BRepMesh_IncrementalMesh(shape, tolerance_mm, False, ANGULAR_DEFLECTION, True)
-            if not mesher.IsDone() or not writer.Write(shape, out) or os.path.getsize(out) <= 84:
-                raise failed
-        except InputError:
-            raise
-        except Exception:
-            raise failed from None
-        mesh = trimesh.load(out, file_type="stl", process=False)
-    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
-
-
-# --- FreeCAD documents without FreeCAD ----------------------------------------
-
-@dataclass
-class _FcObject:
-    """What :func:`_read_fcstd` needs to know of one FreeCAD document object."""
-
-    name: str
-    type: str
-    shape_file: str | None
-    visible: bool | None
-    links: dict[str, list[str]]
-    placement: tuple[float, ...] | None
-
-
-def _xml(data: bytes, name: str, member: str):
-    """Parsed XML root of a document member, with entities and network off."""
-    from lxml import etree
-
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=True)
-    try:
-        return etree.fromstring(data, parser)
-    except etree.XMLSyntaxError as exc:
-        raise InputError(f"{name}: {member} is not valid XML: {_first_line(exc)}") from None
-
-
-def _bool_value(prop) -> bool | None:
-    """Value of an ``App::PropertyBool`` element, None if absent."""
-    if prop is None:
-        return None
-    b = prop.find("Bool")
-    return None if b is None else b.get("value", "").lower() == "true"
-
-
-def _fc_objects(doc, gui) -> dict[str, _FcObject]:
-    """The objects of a Document.xml root, with visibility from GuiDocument.xml."""
-    gui_visible: dict[str, bool] = {}
-    if gui is not None:
-        for vp in gui.iter("ViewProvider"):
-            for prop in vp.iter("Property"):
-                if prop.get("name") == "Visibility" and _bool_value(prop) is not None:
-                    gui_visible[vp.get("name")] = _bool_value(prop)
-    types = {o.get("name"): o.get("type", "") for o in doc.iter("Object") if o.get("type")}
-    objects: dict[str, _FcObject] = {}
-    data = doc.find("ObjectData")
-    for od in ([] if data is None else data.findall("Object")):
-        name = od.get("name")
-        props = {p.get("name"): p for p in od.findall("Properties/Property")}
-        shape_file = None
-        shape = props.get("Shape")
-        if shape is not None:
-            part = shape.find("Part")
-            shape_file = part.get("file") if part is not None else None
-        links = {}
-        for key in _CONSUMING:
-            prop = props.get(key)
-            if prop is not None:
-                links[key] = [el.get("value") or el.get("obj") for el in prop.iter("Link", "LinkSub")
-                              if el.get("value") or el.get("obj")]
-        placement = None
-        pl = props.get("Placement")
-        if pl is not None and pl.find("PropertyPlacement") is not None:
-            el = pl.find("PropertyPlacement")
-            try:
-                placement = tuple(float(el.get(k, "0")) for k in
-                                  ("Px", "Py", "Pz", "Q0", "Q1", "Q2", "Q3"))
-            except ValueError:
-                placement = None
-        visible = gui_visible.get(name, _bool_value(props.get("Visibility")))
-        objects[name] = _FcObject(name, types.get(name, ""), shape_file or None, visible,
-                                  links, placement)
-    return objects
-
-
-def _reachable(objects: dict[str, _FcObject], start: str) -> set[str]:
-    """Names of the objects whose shapes ``start`` consumes, transitively."""
-    seen: set[str] = set()
-    todo = [n for names in objects[start].links.values() for n in names]
-    while todo:
-        n = todo.pop()
-        if n in seen or n not in objects:
-            continue
-        seen.add(n)
-        todo.extend(m for names in objects[n].links.values() for m in names)
-    return seen
-
-
-def _select_fc_objects(objects: dict[str, _FcObject], solid: set[str],
-                       warnings: list[str], name: str) -> list[str]:
-    """Names of the objects that make up the part, without double counting.
-
-    Takes the shown objects with solids (an object inside a hidden group
-    counts as hidden); if none is shown, all objects with solids.  Drops
-    every object whose shape another taken object already contains (a
-    Body's features including its Tip, a Boolean's inputs).
-    """
-    parent = {child: o.name for o in objects.values() for child in o.links.get("Group", [])}
-
-    def shown(n: str) -> bool:
-        seen = set()
-        while n is not None and n not in seen:
-            seen.add(n)
-            if objects[n].visible is False:
-                return False
-            n = parent.get(n) if parent.get(n) in objects else None
-        return True
-
-    chosen = [n for n in objects if n in solid and shown(n)]
-    if not chosen:
-        chosen = [n for n in objects if n in solid]
-        if chosen:
-            warnings.append(f"{name}: no solid is shown in the document; "
-                            f"took every object with a solid")
-    reach = {n: _reachable(objects, n) for n in chosen}
-    return [n for n in chosen
-            if not any(n in reach[m] and m not in reach[n] for m in chosen if m != n)]
-
-
-def _placed(shape, placements: list[tuple[float, ...]]):
-    """``shape`` moved by the App::Part placements around it (innermost first)."""
-    from OCP.gp import gp_Quaternion, gp_Trsf, gp_Vec
-    from OCP.TopLoc import TopLoc_Location
-
-    for px, py, pz, qx, qy, qz, qw in placements:
-        if (px, py, pz, qx, qy, qz) == (0.0,) * 6:
-            continue
-        trsf = gp_Trsf()
-        trsf.SetRotation(gp_Quaternion(qx, qy, qz, qw))
-        trsf.SetTranslationPart(gp_Vec(px, py, pz))
-        shape = shape.Moved(TopLoc_Location(trsf))
-    return shape
-
-
-def _read_fcstd(file: Path, warnings: list[str]):
-    """The solid(s) a FreeCAD document shows, as one OCP shape in mm, read without FreeCAD."""
-    from OCP.BinTools import BinTools
-    from OCP.BRep import BRep_Builder
-    from OCP.BRepTools import BRepTools
-    from OCP.TopoDS import TopoDS_Compound, TopoDS_Shape
-
-    try:
-        with zipfile.ZipFile(file) as archive:
-            members = set(archive.namelist())
-            if "Document.xml" not in members:
-                raise InputError(f"{file.name}: not a FreeCAD document (no Document.xml inside)")
-            doc = _xml(archive.read("Document.xml"), file.name, "Document.xml")
-            gui = (_xml(archive.read("GuiDocument.xml"), file.name, "GuiDocument.xml")
-                   if "GuiDocument.xml" in members else None)
-            objects = _fc_objects(doc, gui)
-            shapes = {}
-            for obj in objects.values():
-                if obj.shape_file and obj.shape_file in members:
-                    shapes[obj.name] = archive.read(obj.shape_file)
-    except InputError:
-        raise
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, ValueError,
-            NotImplementedError, zlib.error) as exc:
-        raise InputError(f"{file.name}: cannot be read as a FreeCAD document: "
-                         f"{_first_line(exc)}") from None
-
-    def read_shape(obj: _FcObject):
-        shape = TopoDS_Shape()
-        try:
-            if obj.shape_file.lower().endswith(".bin"):
-                BinTools.Read_s(shape, io.BytesIO(shapes[obj.name]))
-            else:
-                BRepTools.Read_s(shape, io.BytesIO(shapes[obj.name]), BRep_Builder())
-        except Exception:
-            return None
-        return None if shape.IsNull() else shape
-
-    solids = {}
-    for n in shapes:
-        shape = read_shape(objects[n])
-        if shape is not None:
-            try:
-                solids[n] = _solids(shape, file.name, n)
-            except InputError:
-                continue
-    if not solids:
-        raise InputError(f"{file.name}: the FreeCAD document contains no solid")
-    chosen = _select_fc_objects(objects, set(solids), warnings, file.name)
-    parent = {child: o.name for o in objects.values() for child in o.links.get("Group", [])}
-    compound = TopoDS_Compound()
-    builder = BRep_Builder()
-    builder.MakeCompound(compound)
-    for n in chosen:
-        containers, p = [], parent.get(n)
-        while p in objects and len(containers) < len(objects):
-            if objects[p].type == "App::Part" and objects[p].placement is not None:
-                containers.append(objects[p].placement)
-            p = parent.get(p)
-        builder.Add(compound, _placed(solids[n], containers))
-    return _solids(compound, file.name, "the FreeCAD document")
 
 
 # --- units -------------------------------------------------------------------
@@ -701,10 +339,10 @@ def surface_warning(mesh: trimesh.Trimesh) -> list[str]:
     shared = int(np.count_nonzero(counts > 2))
     what = []
     if open_edges:
-        what.append(f"{_n(open_edges, 'edge')} border{'s' if open_edges == 1 else ''} one triangle only "
+        what.append(f"{count_words(open_edges, 'edge')} border{'s' if open_edges == 1 else ''} one triangle only "
                     f"(holes larger than the repair fills)")
     if shared:
-        what.append(f"{_n(shared, 'edge')} {'is' if shared == 1 else 'are'} shared by more than two "
+        what.append(f"{count_words(shared, 'edge')} {'is' if shared == 1 else 'are'} shared by more than two "
                     f"triangles (non-manifold)")
     if not mesh.is_winding_consistent:
         what.append("it cannot be oriented (one-sided, like a Möbius strip)")
@@ -714,268 +352,3 @@ def surface_warning(mesh: trimesh.Trimesh) -> list[str]:
             f"its holes were capped to decide which cells are inside: check the cells filled"]
 
 
-# --- repair ------------------------------------------------------------------
-
-def repair(vertices: np.ndarray, faces: np.ndarray, name: str = "the model",
-           report_merges: bool = True) -> tuple[trimesh.Trimesh, list[str]]:
-    """A repaired mesh from finite ``vertices`` and triangle ``faces``, and what was done.
-
-    Merges duplicate vertices (reported if ``report_merges``: an STL stores
-    every corner separately, so merging is no repair there); drops
-    collapsed, zero-area and duplicate faces (a zero-area face whose three
-    edges each join exactly one other face is kept: it closes a T-junction
-    seam and dropping it would open the surface); drops face-connected
-    pieces with fewer than 4 faces or all in one plane; makes the winding
-    of each piece consistent; fills 3- and 4-edge holes; turns closed
-    pieces that are inside out (negative volume, not inside another piece)
-    outward, with any pieces nested inside them.  Raises InputError if no
-    piece is left.
-    """
-    done: list[str] = []
-    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
-    loaded_faces = len(mesh.faces)
-
-    referenced = int(np.count_nonzero(np.bincount(mesh.faces.ravel(), minlength=len(mesh.vertices))))
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    merged = referenced - len(mesh.vertices)
-    if merged and report_merges:
-        done.append(f"merged {_n(merged, 'duplicate vertex', 'duplicate vertices')}")
-
-    keep, collapsed, flat, duplicate = _face_filter(mesh)
-    if not keep.all():
-        mesh.update_faces(keep)
-        if collapsed + flat:
-            done.append(f"removed {_n(collapsed + flat, 'degenerate face')}")
-        if duplicate:
-            done.append(f"removed {_n(duplicate, 'duplicate face')}")
-    if len(mesh.faces) == 0:
-        raise InputError(f"{name}: no volume: all {loaded_faces:,} triangles are degenerate "
-                         f"(zero area)")
-
-    labels = _piece_labels(mesh)
-    solid = _pieces_with_volume(mesh, labels)
-    if not solid.all():
-        pieces = len(solid)
-        dropped_faces = int(np.count_nonzero(~solid[labels]))
-        if not solid.any():
-            n = len(mesh.faces)
-            what = ("one piece that encloses" if pieces == 1
-                    else f"{pieces:,} separate pieces that enclose")
-            raise InputError(f"{name}: no volume: the {n:,} triangles form {what} nothing")
-        mesh.update_faces(solid[labels])
-        labels = np.unique(labels[solid[labels]], return_inverse=True)[1]
-        dead = pieces - int(np.count_nonzero(solid))
-        done.append(f"dropped {_n(dead, 'loose piece')} without volume "
-                    f"({_n(dropped_faces, 'triangle')})")
-    mesh.remove_unreferenced_vertices()
-
-    flipped = np.zeros(len(mesh.faces), dtype=bool)
-    if not mesh.is_winding_consistent:
-        flipped = _consistent_winding(mesh)
-        if flipped.any():
-            f = mesh.faces.copy()
-            f[flipped] = f[flipped][:, ::-1]
-            mesh.faces = f
-
-    if not mesh.is_watertight:
-        before = len(mesh.faces)
-        open_edges = _boundary_edge_count(mesh)
-        trimesh.repair.fill_holes(mesh)
-        added = len(mesh.faces) - before
-        if added:
-            closed_edges = open_edges - _boundary_edge_count(mesh)
-            quads = max((3 * added - closed_edges) // 2, 0)
-            holes = added - quads
-            done.append(f"filled {_n(holes, 'small hole')} ({_n(added, 'triangle')})")
-            flipped = np.concatenate([flipped, np.zeros(added, dtype=bool)])
-            labels = _piece_labels(mesh)
-
-    inverted = _inside_out(mesh, labels)
-    if inverted.any():
-        f = mesh.faces.copy()
-        f[inverted] = f[inverted][:, ::-1]
-        mesh.faces = f
-        flipped ^= inverted
-    if flipped.any():
-        done.append(f"fixed face orientation "
-                    f"({_n(int(np.count_nonzero(flipped)), 'face')} flipped)")
-    return mesh, done
-
-
-def _n(count: int, singular: str, plural: str | None = None) -> str:
-    """``count`` and the noun, e.g. "1 face", "1,204 faces"."""
-    return f"{count:,} {singular if count == 1 else plural or singular + 's'}"
-
-
-def _face_filter(mesh: trimesh.Trimesh) -> tuple[np.ndarray, int, int, int]:
-    """Mask of faces to keep, and the counts of collapsed, zero-area and duplicate faces."""
-    f = mesh.faces
-    collapsed = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
-    zero = ~mesh.nondegenerate_faces() & ~collapsed
-    if zero.any():
-        whole = f[~collapsed]
-        edges = np.sort(whole[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        _, inverse, counts = np.unique(trimesh.grouping.hashable_rows(edges),
-                                       return_inverse=True, return_counts=True)
-        seam = np.zeros(len(f), dtype=bool)
-        seam[~collapsed] = (counts[inverse] == 2).reshape(-1, 3).all(axis=1)
-        zero &= ~seam
-    unique = mesh.unique_faces()
-    keep = ~collapsed & ~zero & unique
-    duplicate = int(np.count_nonzero(~unique & ~collapsed & ~zero))
-    return keep, int(np.count_nonzero(collapsed)), int(np.count_nonzero(zero)), duplicate
-
-
-def _piece_labels(mesh: trimesh.Trimesh) -> np.ndarray:
-    """Per face, the index of its piece: faces joined through edges shared by two faces."""
-    return trimesh.graph.connected_component_labels(mesh.face_adjacency,
-                                                    node_count=len(mesh.faces))
-
-
-def _pieces_with_volume(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray:
-    """Per piece, whether it may enclose volume: 4 faces or more, not all in one plane.
-
-    Flatness is judged from the smallest principal extent of the piece's
-    corners (vectorised covariance per piece): flat is at most FLAT_MM *and*
-    at most a millionth of the model's size (so a long thin bar is no
-    flatter than a short one, and a tiny part read in the wrong unit is not
-    flat either).
-    """
-    pieces = int(labels.max()) + 1
-    count = np.bincount(labels, minlength=pieces)
-    corners = mesh.triangles.reshape(-1, 3)
-    corners = corners - corners.mean(axis=0)
-    if pieces == 1:
-        cov = np.cov(corners.T, bias=True)[None]
-    else:
-        lab = np.repeat(labels, 3)
-        n = 3.0 * count
-        mean = np.stack([np.bincount(lab, corners[:, i], pieces) for i in range(3)], axis=1) / n[:, None]
-        cov = np.empty((pieces, 3, 3))
-        for i in range(3):
-            for j in range(i, 3):
-                cov[:, i, j] = cov[:, j, i] = (np.bincount(lab, corners[:, i] * corners[:, j], pieces)
-                                               / n - mean[:, i] * mean[:, j])
-    thinnest = np.sqrt(np.clip(np.linalg.eigvalsh(cov)[:, 0], 0.0, None))
-    scale = float(np.linalg.norm(np.ptp(corners, axis=0)))
-    return (count >= 4) & (thinnest > min(FLAT_MM, 1e-6 * scale))
-
-
-def _consistent_winding(mesh: trimesh.Trimesh) -> np.ndarray:
-    """Mask of faces to flip so that neighbours across each shared edge agree.
-
-    Vectorised: a face and its flipped copy are two nodes of a "double
-    cover" graph; agreeing neighbours join same-orientation nodes,
-    disagreeing ones opposite nodes.  Connected components of that graph
-    give each piece's two consistent orientations; the one that flips
-    fewer faces wins.  Pieces that cannot be oriented (Möbius-like) are
-    left alone.  (trimesh.repair.fix_winding does the same face by face in
-    Python, far slower.)
-    """
-    f = mesh.faces
-    nf = len(f)
-    pairs = mesh.face_adjacency
-    edge = mesh.face_adjacency_edges
-
-    def forward(face_index: np.ndarray) -> np.ndarray:
-        rows = f[face_index]
-        at = np.argmax(rows == edge[:, :1], axis=1)
-        return rows[np.arange(len(rows)), (at + 1) % 3] == edge[:, 1]
-
-    agree = forward(pairs[:, 0]) != forward(pairs[:, 1])
-    a, b = pairs[:, 0], pairs[:, 1]
-    b_same = np.where(agree, b, b + nf)
-    b_other = np.where(agree, b + nf, b)
-    rows = np.concatenate([a, a + nf])
-    cols = np.concatenate([b_same, b_other])
-    graph = sparse.coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)),
-                              shape=(2 * nf, 2 * nf))
-    _, lab = connected_components(graph, directed=False)
-    keep_lab, flip_lab = lab[:nf], lab[nf:]
-    count = np.bincount(keep_lab, minlength=lab.max() + 1)
-    fewer = (count[keep_lab] < count[flip_lab]) | (
-        (count[keep_lab] == count[flip_lab]) & (keep_lab > flip_lab))
-    return (keep_lab != flip_lab) & fewer
-
-
-def _boundary_edge_count(mesh: trimesh.Trimesh) -> int:
-    """Number of edges used by exactly one face."""
-    return len(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1))
-
-
-def _inside_out(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray:
-    """Mask of faces to flip so that closed pieces face outward.
-
-    A closed piece with negative signed volume is inside out, unless it lies
-    inside another closed piece (then it may be a cavity).  A nest of pieces
-    is turned as a whole, following its outermost piece, so that cavities
-    stay cavities.  Nesting is decided by the generalised winding number of
-    one vertex of a piece with respect to each closed piece whose bounding
-    box contains it; it is only computed when some closed piece has
-    negative volume, for the pieces that could be in such a nest.
-    """
-    pieces = int(labels.max()) + 1
-    tri = mesh.triangles
-    if mesh.is_watertight:
-        closed = np.ones(pieces, dtype=bool)
-    else:
-        edges_face = mesh.edges_face
-        paired = np.zeros(len(edges_face), dtype=bool)
-        paired[np.asarray(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=2),
-                          dtype=np.int64).ravel()] = True
-        open_face = np.zeros(len(tri), dtype=bool)
-        open_face[edges_face[~paired]] = True
-        closed = np.bincount(labels, open_face, pieces) == 0
-    rel = tri - tri[:, 0].mean(axis=0)
-    volume = np.bincount(labels, np.einsum("ij,ij->i", rel[:, 0],
-                                           np.cross(rel[:, 1], rel[:, 2])) / 6.0, pieces)
-    negative = np.flatnonzero(closed & (volume < 0))
-    if not len(negative):
-        return np.zeros(len(tri), dtype=bool)
-
-    corners = tri.reshape(-1, 3)
-    lab3 = np.repeat(labels, 3)
-    lo = np.full((pieces, 3), np.inf)
-    hi = np.full((pieces, 3), -np.inf)
-    np.minimum.at(lo, lab3, corners)
-    np.maximum.at(hi, lab3, corners)
-
-    def boxes_around(q: int) -> np.ndarray:
-        inside = closed & (lo <= lo[q]).all(axis=1) & (hi >= hi[q]).all(axis=1)
-        inside[q] = False
-        return np.flatnonzero(inside)
-
-    in_negative = np.zeros(pieces, dtype=bool)
-    for n in negative:
-        in_negative |= (lo >= lo[n]).all(axis=1) & (hi <= hi[n]).all(axis=1)
-    order = np.argsort(labels, kind="stable")
-    bounds = np.searchsorted(labels[order], np.arange(pieces + 1))
-    root = np.arange(pieces)
-    for q in np.flatnonzero(in_negative):
-        hosts = boxes_around(q)
-        if not len(hosts):
-            continue
-        faces = np.concatenate([order[bounds[h]:bounds[h + 1]] for h in hosts])
-        point = tri[order[bounds[q]], 0]
-        winding = np.bincount(labels[faces], _solid_angles(point, tri[faces]), pieces)
-        holders = hosts[np.abs(winding[hosts]) > 2.0 * np.pi]
-        if len(holders):
-            root[q] = holders[np.argmax(np.abs(volume[holders]))]
-    return (closed & (volume[root] < 0))[labels]
-
-
-def _solid_angles(point: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Signed solid angle of each triangle seen from ``point`` (Van Oosterom and Strackee).
-
-    Their sum over a closed surface is 4 pi times its winding number
-    around the point.
-    """
-    v = tri - point
-    length = np.linalg.norm(v, axis=2)
-    a, b, c = v[:, 0], v[:, 1], v[:, 2]
-    det = np.einsum("ti,ti->t", a, np.cross(b, c))
-    den = (length[:, 0] * length[:, 1] * length[:, 2]
-           + np.einsum("ti,ti->t", a, b) * length[:, 2]
-           + np.einsum("ti,ti->t", b, c) * length[:, 0]
-           + np.einsum("ti,ti->t", c, a) * length[:, 1])
-    return 2.0 * np.arctan2(det, den)

@@ -18,7 +18,7 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 ORDER = [
     "io", "parts", "layout", "printing", "instructions",
     "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog",
-    "connectivity", "parts.brick_solids", "parts.thickness", "io.meshes", "voxelize", "hollow",
+    "connectivity", "parts.brick_solids", "parts.thickness", "io.brep", "io.repair", "io.meshes", "voxelize", "hollow",
     "high_res", "grid_fit",
     "forces.limits", "forces.joints", "forces.solver", "forces.verdict", "forces.bodies",
     "forces.program", "forces.decompose", "forces.analyse", "forces.build_steps", "forces",
