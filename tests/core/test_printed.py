@@ -232,7 +232,7 @@ def test_engraving_prints_no_fontconfig_error():
     root = Path(__file__).resolve().parents[2]
     env = {k: v for k, v in os.environ.items() if not k.startswith("FONTCONFIG")}
     code = ("import numpy as np, trimesh\n"
-            "from core import printed\n"
+            "from core.parts import printed\n"
             "from core.io.meshes import LoadedModel\n"
             "from core.model import Brick, Grid, Layout\n"
             "m = trimesh.creation.box(bounds=[[0, 0, 0], [16, 32, 9.6]])\n"
