@@ -113,15 +113,29 @@ def test_palette_is_a_checked_setting_with_a_cli_flag(tmp_path):
 
 
 def test_colour_table_is_consistent():
-    for code, (name, bl, bl_name, hex_rgb) in colours.COLORS.items():
+    for code, (name, bl, bl_name, hex_rgb, rb) in colours.COLORS.items():
         assert re.fullmatch(r"#[0-9A-F]{6}", hex_rgb), code
         assert colours.name(code) == name and colours.bricklink_id(code) == bl
+        assert colours.from_bricklink(bl) == code and colours.from_rebrickable(rb) == code
+        assert colours.by_name(bl_name.upper()) == code == colours.by_name(name)
     assert len({v[1] for v in colours.COLORS.values()}) == len(colours.COLORS)
+    assert len({v[4] for v in colours.COLORS.values()}) == len(colours.COLORS)
     assert colours.BOM_COLOR not in colours.RANDOM_CODES
     assert colours.PRINTED_COLOR not in colours.RANDOM_CODES
     # printed parts stand out from every brick colour
     for code in colours.RANDOM_CODES + (colours.BOM_COLOR,):
         assert colours.delta_e(colours.rgb(code), colours.rgb(colours.PRINTED_COLOR)) > 15, code
+
+
+def test_inventory_colour_ids_from_design_notes():
+    # DESIGN.md "The maker's workshop": Rebrickable ids equal LDraw codes for these, and
+    # BrickLink numbers them 11 Black, 7 Blue, 5 Red, 3 Yellow, 1 White, 86 LBG, 85 DBG
+    for ldraw, bricklink in ((0, 11), (1, 7), (4, 5), (14, 3), (15, 1), (71, 86), (72, 85)):
+        assert colours.from_rebrickable(ldraw) == ldraw
+        assert colours.from_bricklink(bricklink) == ldraw
+    assert colours.by_name("light bluish gray") == 71
+    with pytest.raises(InputError, match="colour"):
+        colours.by_name("plaid")
 
 
 def test_delta_e():
