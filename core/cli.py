@@ -584,6 +584,12 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
+    if doc.get("inventory"):
+        from core.inventory import summary_words
+        print(summary_words(doc["inventory"])
+              + (f"; {doc['inventory']['ignored_parts']} owned part(s) ignored (not plates or "
+                 f"bricks of the catalog, report.json inventory.ignored)"
+                 if doc["inventory"]["ignored_parts"] else ""))
     bound = improve.bound_words(doc.get("layout_quality") or {})
     if bound:
         print(bound)

@@ -270,3 +270,80 @@ def _expand(files, name, colour, stack, counts, shown) -> None:
         else:
             key = (_number(ref), shade)
             counts[key] = counts.get(key, 0) + 1
+
+
+#: What one bought brick costs more than an owned one, in bricks: the layout splits a brick
+#: it would have to buy into owned ones where that takes at most 1 + this many of them, and
+#: the improvement's windows price a bought brick 1 + this.
+BUY_COST = 1.5
+
+
+@dataclass(frozen=True)
+class Stock:
+    """What the layout may use: ``owned`` design number -> owned count (a design not in it is
+    not owned); ``buy`` whether more may be bought (at :data:`BUY_COST` each) or not
+    (``--inventory-only``)."""
+
+    owned: dict
+    buy: bool = True
+
+    def bought(self, used: dict) -> int:
+        """How many of ``used`` (design number -> count) are beyond what is owned."""
+        return sum(max(0, n - self.owned.get(d, 0)) for d, n in used.items())
+
+    def cost(self, used: dict) -> float:
+        """The bricks of ``used`` plus :data:`BUY_COST` per bought one."""
+        return sum(used.values()) + BUY_COST * self.bought(used)
+
+
+def used(layout) -> dict[str, int]:
+    """Design number -> LEGO (not printed) bricks of it in ``layout``."""
+    out: dict[str, int] = {}
+    for b in layout.bricks:
+        if b.kind == "lego":
+            out[b.part] = out.get(b.part, 0) + 1
+    return out
+
+
+def usable(parts: tuple[Part, ...], stock: Stock) -> tuple[Part, ...]:
+    """The parts of ``parts`` that ``stock`` owns, and the 1x1 plate 3024, which every layout
+    needs to start from (:func:`core.layout.fit_stock` then keeps it to what is owned)."""
+    return tuple(p for p in parts if stock.owned.get(p.number, 0) > 0 or p.number == "3024")
+
+
+def fits(layout, stock: Stock) -> bool:
+    """Whether ``layout`` uses no design more than ``stock`` owns, or buying is allowed."""
+    return stock.buy or stock.bought(used(layout)) == 0
+
+
+def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bool]]:
+    """Brick id -> (LDraw colour, owned) for the LEGO bricks of ``layout``.
+
+    Bottom layer first (then along x and y), each brick takes a colour of its design that
+    is still owned, the most plentiful first, so that one colour fills whole layers before
+    the next starts; bricks beyond what is owned of their design are bought in ``bought``."""
+    pool: dict[str, list[list[int]]] = {}
+    for (number, code), count in sorted(inventory.counts.items(), key=lambda kv: (-kv[1], kv[0])):
+        pool.setdefault(number, []).append([code, count])
+    out: dict[int, tuple[int, bool]] = {}
+    for b in sorted((b for b in layout.bricks if b.kind == "lego"),
+                    key=lambda b: (b.cell[2], b.cell[0], b.cell[1], b.id)):
+        left = next((c for c in pool.get(b.part, ()) if c[1] > 0), None)
+        if left is None:
+            out[b.id] = (bought, False)
+        else:
+            left[1] -= 1
+            out[b.id] = (left[0], True)
+    return out
+
+
+def summary(colouring: dict[int, tuple[int, bool]]) -> dict:
+    """The report's counts of a colouring: ``bricks``, ``from_inventory``, ``to_buy``."""
+    owned = sum(1 for _, mine in colouring.values() if mine)
+    return {"bricks": len(colouring), "from_inventory": owned, "to_buy": len(colouring) - owned}
+
+
+def summary_words(block: dict) -> str:
+    """The summary line of an inventory run: "N of M bricks from your inventory, K to buy"."""
+    return (f"{block['from_inventory']} of {block['bricks']} bricks from your inventory, "
+            f"{block['to_buy']} to buy")

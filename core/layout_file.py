@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from core.colours import COLORS
 from core.errors import InputError
 from core.model import Layout
 
@@ -34,7 +35,9 @@ def layout_from_document(data, parts_folder=None) -> Layout:
     negative or fractional step, a ``load_g`` that is not a finite number from 0 to
     :data:`MAX_LOAD_G`; two bricks sharing a cell; a ``printed_part`` that is not a plain
     file name (no path separator, no ``..``), named by a brick whose kind is not
-    ``printed``, or (with ``parts_folder``) whose ``<name>.stl`` is not a file there.
+    ``printed``, or (with ``parts_folder``) whose ``<name>.stl`` is not a file there; a
+    ``colour`` that is not an LDraw code of :data:`core.colours.COLORS` or an ``owned`` that is
+    not true or false (both optional, from a run with an inventory).
     """
     from core.catalog import BY_NUMBER
     from core.voxelize import MAX_GRID_CELLS
@@ -111,6 +114,11 @@ def layout_from_document(data, parts_folder=None) -> Layout:
                 raise InputError(f"{name}: load_g must be a number of grams from 0 to "
                                  f"{MAX_LOAD_G:g}, got {_show(b['load_g'])}")
         _check_printed_part(name, b["kind"], b["printed_part"], parts_folder)
+        if "colour" in b and (isinstance(b["colour"], bool) or b["colour"] not in COLORS):
+            raise InputError(f"{name}: colour must be an LDraw colour code Fabrickator knows "
+                             f"(such as 71, Light Bluish Grey), got {_show(b['colour'])}")
+        if "owned" in b and not isinstance(b["owned"], bool):
+            raise InputError(f"{name}: owned must be true or false, got {_show(b['owned'])}")
         where = tuple(slice(c, c + s) for c, s in zip(cell, size))
         if filled[where].any():
             other = next(o for o, c0, s0 in boxes
@@ -203,3 +211,18 @@ def _wholes(value) -> tuple[int, int, int] | None:
         return None
     out = tuple(_whole(v) for v in value)
     return None if None in out else out
+
+
+def with_colours(document: dict, colouring: dict | None) -> dict:
+    """A ``layout.json`` document with each LEGO brick's ``colour`` (LDraw code) and ``owned``
+    (from the maker's inventory) of ``colouring`` (brick id -> (code, owned); None: the
+    document as it is)."""
+    if colouring is None:
+        return document
+    bricks = []
+    for b in document["bricks"]:
+        b = dict(b)
+        if b["id"] in colouring:
+            b["colour"], b["owned"] = int(colouring[b["id"]][0]), bool(colouring[b["id"]][1])
+        bricks.append(b)
+    return {**document, "bricks": bricks}

@@ -25,9 +25,9 @@ import numpy as np
 
 from core import build_order, catalog, colours, connectors as connectors_stage, grid_fit
 from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
-from core import iterate as iterate_stage
+from core import inventory as inventory_stage, iterate as iterate_stage
 from core import improve as improve_stage
-from core import layout as layout_stage, result
+from core import layout as layout_stage, layout_file, result
 from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
 from core import stability as stability_stage, voxelize
@@ -73,6 +73,8 @@ class Fabrication:
     warnings: list[str] = field(default_factory=list)
     hollowing: hollow_stage.Hollowing | None = None
     layout_quality: dict = field(default_factory=dict)
+    inventory: inventory_stage.Inventory | None = None
+    colouring: dict | None = None
 
     @property
     def seed(self) -> int:
@@ -188,6 +190,10 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         return value
 
     chosen = catalog.select(req.parts)
+    owned = timed("inventory", 0.0, inventory_stage.read, req.inventory) if req.inventory else None
+    stock = None if owned is None else inventory_stage.Stock(owned.owned(chosen),
+                                                             buy=not req.inventory_only)
+    laying = chosen if stock is None or stock.buy else inventory_stage.usable(chosen, stock)
     model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale,
                   up=req.up)
     loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale, up=req.up)
@@ -246,15 +252,21 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         cells_ = high_res_stage.anchor(grid_, marked_) if req.connectors else marked_
         lay = layout_stage.lay_out_around if cells_.any() else layout_stage.lay_out
         extra = (cells_,) if cells_.any() else ()
-        return marked_, cells_, timed(name, span[0], lay, grid_, *extra, chosen, seed=req.seed,
-                                      progress=within(progress, *span))
+        laid = timed(name, span[0], lay, grid_, *extra, laying, seed=req.seed,
+                     progress=within(progress, *span))
+        if stock is not None:
+            laid = timed(name + "_stock", span[1], layout_stage.fit_stock, laid, chosen, stock)
+        return marked_, cells_, laid
 
     plan = rings = None
     if before is not None:
         marked = timed("high_res", 0.3, regions.cells, grid)
         cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
-                                      chosen, req.seed)
+                                      laying, req.seed)
+        if stock is not None:
+            layout = timed("layout_stock", 0.45, layout_stage.fit_stock, layout, chosen, stock,
+                           plan.kept)
     else:
         marked, cells, layout = fresh_layout(grid, "layout")
         largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
@@ -268,24 +280,26 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
             hollowing = hollow_stage.judged(hollowing, len(layout.bricks), largest)
     greedy = layout
     others = ()
-    if before is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start:
+    if before is None and stock is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start:
         relaxed = timed("layout_relaxed", 0.77, layout_stage.relaxed_layout, grid, cells, chosen,
                         req.seed)
         others = () if relaxed is None else (relaxed,)
     bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, chosen)
-    layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
+    layout = timed("improve", 0.78, improve_stage.improve, layout, laying, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
-                   next_id=None if plan is None else plan.next_id, others=others, bound=bound)
+                   next_id=None if plan is None else plan.next_id, others=others, bound=bound,
+                   stock=stock)
     quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound,
                                            bound=bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
     if before is None:
-        reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, chosen, req.ground,
+        reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, laying, req.ground,
                            req.loads, req.clutch_n, cells, req.seed,
                            checked_again=bool(cells.any() or req.high_res_bricks))
-        layout = reinforced.layout
+        if stock is None or inventory_stage.fits(reinforced.layout, stock):
+            layout = reinforced.layout
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -328,6 +342,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
             order = dataclasses.replace(order, finished=timed(
                 "finished_with_props", 0.84, build_order.finished_with_props, layout, order, final.stands))
     layout = build_order.numbered(layout, order)
+    colouring = None if owned is None else inventory_stage.colour(layout, owned,
+                                                                  colours.by_name(req.colour))
     iteration = None
     if before is not None:
         reprint = reprint or []
@@ -340,7 +356,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
                       forces=force, reinforced=reinforced, hollowing=hollowing,
-                      layout_quality=quality)
+                      layout_quality=quality, inventory=owned, colouring=colouring)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab, slicing)
         fab.timings_s.update(timings)
@@ -741,6 +757,10 @@ def report(fab: Fabrication) -> dict:
         "notes": list(fab.notes),
         "warnings": list(fab.warnings),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
+        **({} if fab.inventory is None else {"inventory": {
+            **inventory_stage.summary(fab.colouring), "inventory_only": fab.request.inventory_only,
+            "bought_colour": colours.name(colours.by_name(fab.request.colour)),
+            **fab.inventory.to_json()}}),
     }
 
 
@@ -895,8 +915,10 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     from core import instructions
     assembly = instructions.write_assembly(
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
-        seconds_per_part=fab.seconds_per_part, order=fab.order)
-    (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
+        seconds_per_part=fab.seconds_per_part, order=fab.order, colouring=fab.colouring,
+        inventory=fab.inventory, bought=colours.by_name(fab.request.colour))
+    (tmp / "layout.json").write_text(json.dumps(
+        layout_file.with_colours(fab.layout.to_json(), fab.colouring)))
     if fab.request.picture:
         progress(0.95, "picture")
         from core import render

@@ -114,3 +114,85 @@ def test_a_malformed_file_names_its_line(tmp_path, name, text, line):
 def test_a_missing_file_is_one_line(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         inventory.read([tmp_path / "nothing.csv"])
+
+
+# -- laying out with counts ---------------------------------------------------------------
+
+import numpy as np  # noqa: E402
+
+from core import catalog, improve, layout as layout_stage  # noqa: E402
+from core.inventory import Stock, used  # noqa: E402
+from core.model import Brick, Grid, Layout  # noqa: E402
+
+
+def _grid(nx, ny, nz) -> Grid:
+    return Grid(filled=np.ones((nx, ny, nz), dtype=bool), origin=(0.0, 0.0, 0.0),
+                cell=(8.0, 8.0, 3.2))
+
+
+def _covers_once(lay: Layout) -> bool:
+    count = np.zeros(lay.grid.shape, dtype=int)
+    for b in lay.bricks:
+        count[b.slices()] += 1
+    return bool((count == np.asarray(lay.grid.filled, dtype=int)).all())
+
+
+def test_a_brick_not_owned_is_split_into_owned_ones():
+    # one 2x4 brick (3001) in a 4 x 2 x 3 block; the box owns two 2x2 bricks (3003) only
+    lay = Layout(_grid(4, 2, 3), [Brick(0, "3001", (4, 2, 3), (0, 0, 0))])
+    fitted = layout_stage.fit_stock(lay, catalog.CATALOG, Stock({"3003": 2}, buy=False))
+    assert sorted((b.part, b.cell, b.size) for b in fitted.bricks) == [
+        ("3003", (0, 0, 0), (2, 2, 3)), ("3003", (2, 0, 0), (2, 2, 3))]
+    # buying allowed but nothing owned: the brick is bought, not split
+    bought = layout_stage.fit_stock(lay, catalog.CATALOG, Stock({}, buy=True))
+    assert [(b.part, b.cell) for b in bought.bricks] == [("3001", (0, 0, 0))]
+    # splitting into more than 1 + BUY_COST owned parts is dearer than buying
+    plates = layout_stage.fit_stock(lay, catalog.CATALOG, Stock({"3020": 3}, buy=True))
+    assert [b.part for b in plates.bricks] == ["3001"]
+    only_plates = layout_stage.fit_stock(lay, catalog.CATALOG, Stock({"3020": 3}, buy=False))
+    assert sorted(b.cell[2] for b in only_plates.bricks) == [0, 1, 2]
+
+
+def test_too_small_an_inventory_is_one_line_naming_cells_and_parts():
+    lay = Layout(_grid(4, 2, 3), [Brick(0, "3001", (4, 2, 3), (0, 0, 0))])
+    with pytest.raises(InputError, match=r"cannot cover 24 cell\(s\), at cells \(0, 0, 0\); "
+                                         r"1x 3001 Brick 2 x 4 more would do"):
+        layout_stage.fit_stock(lay, catalog.CATALOG, Stock({"3003": 1, "3024": 5}, buy=False))
+
+
+def test_the_window_program_trades_bought_bricks_for_owned_ones():
+    # a block 8 x 4 studs, a plate and a brick tall, laid out with the whole catalog; owned:
+    # plenty of every part but the long bricks (2x6, 2x8), buying allowed.  The two 2x8
+    # bricks it lays cost 2 x (1 + BUY_COST) = 5 bricks, four owned 2x4 bricks under two 2x8
+    # plates across them 4 + 2 = 6 for all (by hand).
+    grid = _grid(8, 4, 4)
+    start = improve.improve(layout_stage.lay_out(grid), catalog.CATALOG, "normal")
+    stock = Stock({p.number: 20 for p in catalog.CATALOG if p.number not in ("3007", "2456")},
+                  buy=True)
+    assert stock.bought(used(start)) > 0
+    better = improve.improve(start, catalog.CATALOG, "normal", stock=stock)
+    assert _covers_once(better)
+    assert improve.quality(better)[:3] <= improve.quality(start)[:3]
+    assert stock.bought(used(start)) == 2 and stock.cost(used(start)) == 2 * 2.5 + 4
+    assert stock.bought(used(better)) == 0 and stock.cost(used(better)) == 6
+    # where none may be bought, none is
+    only = Stock(stock.owned, buy=False)
+    fitted = layout_stage.fit_stock(start, catalog.CATALOG, only)
+    assert only.bought(used(improve.improve(fitted, catalog.CATALOG, "normal", stock=only))) == 0
+
+
+def test_inventory_only_never_uses_more_than_owned():
+    filled = np.zeros((10, 9, 9), dtype=bool)
+    filled[:, :, :6] = True
+    filled[2:8, 2:7, 6:] = True
+    grid = Grid(filled=filled, origin=(0.0, 0.0, 0.0), cell=(8.0, 8.0, 3.2))
+    owned = {p.number: 12 for p in catalog.CATALOG
+             if p.number not in ("3001", "2456", "3007", "3020", "3795", "3034")}
+    stock = Stock(owned, buy=False)
+    parts = tuple(p for p in catalog.CATALOG if p.number in owned)
+    fitted = layout_stage.fit_stock(layout_stage.lay_out(grid, parts), catalog.CATALOG, stock)
+    better = improve.improve(fitted, parts, "normal", stock=stock)
+    for lay in (fitted, better):
+        assert _covers_once(lay)
+        assert all(count <= owned[d] for d, count in used(lay).items())
+    assert len(better.bricks) <= len(fitted.bricks)
