@@ -137,7 +137,7 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
-                            "clutch_n", "hollow"),
+                            "clutch_n", "hollow", "inventory", "inventory_only", "colour"),
                         units=request.UNITS)
 
 
@@ -294,7 +294,8 @@ class _Guarded:
 
 #: The path options of fabricate and watch: flag (as messages name it), argparse dest.
 PATH_OPTIONS = (("MODEL", "model"), ("FOLDER", "folder"), ("--out", "out"),
-                ("--previous", "previous"), ("--high-res-solid", "high_res_solids"))
+                ("--previous", "previous"), ("--high-res-solid", "high_res_solids"),
+                ("--inventory", "inventory"))
 
 
 def _check_paths(args, out_name_checked: bool = False) -> None:

@@ -950,7 +950,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
 
 def _inputs(req: Request) -> list[str]:
     """The files a run of ``req`` reads (an output folder must not hold them)."""
-    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else [])]
+    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else []),
+            *req.inventory]
 
 
 def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:
