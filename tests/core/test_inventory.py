@@ -196,3 +196,102 @@ def test_inventory_only_never_uses_more_than_owned():
         assert _covers_once(lay)
         assert all(count <= owned[d] for d, count in used(lay).items())
     assert len(better.bricks) <= len(fitted.bricks)
+
+
+# -- the whole run ------------------------------------------------------------------------
+
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import xml.etree.ElementTree as ET  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: A small box of parts: grey 1x2 and 2x2 bricks, black 2x2 plates, few 2x4 bricks in red.
+BOX = {("3004", 71): 30, ("3003", 71): 20, ("3003", 0): 12, ("3022", 0): 20, ("3001", 4): 3,
+       ("3024", 71): 40, ("3023", 15): 30}
+
+
+def _box_files(folder: Path) -> list[Path]:
+    """:data:`BOX` written by hand as a Rebrickable CSV, a BrickLink XML and an LDraw file."""
+    bl = {71: 86, 0: 11, 4: 5, 15: 1}
+    csv_path, xml_path, ldr_path = folder / "box.csv", folder / "box.xml", folder / "box.ldr"
+    csv_path.write_text("Part,Color,Quantity\n"
+                        + "".join(f"{p},{c},{n}\n" for (p, c), n in BOX.items()))
+    xml_path.write_text("<INVENTORY>\n" + "".join(
+        f"<ITEM><ITEMTYPE>P</ITEMTYPE><ITEMID>{p}</ITEMID><COLOR>{bl[c]}</COLOR>"
+        f"<MINQTY>{n}</MINQTY></ITEM>\n" for (p, c), n in BOX.items()) + "</INVENTORY>\n")
+    ldr_path.write_text("0 a box\n" + "".join(_line(c, f"{p}.dat") * n for (p, c), n in BOX.items()))
+    return [csv_path, xml_path, ldr_path]
+
+
+def _fabricate(model: Path, out: Path, *options) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "core", "fabricate", str(model), "--out", str(out),
+                           "--no-picture", "--quiet", *map(str, options)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def block_stl(tmp_path_factory) -> Path:
+    """A 64 x 32 x 19.2 mm block (8 x 4 studs, six plates tall) on a 32 x 16 mm tower."""
+    import trimesh
+
+    body = trimesh.creation.box((64.0, 32.0, 19.2))
+    body.apply_translation((0, 0, 9.6))
+    tower = trimesh.creation.box((32.0, 16.0, 9.6))
+    tower.apply_translation((0, 0, 19.2 + 4.8))
+    path = tmp_path_factory.mktemp("block") / "block.stl"
+    trimesh.util.concatenate([body, tower]).export(path)
+    return path
+
+
+@pytest.mark.slow
+def test_the_cli_lays_out_from_the_box_in_every_format(block_stl, tmp_path):
+    files = _box_files(tmp_path)
+    layouts = []
+    for n, path in enumerate(files):
+        out = tmp_path / f"out{n}"
+        run = _fabricate(block_stl, out, "--inventory", path)
+        assert run.returncode == 0, run.stderr
+        doc = json.loads((out / "layout.json").read_text())
+        layouts.append(doc["bricks"])
+        lego = [b for b in doc["bricks"] if b["kind"] == "lego"]
+        mine = sum(b["owned"] for b in lego)
+        assert f"{mine} of {len(lego)} bricks from your inventory, {len(lego) - mine} to buy" \
+            in run.stdout
+        # no design and colour used more than owned, the rest bought in Light Bluish Grey
+        used_owned: dict = {}
+        for b in lego:
+            if b["owned"]:
+                key = (b["part"], b["colour"])
+                used_owned[key] = used_owned.get(key, 0) + 1
+            else:
+                assert b["colour"] == 71
+        assert all(n <= BOX[key] for key, n in used_owned.items())
+        # bricklink.xml is needed minus owned, part by part (BrickLink grey is 86)
+        bought: dict = {}
+        for b in lego:
+            if not b["owned"]:
+                bought[b["part"]] = bought.get(b["part"], 0) + 1
+        items = {(i.findtext("ITEMID"), i.findtext("COLOR")): int(i.findtext("MINQTY"))
+                 for i in ET.parse(out / "bricklink.xml").getroot()}
+        assert items == {(p, "86"): n for p, n in bought.items()}
+        report = json.loads((out / "report.json").read_text())
+        assert report["stability"]["components"] == report["stability"]["regions"] == 1
+    assert layouts[0] == layouts[1] == layouts[2]
+
+
+@pytest.mark.slow
+def test_inventory_only_refuses_in_one_line(block_stl, tmp_path):
+    tiny = tmp_path / "tiny.csv"
+    tiny.write_text("Part,Color,Quantity\n3003,71,2\n3024,71,4\n")
+    run = _fabricate(block_stl, tmp_path / "out", "--inventory", tiny, "--inventory-only")
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--inventory-only: the owned parts cannot cover" in lines[0]
+    assert not (tmp_path / "out" / "layout.json").exists()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("Part,Color,Quantity\n3003,71,two\n")
+    run = _fabricate(block_stl, tmp_path / "out2", "--inventory", bad)
+    assert run.returncode == 2 and "bad.csv line 2:" in run.stderr
