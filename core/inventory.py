@@ -319,21 +319,29 @@ def fits(layout, stock: Stock) -> bool:
 def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bool]]:
     """Brick id -> (LDraw colour, owned) for the LEGO bricks of ``layout``.
 
-    Bottom layer first (then along x and y), each brick takes a colour of its design that
-    is still owned, the most plentiful first, so that one colour fills whole layers before
-    the next starts; bricks beyond what is owned of their design are bought in ``bought``."""
-    pool: dict[str, list[list[int]]] = {}
-    for (number, code), count in sorted(inventory.counts.items(), key=lambda kv: (-kv[1], kv[0])):
-        pool.setdefault(number, []).append([code, count])
+    Layer by layer from the bottom (then along x and y), each brick takes a colour of its
+    design that is still owned: one its layer already has, the most used there first, else
+    its design's most plentiful, so that a layer keeps to few colours and a colour fills
+    whole layers before the next starts.  Bricks beyond what is owned of their design are
+    bought in ``bought``.  The same layout and inventory give the same colours."""
+    left = dict(inventory.counts)
+    shades: dict[str, list[int]] = {}
+    for (number, code), count in sorted(left.items(), key=lambda kv: (-kv[1], kv[0])):
+        shades.setdefault(number, []).append(code)
     out: dict[int, tuple[int, bool]] = {}
+    layer, here = None, {}
     for b in sorted((b for b in layout.bricks if b.kind == "lego"),
                     key=lambda b: (b.cell[2], b.cell[0], b.cell[1], b.id)):
-        left = next((c for c in pool.get(b.part, ()) if c[1] > 0), None)
-        if left is None:
+        if b.cell[2] != layer:
+            layer, here = b.cell[2], {}
+        mine = [c for c in shades.get(b.part, ()) if left[(b.part, c)] > 0]
+        if not mine:
             out[b.id] = (bought, False)
-        else:
-            left[1] -= 1
-            out[b.id] = (left[0], True)
+            continue
+        code = max(mine, key=lambda c: (here.get(c, 0), left[(b.part, c)], -c))
+        left[(b.part, code)] -= 1
+        here[code] = here.get(code, 0) + 1
+        out[b.id] = (code, True)
     return out
 
 

@@ -295,3 +295,21 @@ def test_inventory_only_refuses_in_one_line(block_stl, tmp_path):
     bad.write_text("Part,Color,Quantity\n3003,71,two\n")
     run = _fabricate(block_stl, tmp_path / "out2", "--inventory", bad)
     assert run.returncode == 2 and "bad.csv line 2:" in run.stderr
+
+
+def test_colours_come_from_the_box_and_keep_a_layer_to_few():
+    # one layer: a 2x4 brick at x 0, a 2x2 brick at x 4, another 2x4 at x 6, a 2x2 at x 10.
+    # 2x2 bricks: 5 red, 2 black; 2x4 bricks: 3 black, 1 red.  By hand: the first 2x4 takes
+    # its most plentiful black, and every brick after it the layer's black; a second layer's
+    # 2x2 bricks then find no black 2x2 left and take red; its 1x1 plate, not in the box, is bought.
+    from core.inventory import Inventory, colour
+
+    grid = _grid(14, 2, 6)
+    bricks = [Brick(0, "3001", (4, 2, 3), (0, 0, 0)), Brick(1, "3003", (2, 2, 3), (4, 0, 0)),
+              Brick(2, "3001", (4, 2, 3), (6, 0, 0)), Brick(3, "3003", (2, 2, 3), (10, 0, 0)),
+              Brick(4, "3003", (2, 2, 3), (0, 0, 3)), Brick(5, "3003", (2, 2, 3), (2, 0, 3)),
+              Brick(6, "3024", (1, 1, 1), (4, 0, 3))]
+    box = Inventory({("3003", 4): 5, ("3003", 0): 2, ("3001", 0): 3, ("3001", 4): 1})
+    got = colour(Layout(grid, bricks), box, 71)
+    assert got == {0: (0, True), 1: (0, True), 2: (0, True), 3: (0, True),
+                   4: (4, True), 5: (4, True), 6: (71, False)}
