@@ -284,13 +284,13 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         relaxed = timed("layout_relaxed", 0.77, layout_stage.relaxed_layout, grid, cells, chosen,
                         req.seed)
         others = () if relaxed is None else (relaxed,)
-    bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, chosen)
+    bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, laying)
     layout = timed("improve", 0.78, improve_stage.improve, layout, laying, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
                    next_id=None if plan is None else plan.next_id, others=others, bound=bound,
                    stock=stock)
-    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound,
+    quality = improve_stage.layout_quality(greedy, layout, laying, timings, req.lower_bound,
                                            bound=bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
