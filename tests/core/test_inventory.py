@@ -313,3 +313,43 @@ def test_colours_come_from_the_box_and_keep_a_layer_to_few():
     got = colour(Layout(grid, bricks), box, 71)
     assert got == {0: (0, True), 1: (0, True), 2: (0, True), 3: (0, True),
                    4: (4, True), 5: (4, True), 6: (71, False)}
+
+
+def test_layout_json_with_colours_is_read_back_and_checked():
+    from core import layout_file
+
+    lay = Layout(_grid(4, 2, 6), [Brick(0, "3001", (4, 2, 3), (0, 0, 0)),
+                                  Brick(1, "3001", (4, 2, 3), (0, 0, 3))])
+    doc = layout_file.with_colours(lay.to_json(), {0: (4, True), 1: (71, False)})
+    assert [(b["colour"], b["owned"]) for b in doc["bricks"]] == [(4, True), (71, False)]
+    assert layout_file.with_colours(lay.to_json(), None) == lay.to_json()
+    assert len(layout_file.layout_from_document(json.loads(json.dumps(doc))).bricks) == 2
+    doc["bricks"][0]["colour"] = 123456
+    with pytest.raises(InputError, match="brick 0: colour must be an LDraw colour code"):
+        layout_file.layout_from_document(doc)
+    doc["bricks"][0]["colour"], doc["bricks"][1]["owned"] = 4, "yes"
+    with pytest.raises(InputError, match="brick 1: owned must be true or false"):
+        layout_file.layout_from_document(doc)
+
+
+def test_bom_counts_owned_and_to_buy_per_design_and_colour(tmp_path):
+    import csv
+
+    from core import bom
+    from core.inventory import Inventory
+
+    lay = Layout(_grid(4, 2, 6), [Brick(0, "3001", (4, 2, 3), (0, 0, 0)),
+                                  Brick(1, "3001", (4, 2, 3), (0, 0, 3))])
+    colouring = {0: (4, True), 1: (71, False)}
+    rows = list(csv.DictReader(open(bom.write_csv(bom.lines(lay, colouring=colouring),
+                                                  tmp_path / "bom.csv"))))
+    assert [(r["part"], r["color"], r["count"], r["owned"], r["to_buy"]) for r in rows] == [
+        ("3001", "Red", "1", "1", "0"), ("3001", "Light Bluish Grey", "1", "0", "1")]
+    box = Inventory({("3001", 4): 3})
+    prop = [{"step": 1, "removed_after": None, "parts": {"3001": 3}}]
+    # the prop's three 2x4 bricks: two left over in the box, one to buy in the bought colour
+    assert bom.to_buy(lay, colouring, box, 0, prop) == {("3001", 71): 1, ("3001", 0): 1}
+    xml = bom.write_wanted_list(lay, tmp_path / "b.xml", buying=bom.to_buy(lay, colouring, box, 0))
+    items = [(i.findtext("ITEMID"), i.findtext("COLOR"), i.findtext("MINQTY"))
+             for i in ET.parse(xml).getroot()]
+    assert items == [("3001", "86", "1")]
