@@ -151,7 +151,8 @@ def palette_codes(palette: str) -> tuple[int, ...]:
     return RANDOM_CODES if check_palette(palette) == "random" else (BOM_COLOR,)
 
 
-def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None,
+                  colouring: dict | None = None) -> np.ndarray:
     """LDraw colour code (n_bricks,) each brick of ``layout`` is drawn in with ``palette``.
 
     ``"bom"``: :func:`ordered_code`.  ``"random"``: LEGO bricks take a colour
@@ -159,12 +160,14 @@ def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None
     brick already took it (then the next free one), so neighbours differ
     where the palette allows; the same layout always gets the same colours.
     Printed bricks are :data:`PRINTED_COLOR` in both.  ``labels`` is
-    ``layout.labels()`` when the caller has it.  InputError for an unknown
-    palette.
+    ``layout.labels()`` when the caller has it.  With ``colouring`` (brick id -> (LDraw
+    colour, owned), the maker's own bricks of :func:`core.inventory.colour`) ``"bom"`` draws
+    each LEGO brick in its colour there.  InputError for an unknown palette.
     """
     check_palette(palette)
     n = len(layout.bricks)
-    codes = np.array([ordered_code(b) for b in layout.bricks], dtype=np.int64).reshape(n)
+    codes = np.array([ordered_code(b) if colouring is None or b.id not in colouring
+                      else colouring[b.id][0] for b in layout.bricks], dtype=np.int64).reshape(n)
     if palette == "bom" or n == 0:
         return codes
     labels = layout.labels() if labels is None else labels
@@ -192,10 +195,11 @@ def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None
     return codes
 
 
-def brick_colours(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+def brick_colours(layout, palette: str = "bom", labels: np.ndarray | None = None,
+                  colouring: dict | None = None) -> np.ndarray:
     """RGB (n_bricks, 3), 0..1, each brick of ``layout`` is drawn in with ``palette``
-    (the colours of :func:`display_codes`)."""
-    codes = display_codes(layout, palette, labels)
+    (the colours of :func:`display_codes`, with ``colouring``)."""
+    codes = display_codes(layout, palette, labels, colouring)
     table = {c: rgb(c) for c in set(codes.tolist())}
     return np.array([table[c] for c in codes.tolist()], dtype=float).reshape(len(codes), 3)
 

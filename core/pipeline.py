@@ -924,7 +924,9 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
         from core import render
         render.render_layout(fab.layout, tmp / "layout.png",
                              title=f"{title}: {len(fab.layout.bricks)} bricks",
-                             palette=fab.request.palette)
+                             palette=fab.request.palette,
+                             colours=None if fab.colouring is None or fab.request.palette != "bom"
+                             else colours.brick_colours(fab.layout, colouring=fab.colouring))
         if fab.forces is not None and fab.forces.utilisation:
             render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
                                  colours=colours.stress_rgb(

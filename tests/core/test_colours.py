@@ -142,3 +142,13 @@ def test_delta_e():
     assert colours.delta_e((1, 1, 1), (1, 1, 1)) == 0
     assert colours.delta_e((0, 0, 0), (1, 1, 1)) == pytest.approx(100, abs=0.1)
     assert colours.delta_e((1, 0, 0), (0, 1, 0)) > 100
+
+
+def test_a_makers_own_colours_are_drawn_in_the_bom_palette():
+    from core.model import Brick, Grid, Layout
+
+    grid = Grid(filled=np.ones((4, 2, 6), dtype=bool), origin=(0.0, 0.0, 0.0), cell=(8.0, 8.0, 3.2))
+    lay = Layout(grid, [Brick(0, "3001", (4, 2, 3), (0, 0, 0)), Brick(1, "3001", (4, 2, 3), (0, 0, 3))])
+    assert colours.display_codes(lay, colouring={0: (0, True), 1: (71, False)}).tolist() == [0, 71]
+    assert colours.display_codes(lay).tolist() == [71, 71]
+    assert colours.brick_colours(lay, colouring={0: (15, True)})[0].tolist() == [1.0, 1.0, 1.0]
