@@ -353,3 +353,38 @@ def test_bom_counts_owned_and_to_buy_per_design_and_colour(tmp_path):
     items = [(i.findtext("ITEMID"), i.findtext("COLOR"), i.findtext("MINQTY"))
              for i in ET.parse(xml).getroot()]
     assert items == [("3001", "86", "1")]
+
+
+#: Small plates and bricks only: no 2x4, 2x6 or 2x8 plate or brick.
+SMALL = ("3024", "3005", "3023", "3004", "3623", "3622", "3710", "3010", "3666", "3009", "3460",
+         "3008", "3022", "3003", "3021", "3002")
+
+
+@pytest.mark.slow
+def test_a_shared_model_from_small_parts_only(tmp_path):
+    from core import pipeline
+
+    model = ROOT.parent / "shared" / "models" / "phone_charger_stand.stl"
+    if not model.is_file():
+        pytest.skip(f"shared test models not found at {model.parent}")
+    box = tmp_path / "small.ldr"
+    box.write_text("".join(_line(c, f"{p}.dat") * 60 for p in SMALL for c in (71, 0)))
+    free = pipeline.run(model, slice_parts=False)
+    mine = pipeline.run(model, slice_parts=False, inventory=(str(box),), inventory_only=True)
+    lego = [b for b in mine.layout.bricks if b.kind == "lego"]
+    assert {b.part for b in lego} <= set(SMALL)
+    assert all(mine.colouring[b.id][1] for b in lego)
+    for (part, colour), n in used_by_colour(mine).items():
+        assert n <= 60 and colour in (71, 0)
+    assert len(mine.layout.bricks) <= 1.3 * len(free.layout.bricks)
+    assert mine.stability.components == free.stability.components == 1
+    assert mine.forces.stable == free.forces.stable
+
+
+def used_by_colour(fab) -> dict:
+    out: dict = {}
+    for b in fab.layout.bricks:
+        if b.kind == "lego":
+            key = (b.part, fab.colouring[b.id][0])
+            out[key] = out.get(key, 0) + 1
+    return out
