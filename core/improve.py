@@ -46,10 +46,10 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, component_labels, pairs_csr, regions
 from core.errors import InputError
+from core.inventory import BUY_COST, Stock, used as used_designs
 from core.lower_bound import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
                                _summed_volume, cover_matrix, fitting_boxes, more_time)
 from core.model import Brick, Layout
-from core.inventory import BUY_COST, Stock, used as used_designs
 from core.request import EFFORTS
 
 Progress = Callable[[float, str], None]
