@@ -320,14 +320,18 @@ def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bo
     """Brick id -> (LDraw colour, owned) for the LEGO bricks of ``layout``.
 
     Layer by layer from the bottom (then along x and y), each brick takes a colour of its
-    design that is still owned: one its layer already has, the most used there first, else
-    its design's most plentiful, so that a layer keeps to few colours and a colour fills
-    whole layers before the next starts.  Bricks beyond what is owned of their design are
-    bought in ``bought``.  The same layout and inventory give the same colours."""
+    design that is still owned: one the bricks around its printed part already have (where
+    it touches one, :func:`_around_printed`), else one its layer already has, the most used
+    there first, else its design's most plentiful; so a printed part's surroundings and a
+    layer keep to few colours, and a colour fills whole layers before the next starts.
+    Bricks beyond what is owned of their design are bought in ``bought``.  The same layout
+    and inventory give the same colours."""
     left = dict(inventory.counts)
     shades: dict[str, list[int]] = {}
     for (number, code), count in sorted(left.items(), key=lambda kv: (-kv[1], kv[0])):
         shades.setdefault(number, []).append(code)
+    around = _around_printed(layout)
+    near: dict[str, dict[int, int]] = {}
     out: dict[int, tuple[int, bool]] = {}
     layer, here = None, {}
     for b in sorted((b for b in layout.bricks if b.kind == "lego"),
@@ -338,10 +342,35 @@ def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bo
         if not mine:
             out[b.id] = (bought, False)
             continue
-        code = max(mine, key=lambda c: (here.get(c, 0), left[(b.part, c)], -c))
+        group = near.setdefault(around[b.id], {}) if b.id in around else {}
+        code = max(mine, key=lambda c: (group.get(c, 0), here.get(c, 0), left[(b.part, c)], -c))
         left[(b.part, code)] -= 1
         here[code] = here.get(code, 0) + 1
+        if b.id in around:
+            group[code] = group.get(code, 0) + 1
         out[b.id] = (code, True)
+    return out
+
+
+def _around_printed(layout) -> dict[int, str]:
+    """LEGO brick id -> the printed part it touches face to face (the first by name)."""
+    import numpy as np
+    from scipy import ndimage
+
+    names = sorted({b.printed_part for b in layout.bricks if b.kind == "printed" and b.printed_part})
+    if not names:
+        return {}
+    labels = layout.labels()
+    index = np.array([b.kind == "printed" for b in layout.bricks] + [True])
+    out: dict[int, str] = {}
+    for name in names:
+        mask = np.zeros(labels.shape, dtype=bool)
+        for b in layout.bricks:
+            if b.printed_part == name:
+                mask[b.slices()] = True
+        touched = np.unique(labels[ndimage.binary_dilation(mask) & ~mask])
+        for n in touched[~index[touched]].tolist():
+            out.setdefault(layout.bricks[n].id, name)
     return out
 
 
