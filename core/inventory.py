@@ -27,6 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
+import numpy as np
+from scipy import ndimage
+
 from core import colours
 from core.catalog import BY_NUMBER, Part
 from core.errors import InputError, shown_path
@@ -354,9 +357,6 @@ def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bo
 
 def _around_printed(layout) -> dict[int, str]:
     """LEGO brick id -> the printed part it touches face to face (the first by name)."""
-    import numpy as np
-    from scipy import ndimage
-
     names = sorted({b.printed_part for b in layout.bricks if b.kind == "printed" and b.printed_part})
     if not names:
         return {}
