@@ -11,12 +11,13 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: stages as the driver runs them (regions are read before the grid is fitted to them),
 #: then the exports, then the drivers and tools that use them all.  The exact-cover
 #: program (lower_bound) comes before the layout, which reads brick layers off its relaxation.
+#: The maker's inventory (read before any geometry) limits the layout and colours the outputs.
 ORDER = [
-    "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
+    "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "inventory", "connectivity", "brick_solids",
     "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "slice_cache", "print_time", "export", "render", "picture",
-    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
-    "iterate", "pipeline", "live_estimate", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
+    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region", "layout_file",
+    "iterate", "pipeline", "live_estimate", "watch", "calibration", "cli", "__main__", "__init__",
 ]
 
 
