@@ -319,7 +319,8 @@ def fits(layout, stock: Stock) -> bool:
     return stock.buy or stock.bought(used(layout)) == 0
 
 
-def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bool]]:
+def colour(layout, inventory: Inventory, bought: int,
+           kept: dict | None = None) -> dict[int, tuple[int, bool]]:
     """Brick id -> (LDraw colour, owned) for the LEGO bricks of ``layout``.
 
     Layer by layer from the bottom (then along x and y), each brick takes a colour of its
@@ -327,17 +328,25 @@ def colour(layout, inventory: Inventory, bought: int) -> dict[int, tuple[int, bo
     it touches one, :func:`_around_printed`), else one its layer already has, the most used
     there first, else its design's most plentiful; so a printed part's surroundings and a
     layer keep to few colours, and a colour fills whole layers before the next starts.
-    Bricks beyond what is owned of their design are bought in ``bought``.  The same layout
-    and inventory give the same colours."""
+    Bricks beyond what is owned of their design are bought in ``bought``.  ``kept`` (brick id
+    -> LDraw colour) are bricks an iteration keeps: already built, they keep their colour and
+    count as owned, taking their design and colour from the inventory first where it has
+    them.  The same layout, inventory and kept bricks give the same colours."""
     left = dict(inventory.counts)
+    out: dict[int, tuple[int, bool]] = {}
+    for b in layout.bricks:
+        if b.kind == "lego" and kept and b.id in kept:
+            key = (b.part, int(kept[b.id]))
+            if left.get(key, 0) > 0:
+                left[key] -= 1
+            out[b.id] = (key[1], True)
     shades: dict[str, list[int]] = {}
     for (number, code), count in sorted(left.items(), key=lambda kv: (-kv[1], kv[0])):
         shades.setdefault(number, []).append(code)
     around = _around_printed(layout)
     near: dict[str, dict[int, int]] = {}
-    out: dict[int, tuple[int, bool]] = {}
     layer, here = None, {}
-    for b in sorted((b for b in layout.bricks if b.kind == "lego"),
+    for b in sorted((b for b in layout.bricks if b.kind == "lego" and b.id not in out),
                     key=lambda b: (b.cell[2], b.cell[0], b.cell[1], b.id)):
         if b.cell[2] != layer:
             layer, here = b.cell[2], {}

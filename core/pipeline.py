@@ -342,8 +342,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
             order = dataclasses.replace(order, finished=timed(
                 "finished_with_props", 0.84, build_order.finished_with_props, layout, order, final.stands))
     layout = build_order.numbered(layout, order)
-    colouring = None if owned is None else inventory_stage.colour(layout, owned,
-                                                                  colours.by_name(req.colour))
+    colouring = None if owned is None else inventory_stage.colour(
+        layout, owned, colours.by_name(req.colour), _kept_colours(before, plan))
     iteration = None
     if before is not None:
         reprint = reprint or []
@@ -361,6 +361,20 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         fab = timed("print_time", 0.85, print_times, fab, slicing)
         fab.timings_s.update(timings)
     return fab
+
+
+def _kept_colours(before, plan) -> dict | None:
+    """Brick id -> LDraw colour of the bricks an iteration keeps, as the previous output's
+    ``layout.json`` coloured them (None: not an iteration, or no colours there)."""
+    path = None if before is None or plan is None else Path(before.folder) / "layout.json"
+    if path is None or not path.is_file():
+        return None
+    try:
+        known = layout_file.colouring_of(json.loads(path.read_text()))
+    except (ValueError, KeyError, TypeError):
+        return None
+    kept = set(plan.kept)
+    return {i: c for i, (c, _) in (known or {}).items() if i in kept} or None
 
 
 def _slicer_settings(req: Request) -> dict[str, str]:

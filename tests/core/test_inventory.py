@@ -406,3 +406,15 @@ def test_the_bricks_around_a_printed_part_keep_to_one_colour():
     box = Inventory({("3003", 15): 3, ("3003", 0): 3})
     got = colour(Layout(_grid(6, 2, 6), bricks), box, 71)
     assert got == {0: (0, True), 1: (0, True), 4: (0, True), 5: (15, True)}
+
+
+def test_bricks_an_iteration_keeps_keep_their_colour():
+    # brick 0 was built red; the box now has two black and one red 2x2 brick.  By hand: brick 0
+    # stays red and owned, taking the box's red; brick 1 takes black (the most plentiful
+    # left) and brick 2 black too; a kept brick in a colour the box lacks stays as it was.
+    from core.inventory import Inventory, colour
+
+    bricks = [Brick(n, "3003", (2, 2, 3), (2 * n, 0, 0)) for n in range(4)]
+    box = Inventory({("3003", 0): 2, ("3003", 4): 1})
+    got = colour(Layout(_grid(8, 2, 3), bricks), box, 71, kept={0: 4, 3: 14})
+    assert got == {0: (4, True), 1: (0, True), 2: (0, True), 3: (14, True)}
