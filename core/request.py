@@ -168,7 +168,8 @@ class Request:
         out of range: units not in :data:`UNITS`, an up axis not in :data:`UP_AXES`, a hollow setting not in -1..64, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
         palette :func:`core.colours.check_palette` refuses, an effort not in
-        :data:`EFFORTS`, a
+        :data:`EFFORTS`, ``inventory_only`` without an inventory, a ``colour``
+        :func:`core.colours.by_name` does not know, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
         where the model is loaded, :func:`core.mesh_io.load_model`).
         """
