@@ -393,3 +393,26 @@ def summary_words(block: dict) -> str:
     """The summary line of an inventory run: "N of M bricks from your inventory, K to buy"."""
     return (f"{block['from_inventory']} of {block['bricks']} bricks from your inventory, "
             f"{block['to_buy']} to buy")
+
+
+def colouring_of(document: dict) -> dict | None:
+    """Brick id -> (LDraw colour, owned) of the bricks of a ``layout.json`` document that
+    carry them (:func:`with_colours`), or None where none does."""
+    found = {int(b["id"]): (int(b["colour"]), bool(b.get("owned", False)))
+             for b in document.get("bricks", ()) if "colour" in b}
+    return found or None
+
+
+def with_colours(document: dict, colouring: dict | None) -> dict:
+    """A ``layout.json`` document with each LEGO brick's ``colour`` (LDraw code) and ``owned``
+    (from the maker's inventory) of ``colouring`` (brick id -> (code, owned); None: the
+    document as it is)."""
+    if colouring is None:
+        return document
+    bricks = []
+    for b in document["bricks"]:
+        b = dict(b)
+        if b["id"] in colouring:
+            b["colour"], b["owned"] = int(colouring[b["id"]][0]), bool(colouring[b["id"]][1])
+        bricks.append(b)
+    return {**document, "bricks": bricks}

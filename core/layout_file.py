@@ -211,26 +211,3 @@ def _wholes(value) -> tuple[int, int, int] | None:
         return None
     out = tuple(_whole(v) for v in value)
     return None if None in out else out
-
-
-def colouring_of(document: dict) -> dict | None:
-    """Brick id -> (LDraw colour, owned) of the bricks of a ``layout.json`` document that
-    carry them (:func:`with_colours`), or None where none does."""
-    found = {int(b["id"]): (int(b["colour"]), bool(b.get("owned", False)))
-             for b in document.get("bricks", ()) if "colour" in b}
-    return found or None
-
-
-def with_colours(document: dict, colouring: dict | None) -> dict:
-    """A ``layout.json`` document with each LEGO brick's ``colour`` (LDraw code) and ``owned``
-    (from the maker's inventory) of ``colouring`` (brick id -> (code, owned); None: the
-    document as it is)."""
-    if colouring is None:
-        return document
-    bricks = []
-    for b in document["bricks"]:
-        b = dict(b)
-        if b["id"] in colouring:
-            b["colour"], b["owned"] = int(colouring[b["id"]][0]), bool(colouring[b["id"]][1])
-        bricks.append(b)
-    return {**document, "bricks": bricks}

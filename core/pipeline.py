@@ -27,7 +27,7 @@ from core import build_order, catalog, colours, connectors as connectors_stage, 
 from core import changes_page, high_res as high_res_stage, hollow as hollow_stage
 from core import inventory as inventory_stage, iterate as iterate_stage
 from core import improve as improve_stage
-from core import layout as layout_stage, layout_file, result
+from core import layout as layout_stage, result
 from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
 from core import stability as stability_stage, voxelize
@@ -370,7 +370,7 @@ def _kept_colours(before, plan) -> dict | None:
     if path is None or not path.is_file():
         return None
     try:
-        known = layout_file.colouring_of(json.loads(path.read_text()))
+        known = inventory_stage.colouring_of(json.loads(path.read_text()))
     except (ValueError, KeyError, TypeError):
         return None
     kept = set(plan.kept)
@@ -885,10 +885,18 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     printed = [before.parts[p["id"]] for p in doc.get("printed_parts", ()) if p["id"] in before.parts]
     order = (build_order.BuildOrder.from_json(state["order"]) if "order" in state
              else build_order.plan(before.layout))
+    box = doc.get("inventory")
+    owned = None if not box else inventory_stage.Inventory(
+        {(r["part"], int(r["ldraw_color"])): int(r["count"]) for r in box.get("owned", ())},
+        tuple(box.get("ignored", ())))
+    if box:
+        req = req.replace(colour=box.get("bought_colour", req.colour),
+                          inventory_only=bool(box.get("inventory_only", False)))
     return Fabrication(req, model, chosen, before.grid, before.layout, stab,
                        order, dict(doc.get("timings_s", {})), printed,
                        regions=before.regions or high_res_stage.Regions(),
-                       marks=dict(doc.get("high_res", {})))
+                       marks=dict(doc.get("high_res", {})), inventory=owned,
+                       colouring=inventory_stage.colouring_of(state["layout"]) if box else None)
 
 
 def write_outputs(fab: Fabrication, out: str | os.PathLike,
@@ -932,7 +940,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
         seconds_per_part=fab.seconds_per_part, order=fab.order, colouring=fab.colouring,
         inventory=fab.inventory, bought=colours.by_name(fab.request.colour))
     (tmp / "layout.json").write_text(json.dumps(
-        layout_file.with_colours(fab.layout.to_json(), fab.colouring)))
+        inventory_stage.with_colours(fab.layout.to_json(), fab.colouring)))
     if fab.request.picture:
         progress(0.95, "picture")
         from core import render

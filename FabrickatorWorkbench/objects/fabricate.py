@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import FreeCAD as App
 
 from core import request as core_request
-from core import layout_file
+from core import inventory
 from core.errors import InputError, memory_shortage
 from core.interfaces import Fit
 from core.model import CELL_MM
@@ -443,7 +443,7 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     """Write the result's numbers and JSON into the Fabrication's properties."""
     fab, report = result.fab, result.report
     layout = fab.layout
-    obj.LayoutJson = json.dumps(layout_file.with_colours(layout.to_json(), fab.colouring))
+    obj.LayoutJson = json.dumps(inventory.with_colours(layout.to_json(), fab.colouring))
     obj.ReportJson = json.dumps(report)
     from core import pipeline
 

@@ -32,7 +32,7 @@ from collections import defaultdict
 
 import FreeCAD as App
 
-from core import layout_file
+from core.inventory import colouring_of
 from core.catalog import BY_NUMBER
 from core.colours import brick_colours, palette_codes, rgb as code_rgb
 from core.model import Grid, Layout
@@ -306,7 +306,7 @@ def clear_changes(fab) -> int:
     protos_touched = []
     if marked:
         layout = stored_layout(fab)
-        own = layout_file.colouring_of(json.loads(fab.LayoutJson))
+        own = colouring_of(json.loads(fab.LayoutJson))
         rgb = {b.id: tuple(float(c) for c in colour)
                for b, colour in zip(layout.bricks, brick_colours(layout, preferences.palette(),
                                                                  layout.labels(), own))}

@@ -280,6 +280,12 @@ def test_the_cli_lays_out_from_the_box_in_every_format(block_stl, tmp_path):
         report = json.loads((out / "report.json").read_text())
         assert report["stability"]["components"] == report["stability"]["regions"] == 1
     assert layouts[0] == layouts[1] == layouts[2]
+    # written again from the stored result (as the workbench exports): the same files
+    from core import pipeline
+
+    pipeline.write_outputs(pipeline.stored(out, report), tmp_path / "again", report_doc=report)
+    for name in ("layout.json", "bom.csv", "bricklink.xml", "assembly.mpd"):
+        assert (tmp_path / "again" / name).read_bytes() == (out / name).read_bytes(), name
 
 
 @pytest.mark.slow
@@ -317,12 +323,14 @@ def test_colours_come_from_the_box_and_keep_a_layer_to_few():
 
 def test_layout_json_with_colours_is_read_back_and_checked():
     from core import layout_file
+    from core.inventory import colouring_of, with_colours
 
     lay = Layout(_grid(4, 2, 6), [Brick(0, "3001", (4, 2, 3), (0, 0, 0)),
                                   Brick(1, "3001", (4, 2, 3), (0, 0, 3))])
-    doc = layout_file.with_colours(lay.to_json(), {0: (4, True), 1: (71, False)})
+    doc = with_colours(lay.to_json(), {0: (4, True), 1: (71, False)})
     assert [(b["colour"], b["owned"]) for b in doc["bricks"]] == [(4, True), (71, False)]
-    assert layout_file.with_colours(lay.to_json(), None) == lay.to_json()
+    assert colouring_of(doc) == {0: (4, True), 1: (71, False)}
+    assert with_colours(lay.to_json(), None) == lay.to_json() and colouring_of(lay.to_json()) is None
     assert len(layout_file.layout_from_document(json.loads(json.dumps(doc))).bricks) == 2
     doc["bricks"][0]["colour"] = 123456
     with pytest.raises(InputError, match="brick 0: colour must be an LDraw colour code"):

@@ -16,8 +16,8 @@ ORDER = [
     "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "inventory", "connectivity", "brick_solids",
     "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "slice_cache", "print_time", "export", "render", "picture",
-    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region", "layout_file",
-    "iterate", "pipeline", "live_estimate", "watch", "calibration", "cli", "__main__", "__init__",
+    "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
+    "iterate", "pipeline", "live_estimate", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
 ]
 
 
