@@ -137,7 +137,7 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
-                            "clutch_n", "hollow"),
+                            "clutch_n", "hollow", "inventory", "inventory_only", "colour"),
                         units=request.UNITS)
 
 
@@ -294,7 +294,8 @@ class _Guarded:
 
 #: The path options of fabricate and watch: flag (as messages name it), argparse dest.
 PATH_OPTIONS = (("MODEL", "model"), ("FOLDER", "folder"), ("--out", "out"),
-                ("--previous", "previous"), ("--high-res-solid", "high_res_solids"))
+                ("--previous", "previous"), ("--high-res-solid", "high_res_solids"),
+                ("--inventory", "inventory"))
 
 
 def _check_paths(args, out_name_checked: bool = False) -> None:
@@ -587,6 +588,12 @@ def _summary(doc: dict, out) -> None:
           f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
           f"{st['components']} component(s) for {st['regions']} region(s), "
           f"{st['weak_points']} weak point(s); written to {out}")
+    if doc.get("inventory"):
+        from core.inventory import summary_words
+        print(summary_words(doc["inventory"])
+              + (f"; {doc['inventory']['ignored_parts']} owned part(s) ignored (not plates or "
+                 f"bricks of the catalog, report.json inventory.ignored)"
+                 if doc["inventory"]["ignored_parts"] else ""))
     bound = improve.bound_words(doc.get("layout_quality") or {})
     if bound:
         print(bound)

@@ -32,22 +32,40 @@ import numpy as np
 
 from core.errors import InputError
 
-#: LDraw colour code -> (LDraw name, BrickLink colour id, BrickLink name, RGB hex)
-#: (LDraw's LDConfig.ldr and BrickLink's colour guide).
+#: LDraw colour code -> (LDraw name, BrickLink colour id, BrickLink name, RGB hex,
+#: Rebrickable colour id) (LDraw's LDConfig.ldr, BrickLink's colour guide and Rebrickable's
+#: colour list; Rebrickable numbers its solid colours as LDraw does).
 COLORS = {
-    71: ("Light Bluish Grey", 86, "Light Bluish Gray", "#A0A5A9"),
-    25: ("Orange", 4, "Orange", "#FE8A18"),
-    4: ("Red", 5, "Red", "#C91A09"),
-    1: ("Blue", 7, "Blue", "#0055BF"),
-    14: ("Yellow", 3, "Yellow", "#F2CD37"),
-    2: ("Green", 6, "Green", "#237841"),
-    322: ("Medium Azure", 156, "Medium Azure", "#36AEBF"),
-    27: ("Lime", 34, "Lime", "#BBE90B"),
-    320: ("Dark Red", 59, "Dark Red", "#720E0F"),
-    19: ("Tan", 2, "Tan", "#E4CD9E"),
-    73: ("Medium Blue", 42, "Medium Blue", "#5A93DB"),
-    29: ("Bright Pink", 104, "Bright Pink", "#E4ADC8"),
-    151: ("Sand Green", 48, "Sand Green", "#A0BCAC"),
+    71: ("Light Bluish Grey", 86, "Light Bluish Gray", "#A0A5A9", 71),
+    25: ("Orange", 4, "Orange", "#FE8A18", 25),
+    4: ("Red", 5, "Red", "#C91A09", 4),
+    1: ("Blue", 7, "Blue", "#0055BF", 1),
+    14: ("Yellow", 3, "Yellow", "#F2CD37", 14),
+    2: ("Green", 6, "Green", "#237841", 2),
+    322: ("Medium Azure", 156, "Medium Azure", "#36AEBF", 322),
+    27: ("Lime", 34, "Lime", "#BBE90B", 27),
+    320: ("Dark Red", 59, "Dark Red", "#720E0F", 320),
+    19: ("Tan", 2, "Tan", "#E4CD9E", 19),
+    73: ("Medium Blue", 42, "Medium Blue", "#5A93DB", 73),
+    29: ("Bright Pink", 104, "Bright Pink", "#E4ADC8", 29),
+    151: ("Sand Green", 48, "Sand Green", "#A0BCAC", 151),
+    0: ("Black", 11, "Black", "#05131D", 0),
+    15: ("White", 1, "White", "#FFFFFF", 15),
+    72: ("Dark Bluish Grey", 85, "Dark Bluish Gray", "#6C6E68", 72),
+    70: ("Reddish Brown", 88, "Reddish Brown", "#582A12", 70),
+    28: ("Dark Tan", 69, "Dark Tan", "#958A73", 28),
+    272: ("Dark Blue", 63, "Dark Blue", "#0A3463", 272),
+    288: ("Dark Green", 80, "Dark Green", "#184632", 288),
+    10: ("Bright Green", 36, "Bright Green", "#4B9F4A", 10),
+    484: ("Dark Orange", 68, "Dark Orange", "#A95500", 484),
+    191: ("Bright Light Orange", 110, "Bright Light Orange", "#F8BB3D", 191),
+    226: ("Bright Light Yellow", 103, "Bright Light Yellow", "#FFF03A", 226),
+    308: ("Dark Brown", 120, "Dark Brown", "#352100", 308),
+    379: ("Sand Blue", 55, "Sand Blue", "#6074A1", 379),
+    212: ("Bright Light Blue", 105, "Bright Light Blue", "#9FC3E9", 212),
+    7: ("Light Grey", 9, "Light Gray", "#9BA19D", 7),
+    8: ("Dark Grey", 10, "Dark Gray", "#6D6E5C", 8),
+    6: ("Brown", 8, "Brown", "#583927", 6),
 }
 
 #: The colour the bill of materials orders for every LEGO brick (Light Bluish Grey).
@@ -67,6 +85,42 @@ def check_palette(palette: str) -> str:
     if palette not in PALETTES:
         raise InputError(f"--palette {palette!r} must be one of {', '.join(PALETTES)}")
     return palette
+
+
+def rebrickable_id(code: int) -> int:
+    """Rebrickable colour id of LDraw colour ``code`` (one of :data:`COLORS`)."""
+    return COLORS[code][4]
+
+
+def from_ldraw(number: int) -> int | None:
+    """The colour of LDraw code ``number``, or None where :data:`COLORS` does not know it."""
+    return number if number in COLORS else None
+
+
+def from_rebrickable(number: int) -> int | None:
+    """The LDraw code of Rebrickable colour id ``number``, or None where unknown."""
+    return next((c for c, row in COLORS.items() if row[4] == number), None)
+
+
+def from_bricklink(number: int) -> int | None:
+    """The LDraw code of BrickLink colour id ``number``, or None where unknown."""
+    return next((c for c, row in COLORS.items() if row[1] == number), None)
+
+
+def _words(text: str) -> str:
+    return "".join(ch for ch in str(text).lower().replace("gray", "grey") if ch.isalnum())
+
+
+def by_name(text: str) -> int:
+    """The LDraw code of the colour called ``text``: its LDraw or BrickLink name (case,
+    spaces and grey/gray do not matter) or its LDraw code; InputError naming a few choices
+    otherwise."""
+    word = _words(text)
+    for code, row in COLORS.items():
+        if word in (_words(row[0]), _words(row[2]), str(code)):
+            return code
+    raise InputError(f"--colour {text!r} is not a colour Fabrickator knows: use an LDraw or "
+                     f"BrickLink name such as Light Bluish Grey, Black, White, Red")
 
 
 def rgb(code: int) -> tuple[float, float, float]:
@@ -97,7 +151,8 @@ def palette_codes(palette: str) -> tuple[int, ...]:
     return RANDOM_CODES if check_palette(palette) == "random" else (BOM_COLOR,)
 
 
-def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None,
+                  colouring: dict | None = None) -> np.ndarray:
     """LDraw colour code (n_bricks,) each brick of ``layout`` is drawn in with ``palette``.
 
     ``"bom"``: :func:`ordered_code`.  ``"random"``: LEGO bricks take a colour
@@ -105,12 +160,14 @@ def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None
     brick already took it (then the next free one), so neighbours differ
     where the palette allows; the same layout always gets the same colours.
     Printed bricks are :data:`PRINTED_COLOR` in both.  ``labels`` is
-    ``layout.labels()`` when the caller has it.  InputError for an unknown
-    palette.
+    ``layout.labels()`` when the caller has it.  With ``colouring`` (brick id -> (LDraw
+    colour, owned), the maker's own bricks of :func:`core.inventory.colour`) ``"bom"`` draws
+    each LEGO brick in its colour there.  InputError for an unknown palette.
     """
     check_palette(palette)
     n = len(layout.bricks)
-    codes = np.array([ordered_code(b) for b in layout.bricks], dtype=np.int64).reshape(n)
+    codes = np.array([ordered_code(b) if colouring is None or b.id not in colouring
+                      else colouring[b.id][0] for b in layout.bricks], dtype=np.int64).reshape(n)
     if palette == "bom" or n == 0:
         return codes
     labels = layout.labels() if labels is None else labels
@@ -138,10 +195,11 @@ def display_codes(layout, palette: str = "bom", labels: np.ndarray | None = None
     return codes
 
 
-def brick_colours(layout, palette: str = "bom", labels: np.ndarray | None = None) -> np.ndarray:
+def brick_colours(layout, palette: str = "bom", labels: np.ndarray | None = None,
+                  colouring: dict | None = None) -> np.ndarray:
     """RGB (n_bricks, 3), 0..1, each brick of ``layout`` is drawn in with ``palette``
-    (the colours of :func:`display_codes`)."""
-    codes = display_codes(layout, palette, labels)
+    (the colours of :func:`display_codes`, with ``colouring``)."""
+    codes = display_codes(layout, palette, labels, colouring)
     table = {c: rgb(c) for c in set(codes.tolist())}
     return np.array([table[c] for c in codes.tolist()], dtype=float).reshape(len(codes), 3)
 

@@ -24,7 +24,8 @@ from typing import Callable
 import numpy as np
 
 from core import catalog, colours, forces as forces_stage, grid_fit
-from core import high_res as high_res_stage, hollow as hollow_stage, iterate as iterate_stage
+from core import high_res as high_res_stage, hollow as hollow_stage
+from core import inventory as inventory_stage, iterate as iterate_stage
 from core import result, stability as stability_stage, voxelize
 from core.errors import InputError
 from core.instructions import build_order, changes_page
@@ -74,6 +75,8 @@ class Fabrication:
     warnings: list[str] = field(default_factory=list)
     hollowing: hollow_stage.Hollowing | None = None
     layout_quality: dict = field(default_factory=dict)
+    inventory: inventory_stage.Inventory | None = None
+    colouring: dict | None = None
 
     @property
     def seed(self) -> int:
@@ -189,6 +192,10 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         return value
 
     chosen = catalog.select(req.parts)
+    owned = timed("inventory", 0.0, inventory_stage.read, req.inventory) if req.inventory else None
+    stock = None if owned is None else inventory_stage.Stock(owned.owned(chosen),
+                                                             buy=not req.inventory_only)
+    laying = chosen if stock is None or stock.buy else inventory_stage.usable(chosen, stock)
     model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale,
                   up=req.up)
     loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale, up=req.up)
@@ -247,15 +254,21 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         cells_ = high_res_stage.anchor(grid_, marked_) if req.connectors else marked_
         lay = layout_stage.lay_out_around if cells_.any() else layout_stage.lay_out
         extra = (cells_,) if cells_.any() else ()
-        return marked_, cells_, timed(name, span[0], lay, grid_, *extra, chosen, seed=req.seed,
-                                      progress=within(progress, *span))
+        laid = timed(name, span[0], lay, grid_, *extra, laying, seed=req.seed,
+                     progress=within(progress, *span))
+        if stock is not None:
+            laid = timed(name + "_stock", span[1], layout_stage.fit_stock, laid, chosen, stock)
+        return marked_, cells_, laid
 
     plan = rings = None
     if before is not None:
         marked = timed("high_res", 0.3, regions.cells, grid)
         cells = high_res_stage.anchor(grid, marked) if req.connectors else marked
         (layout, plan, rings) = timed("layout", 0.4, iterate_stage.lay_out, before, diff, cells,
-                                      chosen, req.seed)
+                                      laying, req.seed)
+        if stock is not None:
+            layout = timed("layout_stock", 0.45, layout_stage.fit_stock, layout, chosen, stock,
+                           plan.kept)
     else:
         marked, cells, layout = fresh_layout(grid, "layout")
         largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in chosen)
@@ -269,24 +282,26 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
             hollowing = hollow_stage.judged(hollowing, len(layout.bricks), largest)
     greedy = layout
     others = ()
-    if before is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start:
+    if before is None and stock is None and improve_stage.EFFORT_LEVELS[req.effort].relaxed_start:
         relaxed = timed("layout_relaxed", 0.77, layout_stage.relaxed_layout, grid, cells, chosen,
                         req.seed)
         others = () if relaxed is None else (relaxed,)
-    bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, chosen)
-    layout = timed("improve", 0.78, improve_stage.improve, layout, chosen, req.effort, req.seed,
+    bound = timed("early_bound", 0.78, improve_stage.early_bound, grid, laying)
+    layout = timed("improve", 0.78, improve_stage.improve, layout, laying, req.effort, req.seed,
                    within(progress, 0.78, 0.8),
                    frozen=None if plan is None else plan.kept, apart=cells,
-                   next_id=None if plan is None else plan.next_id, others=others, bound=bound)
-    quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound,
+                   next_id=None if plan is None else plan.next_id, others=others, bound=bound,
+                   stock=stock)
+    quality = improve_stage.layout_quality(greedy, layout, laying, timings, req.lower_bound,
                                            bound=bound)
     warnings = _unmarked(given, grid, req, marked.any())
     reinforced = None
     if before is None:
-        reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, chosen, req.ground,
+        reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, laying, req.ground,
                            req.loads, req.clutch_n, cells, req.seed,
                            checked_again=bool(cells.any() or req.high_res_bricks))
-        layout = reinforced.layout
+        if stock is None or inventory_stage.fits(reinforced.layout, stock):
+            layout = reinforced.layout
 
     ids = high_res_stage.touched_bricks(layout, cells) + high_res_stage.check_ids(layout, req.high_res_bricks)
     if req.high_res_bricks:
@@ -329,6 +344,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
             order = dataclasses.replace(order, finished=timed(
                 "finished_with_props", 0.84, build_order.finished_with_props, layout, order, final.stands))
     layout = build_order.numbered(layout, order)
+    colouring = None if owned is None else inventory_stage.colour(
+        layout, owned, colours.by_name(req.colour), _kept_colours(before, plan))
     iteration = None
     if before is not None:
         reprint = reprint or []
@@ -341,11 +358,25 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                              "anchor_cells": int(np.count_nonzero(cells & ~marked))},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
                       forces=force, reinforced=reinforced, hollowing=hollowing,
-                      layout_quality=quality)
+                      layout_quality=quality, inventory=owned, colouring=colouring)
     if fab.to_print and req.slice_parts:
         fab = timed("print_time", 0.85, print_times, fab, slicing)
         fab.timings_s.update(timings)
     return fab
+
+
+def _kept_colours(before, plan) -> dict | None:
+    """Brick id -> LDraw colour of the bricks an iteration keeps, as the previous output's
+    ``layout.json`` coloured them (None: not an iteration, or no colours there)."""
+    path = None if before is None or plan is None else Path(before.folder) / "layout.json"
+    if path is None or not path.is_file():
+        return None
+    try:
+        known = inventory_stage.colouring_of(json.loads(path.read_text()))
+    except (ValueError, KeyError, TypeError):
+        return None
+    kept = set(plan.kept)
+    return {i: c for i, (c, _) in (known or {}).items() if i in kept} or None
 
 
 def _slicer_settings(req: Request) -> dict[str, str]:
@@ -742,6 +773,10 @@ def report(fab: Fabrication) -> dict:
         "notes": list(fab.notes),
         "warnings": list(fab.warnings),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
+        **({} if fab.inventory is None else {"inventory": {
+            **inventory_stage.summary(fab.colouring), "inventory_only": fab.request.inventory_only,
+            "bought_colour": colours.name(colours.by_name(fab.request.colour)),
+            **fab.inventory.to_json()}}),
     }
 
 
@@ -852,10 +887,18 @@ def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     printed = [before.parts[p["id"]] for p in doc.get("printed_parts", ()) if p["id"] in before.parts]
     order = (build_order.BuildOrder.from_json(state["order"]) if "order" in state
              else build_order.plan(before.layout))
+    box = doc.get("inventory")
+    owned = None if not box else inventory_stage.Inventory(
+        {(r["part"], int(r["ldraw_color"])): int(r["count"]) for r in box.get("owned", ())},
+        tuple(box.get("ignored", ())))
+    if box:
+        req = req.replace(colour=box.get("bought_colour", req.colour),
+                          inventory_only=bool(box.get("inventory_only", False)))
     return Fabrication(req, model, chosen, before.grid, before.layout, stab,
                        order, dict(doc.get("timings_s", {})), printed,
                        regions=before.regions or high_res_stage.Regions(),
-                       marks=dict(doc.get("high_res", {})))
+                       marks=dict(doc.get("high_res", {})), inventory=owned,
+                       colouring=inventory_stage.colouring_of(state["layout"]) if box else None)
 
 
 def write_outputs(fab: Fabrication, out: str | os.PathLike,
@@ -896,14 +939,18 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     from core.instructions import page as instructions
     assembly = instructions.write_assembly(
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
-        seconds_per_part=fab.seconds_per_part, order=fab.order)
-    (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
+        seconds_per_part=fab.seconds_per_part, order=fab.order, colouring=fab.colouring,
+        inventory=fab.inventory, bought=colours.by_name(fab.request.colour))
+    (tmp / "layout.json").write_text(json.dumps(
+        inventory_stage.with_colours(fab.layout.to_json(), fab.colouring)))
     if fab.request.picture:
         progress(0.95, "picture")
         from core.instructions import render
         render.render_layout(fab.layout, tmp / "layout.png",
                              title=f"{title}: {len(fab.layout.bricks)} bricks",
-                             palette=fab.request.palette)
+                             palette=fab.request.palette,
+                             colours=None if fab.colouring is None or fab.request.palette != "bom"
+                             else colours.brick_colours(fab.layout, colouring=fab.colouring))
         if fab.forces is not None and fab.forces.utilisation:
             render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
                                  colours=colours.stress_rgb(
@@ -929,7 +976,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
 
 def _inputs(req: Request) -> list[str]:
     """The files a run of ``req`` reads (an output folder must not hold them)."""
-    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else [])]
+    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else []),
+            *req.inventory]
 
 
 def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:

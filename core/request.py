@@ -17,7 +17,7 @@ import os
 import re
 from dataclasses import dataclass, field
 
-from core.colours import check_palette
+from core.colours import by_name, check_palette
 from core.errors import InputError
 from core.model import UNITS, UP_AXES, Load
 from core.parts.interfaces import Fit
@@ -129,6 +129,14 @@ class Request:
     loads: tuple = _setting((), "a mass resting on the bricks a box touches (model mm), e.g. the "
                                 "phone in a headset: X0,Y0,Z0,X1,Y1,Z1:GRAMS (repeatable)",
                             "--load", "X0,Y0,Z0,X1,Y1,Z1:GRAMS")
+    inventory: tuple = _setting((), "the LEGO parts you own: a Rebrickable parts CSV, a BrickLink XML "
+                                    "inventory or an LDraw .ldr/.mpd (repeatable, summed); the layout "
+                                    "uses them first and buys only what they cannot do",
+                                "--inventory", "FILE")
+    inventory_only: bool = _setting(False, "build only from the --inventory parts, or stop naming "
+                                           "the cells they cannot cover", "--inventory-only")
+    colour: str = _setting("Light Bluish Grey", "colour of the bricks to buy (an LDraw or BrickLink "
+                                                "name)", "--colour", "NAME")
     clutch_n: float = _setting(0.98, "tension one stud contact point holds, N (a LEGO stud is "
                                      "gripped at 3 points under 2-wide bricks, 4 under 1-wide)",
                                "--clutch", "N")
@@ -152,7 +160,8 @@ class Request:
         out of range: units not in :data:`UNITS`, an up axis not in :data:`UP_AXES`, a hollow setting not in -1..64, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
         palette :func:`core.colours.check_palette` refuses, an effort not in
-        :data:`EFFORTS`, a
+        :data:`EFFORTS`, ``inventory_only`` without an inventory, a ``colour``
+        :func:`core.colours.by_name` does not know, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
         where the model is loaded, :func:`core.io.meshes.load_model`).
         """
@@ -194,12 +203,16 @@ class Request:
                              "(solid) to 64, or -1 (automatic)")
         if self.effort not in EFFORTS:
             raise InputError(f"--effort {self.effort!r} must be one of {', '.join(EFFORTS)}")
+        if self.inventory_only and not self.inventory:
+            raise InputError("--inventory-only needs the parts you own: give --inventory FILE")
+        by_name(self.colour)
         return dataclasses.replace(
             self, model=os.fspath(self.model), scale=float(self.scale),
             high_res=tuple(self.high_res), high_res_solids=tuple(map(os.fspath, self.high_res_solids)),
             high_res_bricks=tuple(self.high_res_bricks), part_edits=tuple(self.part_edits),
             stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit),
             loads=tuple(str(x) for x in self.loads), clutch_n=float(self.clutch_n),
+            inventory=tuple(map(os.fspath, self.inventory)),
             seconds_per_brick=float(self.seconds_per_brick),
             seconds_per_part=float(self.seconds_per_part),
             profile=None if self.profile is None else os.fspath(self.profile),

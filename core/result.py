@@ -22,6 +22,7 @@ import trimesh
 
 from core import high_res
 from core.errors import InputError, check_path, shown_path
+from core.inventory import with_colours
 from core.model import Grid, Layout
 from core.parts import printed as printed_stage
 
@@ -67,7 +68,7 @@ def snapshot(fab, folder: str | os.PathLike) -> Path:
         "version": SNAPSHOT_VERSION,
         "model": {"path": str(model.path), "format": model.format,
                   "watertight": bool(model.watertight), "brep": model.brep is not None},
-        "layout": fab.layout.to_json(),
+        "layout": with_colours(fab.layout.to_json(), getattr(fab, "colouring", None)),
         "stability": {"regions": st.regions, "components": st.components,
                       "weak_points": list(st.weak_points)},
         "brick_set": [p.number for p in fab.parts],

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import FreeCAD as App
 
-from core import request as core_request
+from core import inventory, request as core_request
 from core.errors import InputError, memory_shortage
 from core.model import CELL_MM
 from core.parts.interfaces import Fit
@@ -32,7 +32,7 @@ from FabrickatorWorkbench.objects import high_res_region, load, tree
 #: kept in ``LastGood`` and put back when a recompute fails.
 PARAMETERS = ("BrickSet", "StudFit", "SocketFit", "Seed", "Scale", "Effort", "LowerBound",
               "SecondsPerBrick", "SecondsPerPart", "SlicePrintTimes", "FitGrid", "Ground",
-              "Clutch", "Hollow")
+              "Clutch", "Hollow", "Inventory", "InventoryOnly", "BuyColour")
 
 
 #: Milliseconds the status bar says that a recompute was stopped with Esc.
@@ -184,7 +184,9 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         effort=str(obj.Effort), lower_bound=bool(obj.LowerBound),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
-        clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale)).checked()
+        clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale),
+        inventory=tuple(str(p) for p in obj.Inventory if str(p).strip()),
+        inventory_only=bool(obj.InventoryOnly), colour=str(obj.BuyColour)).checked()
 
 
 def load_texts(obj, scale: float) -> tuple[str, ...]:
@@ -440,7 +442,7 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     """Write the result's numbers and JSON into the Fabrication's properties."""
     fab, report = result.fab, result.report
     layout = fab.layout
-    obj.LayoutJson = json.dumps(layout.to_json())
+    obj.LayoutJson = json.dumps(inventory.with_colours(layout.to_json(), fab.colouring))
     obj.ReportJson = json.dumps(report)
     from core import pipeline
 

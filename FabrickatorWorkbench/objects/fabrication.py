@@ -62,6 +62,16 @@ PROPERTIES = (
     Prop("App::PropertyString", "BrickSet", "Fabrication",
          QT("App::Property", "Bricks to use: all, plates, bricks, design numbers (3001,3024) "
                              "or names like plate2x4; must contain the 1x1 plate 3024"), "all"),
+    Prop("App::PropertyStringList", "Inventory", "Fabrication",
+         QT("App::Property", "Files of the LEGO parts you own (Rebrickable CSV, BrickLink XML or "
+                             "LDraw .ldr/.mpd), used first and in their colours; empty: every "
+                             "brick is bought")),
+    Prop("App::PropertyBool", "InventoryOnly", "Fabrication",
+         QT("App::Property", "Build only from the Inventory's parts, or fail naming the cells "
+                             "they cannot cover"), partial(setting_default, "inventory_only")),
+    Prop("App::PropertyString", "BuyColour", "Fabrication",
+         QT("App::Property", "Colour of the bricks to buy (an LDraw or BrickLink name)"),
+         partial(setting_default, "colour")),
     Prop("App::PropertyDistance", "StudFit", "Fabrication",
          QT("App::Property", "Printed studs are 4.8 mm + this across (signed; larger clamps "
                              "tighter); find your printer's value with the Calibration strip"),

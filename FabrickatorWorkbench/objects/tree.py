@@ -34,6 +34,7 @@ import FreeCAD as App
 
 from core.catalog import BY_NUMBER
 from core.colours import brick_colours, palette_codes, rgb as code_rgb
+from core.inventory import colouring_of
 from core.model import Grid, Layout
 from FabrickatorWorkbench import bridge, preferences
 from FabrickatorWorkbench.objects import prototype as prototypes_module
@@ -220,7 +221,8 @@ def sync(fab, result) -> tuple[int, int]:
     doc = fab.Document
     layout = result.fab.layout
     palette = preferences.palette()
-    colours = brick_colours(layout, palette, layout.labels())
+    colours = brick_colours(layout, palette, layout.labels(),
+                            getattr(result.fab, "colouring", None))
     shown = {rgb_key(code_rgb(code)) for code in palette_codes(palette)}
     had_layout = bool(fab.LayoutJson) and getattr(result, "marks", True)
     by_id = result.report.get("changes") is not None
@@ -304,9 +306,10 @@ def clear_changes(fab) -> int:
     protos_touched = []
     if marked:
         layout = stored_layout(fab)
+        own = colouring_of(json.loads(fab.LayoutJson))
         rgb = {b.id: tuple(float(c) for c in colour)
                for b, colour in zip(layout.bricks, brick_colours(layout, preferences.palette(),
-                                                                 layout.labels()))}
+                                                                 layout.labels(), own))}
         protos = Prototypes(fab.Document)
         for obj in marked:
             obj.Changed = False

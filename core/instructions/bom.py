@@ -16,6 +16,12 @@ XML format: no XML declaration, ``INVENTORY`` of ``ITEM`` s with
 ``ITEMTYPE`` P, ``ITEMID`` the design number, ``COLOR`` the BrickLink colour
 id and ``MINQTY``) of the LEGO bricks still missing after what the user
 ``owned`` (the props' parts included).
+
+With an inventory (``colouring``: brick id -> (LDraw colour, owned), from
+:func:`core.inventory.colour`) each brick is counted in its own colour, ``bom.csv`` gains the
+columns :data:`INVENTORY_COLUMNS` (per design and colour: how many come from the inventory,
+how many to buy) and ``bricklink.xml`` lists only what is to buy, in BrickLink colour ids; a
+prop's parts come first from the owned parts the build leaves over.
 """
 
 from __future__ import annotations
@@ -34,6 +40,8 @@ from core.model import Layout
 #: Columns of bom.csv, in order.
 COLUMNS = ("kind", "part", "name", "color", "ldraw_color", "bricklink_color", "count",
            "bricks_replaced", "volume_mm3", "print_s", "print_method", "file")
+#: The columns bom.csv gains with an inventory: of ``count`` (needed), owned and to buy.
+INVENTORY_COLUMNS = ("owned", "to_buy")
 
 
 @dataclass
@@ -52,14 +60,16 @@ class BomLine:
     print_s: float | None = None
     print_method: str = ""
     file: str = ""
+    owned: int | None = None
 
     def row(self) -> list:
+        extra = [] if self.owned is None else [self.owned, self.count - self.owned]
         return [self.kind, self.part, self.name, self.color, self.ldraw_color,
                 "" if self.bricklink_color is None else self.bricklink_color, self.count,
                 "" if self.bricks_replaced is None else self.bricks_replaced,
                 "" if self.volume_mm3 is None else f"{self.volume_mm3:.1f}",
                 "" if self.print_s is None else f"{self.print_s:.0f}",
-                self.print_method, self.file]
+                self.print_method, self.file] + extra
 
 
 def lego_counts(layout: Layout) -> dict[str, int]:
@@ -71,15 +81,45 @@ def lego_counts(layout: Layout) -> dict[str, int]:
     return counts
 
 
-def lego_colour_counts(layout: Layout) -> dict[tuple[str, int], int]:
+def lego_colour_counts(layout: Layout, colouring: dict | None = None) -> dict[tuple[str, int], int]:
     """(design number, LDraw colour) -> number of LEGO bricks of it in ``layout``, in the
-    colour each is ordered in (:func:`core.colours.ordered_code`)."""
+    colour each is ordered in (:func:`core.colours.ordered_code`, or ``colouring``'s)."""
     counts: dict[tuple[str, int], int] = {}
     for b in layout.bricks:
         if b.kind != "printed":
-            key = (b.part, colours.ordered_code(b))
+            code = colours.ordered_code(b) if colouring is None else colouring[b.id][0]
+            key = (b.part, code)
             counts[key] = counts.get(key, 0) + 1
     return counts
+
+
+def owned_colour_counts(layout: Layout, colouring: dict) -> dict[tuple[str, int], int]:
+    """(design number, LDraw colour) -> LEGO bricks of it in ``layout`` from the inventory."""
+    counts: dict[tuple[str, int], int] = {}
+    for b in layout.bricks:
+        if b.kind != "printed" and colouring[b.id][1]:
+            key = (b.part, colouring[b.id][0])
+            counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
+def to_buy(layout: Layout, colouring: dict, inventory, bought: int, props=()) -> dict:
+    """(design number, LDraw colour) -> count to buy: the bricks ``colouring`` does not take
+    from the inventory, and the props' parts beyond what of each design the build leaves
+    over in ``inventory`` (bought in ``bought``)."""
+    need: dict[tuple[str, int], int] = {}
+    for b in layout.bricks:
+        if b.kind != "printed" and not colouring[b.id][1]:
+            key = (b.part, colouring[b.id][0])
+            need[key] = need.get(key, 0) + 1
+    spare = inventory.designs()
+    for (number, _), count in owned_colour_counts(layout, colouring).items():
+        spare[number] = spare.get(number, 0) - count
+    for number, count in prop_counts(props).items():
+        more = max(0, count - max(spare.get(number, 0), 0))
+        if more:
+            need[(number, bought)] = need.get((number, bought), 0) + more
+    return need
 
 
 def prop_counts(props) -> dict[str, int]:
@@ -102,20 +142,23 @@ def _part_name(number: str) -> str:
     return part.name if part is not None else f"Part {number}"
 
 
-def lines(layout: Layout, printed_parts=(), props=()) -> list[BomLine]:
+def lines(layout: Layout, printed_parts=(), props=(), colouring: dict | None = None) -> list[BomLine]:
     """The bill of materials of ``layout``, its props and its printed parts.
 
     LEGO rows come in catalog order (plates before bricks of each size), then
     the props' parts (:func:`prop_counts`); printed rows in part order.  Promises:
     the LEGO counts add up to the layout's LEGO bricks, and there is one printed
-    row per printed part.
+    row per printed part.  With ``colouring`` (see the module's text) LEGO rows are per
+    design and each brick's colour, with the owned count.
     """
     from core.printing.print_time import ESTIMATE_METHOD, estimate_seconds
 
-    counts = lego_colour_counts(layout)
+    counts = lego_colour_counts(layout, colouring)
+    mine = None if colouring is None else owned_colour_counts(layout, colouring)
     order = {n: i for i, n in enumerate(BY_NUMBER)}
     out = [BomLine("lego", number, _part_name(number), colours.name(code), code,
-                   colours.bricklink_id(code), count)
+                   colours.bricklink_id(code), count,
+                   owned=None if mine is None else mine.get((number, code), 0))
            for (number, code), count in sorted(counts.items(),
                                                key=lambda kv: (order.get(kv[0][0], 1e9), kv[0]))]
     code = colours.BOM_COLOR
@@ -136,13 +179,15 @@ def lines(layout: Layout, printed_parts=(), props=()) -> list[BomLine]:
 
 
 def write_csv(rows: list[BomLine], path: str | os.PathLike) -> Path:
-    """Write ``rows`` as ``bom.csv`` (header :data:`COLUMNS`); returns the path."""
+    """Write ``rows`` as ``bom.csv`` (header :data:`COLUMNS`, and :data:`INVENTORY_COLUMNS`
+    where a row has an owned count); returns the path."""
     path = Path(path)
+    counted = any(r.owned is not None for r in rows)
     with path.open("w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(COLUMNS)
+        w.writerow(COLUMNS + (INVENTORY_COLUMNS if counted else ()))
         for r in rows:
-            w.writerow(r.row())
+            w.writerow(r.row() + (["", ""] if counted and r.owned is None else []))
     return path
 
 
@@ -164,17 +209,22 @@ def wanted(layout: Layout, owned: dict[str, int] | None = None, props=()) -> dic
 
 
 def write_wanted_list(layout: Layout, path: str | os.PathLike, owned: dict[str, int] | None = None,
-                      remarks: str = "", props=()) -> Path:
+                      remarks: str = "", props=(), buying: dict | None = None) -> Path:
     """Write the BrickLink wanted list of the missing LEGO bricks (and the parts of the
     ``props``) at ``path``; returns it.
 
-    ``remarks`` (e.g. the model name) goes into each item's ``REMARKS``.
+    ``remarks`` (e.g. the model name) goes into each item's ``REMARKS``.  ``buying``
+    ((design, LDraw colour) -> count, :func:`to_buy`) is the list instead, each in its colour.
     """
-    color = colours.bricklink_id(colours.BOM_COLOR)
     order = {n: i for i, n in enumerate(BY_NUMBER)}
-    items = sorted(wanted(layout, owned, props).items(), key=lambda kv: (order.get(kv[0], 1e9), kv[0]))
+    if buying is None:
+        code = colours.BOM_COLOR
+        buying = {(n, code): k for n, k in wanted(layout, owned, props).items()}
+    items = sorted(((n, c), k) for (n, c), k in buying.items() if k > 0)
+    items.sort(key=lambda kv: (order.get(kv[0][0], 1e9), kv[0]))
     parts = ["<INVENTORY>"]
-    for number, count in items:
+    for (number, code), count in items:
+        color = colours.bricklink_id(code)
         parts.append("  <ITEM>")
         parts.append("    <ITEMTYPE>P</ITEMTYPE>")
         parts.append(f"    <ITEMID>{escape(number)}</ITEMID>")

@@ -142,7 +142,7 @@ def _prop_lines(prop: dict, shift_ldu) -> list[str]:
 
 
 def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: str = "",
-          props=()) -> Path:
+          props=(), codes: dict | None = None) -> Path:
     """Write ``layout`` as an MPD file at ``path``; returns the path.
 
     ``steps`` is a list of brick-id lists (or :class:`core.instructions.build_order.Step`
@@ -152,7 +152,8 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
     ``<design number>.dat`` in :data:`LEGO_COLOR`; a printed part becomes one
     reference to its embedded subfile, in the step of its first brick.
     ``props`` (:attr:`core.instructions.build_order.BuildOrder.props`) go into the step each is stood
-    before (see the module's text).
+    before (see the module's text).  ``codes`` (brick id -> LDraw colour) colours the LEGO
+    bricks instead (a maker's own bricks, :func:`core.inventory.colour`).
     Raises ValueError when a brick is in no step or in two, a step names a
     brick that is not in the layout, or a printed brick has no printed part
     (the caller's steps and parts do not match the layout).
@@ -167,6 +168,8 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
              f"0 Name: {MAIN_NAME}",
              "0 Author: Fabrickator",
              "0 // 1 LDU = 0.4 mm, -Y up; LEGO bricks colour 71 (Light Bluish Grey), "
+             "printed parts colour 25 (Orange) as embedded subfiles" if codes is None else
+             "0 // 1 LDU = 0.4 mm, -Y up; LEGO bricks in the colours of your inventory, "
              "printed parts colour 25 (Orange) as embedded subfiles",
              ""]
     step_lists = [list(getattr(s, "bricks", s)) for s in steps]
@@ -193,7 +196,8 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
                                       subfile_name(b.printed_part)))
                 continue
             pos, rot = brick_placement(b.cell, b.size, shift)
-            lines.append(_ref(colours.ordered_code(b), pos, rot, f"{b.part}.dat"))
+            code = colours.ordered_code(b) if codes is None else codes[b.id]
+            lines.append(_ref(code, pos, rot, f"{b.part}.dat"))
     missing = [b.id for b in layout.bricks if b.id not in seen]
     if missing:
         raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")

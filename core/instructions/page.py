@@ -327,8 +327,9 @@ def _meshed_parts(layout: Layout, printed_parts, pieces: np.ndarray, owner: np.n
     return out
 
 
-def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> list[dict]:
-    """JSON-ready step list for the page's script."""
+def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts,
+               colouring: dict | None = None) -> list[dict]:
+    """JSON-ready step list for the page's script (each part in ``colouring``'s colours)."""
     info = {p.id: p for p in printed_parts}
     out = []
     lego_color = ldraw.color_name(ldraw.LEGO_COLOR)
@@ -341,7 +342,15 @@ def _step_data(layout: Layout, order: build_order.BuildOrder, printed_parts) -> 
             item["w"] = warnings[s.number]
         for number, count in build_order.callout(layout, s, index):
             part = BY_NUMBER.get(number)
-            item["c"].append([number, part.name if part else number, count, lego_color])
+            shades = {lego_color: count}
+            if colouring is not None:
+                shades = {}
+                for bid in s.bricks:
+                    if index[bid].part == number and bid in colouring:
+                        shade = ldraw.color_name(colouring[bid][0])
+                        shades[shade] = shades.get(shade, 0) + 1
+            for shade, n in sorted(shades.items(), key=lambda kv: (-kv[1], kv[0])):
+                item["c"].append([number, part.name if part else number, n, shade])
         if s.printed_part is not None:
             p = info.get(s.printed_part)
             item["pv"] = None if p is None else round(float(p.volume_mm3) / 1000.0, 1)
@@ -388,7 +397,7 @@ def _minutes(seconds: float) -> str:
 
 
 def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title: str = "",
-         assembly_s: float | None = None) -> tuple[str, dict]:
+         assembly_s: float | None = None, colouring: dict | None = None) -> tuple[str, dict]:
     """The whole ``instructions.html`` text, and facts about its picture.
 
     Raises ValueError when ``order`` does not cover every brick of ``layout``.
@@ -398,7 +407,7 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
     if missing:
         raise ValueError(f"{len(missing)} brick(s) are in no assembly step (e.g. {missing[:5]})")
     svg, facts = svg_picture(layout, order, current=1, printed_parts=printed_parts)
-    rows = bom.lines(layout, printed_parts, order.props)
+    rows = bom.lines(layout, printed_parts, order.props, colouring)
     used = sorted({r.part for r in rows if r.kind != "printed" and r.part in BY_NUMBER})
     icons = "".join(_icon(n, layout.grid.cell) for n in used)
     bom_rows = "".join(
@@ -410,7 +419,7 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
         f"print ≈ {_minutes(r.print_s or 0)})</td><td>{html.escape(r.file)}</td></tr>"
         for r in rows)
     nz = layout.grid.shape[2]
-    data = {"steps": _step_data(layout, order, printed_parts), "layers": int(nz),
+    data = {"steps": _step_data(layout, order, printed_parts, colouring), "layers": int(nz),
             "layer_mm": float(layout.grid.cell[2]), "play_ms": PLAY_MS}
     blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     lego = sum(1 for b in layout.bricks if b.kind != "printed")
@@ -437,9 +446,10 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
 
 
 def write_instructions(layout: Layout, order: build_order.BuildOrder, path: str | os.PathLike,
-                       printed_parts=(), title: str = "", assembly_s: float | None = None) -> dict:
+                       printed_parts=(), title: str = "", assembly_s: float | None = None,
+                       colouring: dict | None = None) -> dict:
     """Write ``instructions.html`` at ``path``; returns facts about its picture and size."""
-    text, facts = page(layout, order, printed_parts, title, assembly_s)
+    text, facts = page(layout, order, printed_parts, title, assembly_s, colouring)
     Path(path).write_text(text, encoding="utf-8")
     facts["bytes"] = len(text.encode("utf-8"))
     return facts
@@ -449,13 +459,17 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
                    seconds_per_brick: float = build_order.SECONDS_PER_BRICK,
                    seconds_per_part: float = build_order.SECONDS_PER_PART,
                    bricks_per_step: int = build_order.BRICKS_PER_STEP,
-                   order: build_order.BuildOrder | None = None) -> dict:
+                   order: build_order.BuildOrder | None = None, colouring: dict | None = None,
+                   inventory=None, bought: int = ldraw.LEGO_COLOR) -> dict:
     """Write the builder's files of ``layout`` into ``folder``, in the build ``order``
     (planned here when None; ``layout`` is not changed).
 
     Writes ``instructions.html``, ``assembly.mpd`` (LDraw MPD with ``0 STEP``
     per step and the printed parts embedded), ``bom.csv`` and
-    ``bricklink.xml``.  Returns a dict for ``report.json``: ``steps``,
+    ``bricklink.xml``; with an ``inventory`` (:class:`core.inventory.Inventory`) and its
+    ``colouring`` (:func:`core.inventory.colour`) each brick in its colour, the parts list
+    with owned and to-buy counts and the wanted list only what is to buy (in ``bought``
+    where a prop needs more).  Returns a dict for ``report.json``: ``steps``,
     ``layers``, ``bricks_per_step``, ``assembly_s`` (``seconds_per_brick``
     per LEGO brick + ``seconds_per_part`` per printed part, both echoed),
     ``unattached_bricks`` and ``early_parts`` (see
@@ -480,14 +494,18 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     timings["order"] = time.perf_counter() - t
     t = time.perf_counter()
     facts = write_instructions(layout, order, folder / FILES["instructions"], printed_parts,
-                               title, seconds)
+                               title, seconds, colouring)
     timings["html"] = time.perf_counter() - t
     t = time.perf_counter()
-    ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title, props=order.props)
+    ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title, props=order.props,
+                codes=None if colouring is None else {i: c for i, (c, _) in colouring.items()})
     timings["ldraw"] = time.perf_counter() - t
     t = time.perf_counter()
-    bom.write_csv(bom.lines(layout, printed_parts, order.props), folder / FILES["bom"])
-    bom.write_wanted_list(layout, folder / FILES["bricklink"], remarks=title, props=order.props)
+    bom.write_csv(bom.lines(layout, printed_parts, order.props, colouring), folder / FILES["bom"])
+    buying = None if inventory is None else bom.to_buy(layout, colouring, inventory, bought,
+                                                        order.props)
+    bom.write_wanted_list(layout, folder / FILES["bricklink"], remarks=title, props=order.props,
+                          buying=buying)
     timings["bom"] = time.perf_counter() - t
     return {
         "steps": len(order.steps),

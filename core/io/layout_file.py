@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from core.colours import COLORS
 from core.errors import InputError
 from core.model import Layout
 
@@ -34,7 +35,9 @@ def layout_from_document(data, parts_folder=None) -> Layout:
     negative or fractional step, a ``load_g`` that is not a finite number from 0 to
     :data:`MAX_LOAD_G`; two bricks sharing a cell; a ``printed_part`` that is not a plain
     file name (no path separator, no ``..``), named by a brick whose kind is not
-    ``printed``, or (with ``parts_folder``) whose ``<name>.stl`` is not a file there.
+    ``printed``, or (with ``parts_folder``) whose ``<name>.stl`` is not a file there; a
+    ``colour`` that is not an LDraw code of :data:`core.colours.COLORS` or an ``owned`` that is
+    not true or false (both optional, from a run with an inventory).
     """
     from core.catalog import BY_NUMBER
     from core.voxelize import MAX_GRID_CELLS
@@ -111,6 +114,11 @@ def layout_from_document(data, parts_folder=None) -> Layout:
                 raise InputError(f"{name}: load_g must be a number of grams from 0 to "
                                  f"{MAX_LOAD_G:g}, got {_show(b['load_g'])}")
         _check_printed_part(name, b["kind"], b["printed_part"], parts_folder)
+        if "colour" in b and (isinstance(b["colour"], bool) or b["colour"] not in COLORS):
+            raise InputError(f"{name}: colour must be an LDraw colour code Fabrickator knows "
+                             f"(such as 71, Light Bluish Grey), got {_show(b['colour'])}")
+        if "owned" in b and not isinstance(b["owned"], bool):
+            raise InputError(f"{name}: owned must be true or false, got {_show(b['owned'])}")
         where = tuple(slice(c, c + s) for c, s in zip(cell, size))
         if filled[where].any():
             other = next(o for o, c0, s0 in boxes

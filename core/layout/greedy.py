@@ -1094,3 +1094,117 @@ def lay_out_around(grid: Grid, cells: np.ndarray, parts: tuple[Part, ...] = CATA
                            progress=progress if n == 0 else None, relaxed=relaxed)
             bricks += part.bricks
     return Layout(grid, [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)])
+
+
+#: Most tries of one brick's split into owned parts (:func:`_split`), so it stays quick.
+SPLIT_TRIES = 20_000
+
+
+def fit_stock(layout: Layout, parts: tuple[Part, ...], stock, frozen=()) -> Layout:
+    """``layout`` with no more LEGO bricks of a design than ``stock``
+    (:class:`core.inventory.Stock`) owns, where owned parts of ``parts`` can take their place.
+
+    Designs are fitted largest first: a brick beyond what is owned of its design is split
+    into owned parts of ``parts`` (each smaller, so a fitted design stays fitted) that fill
+    its box exactly.  Where buying is allowed, a brick is split only into at most
+    ``1 + BUY_COST`` parts, and is bought otherwise; where not, a brick that owned parts
+    cannot fill is an :class:`InputError` naming its cells and the parts that would do.
+    Bricks whose id is in ``frozen`` and printed bricks stay.  The same input gives the
+    same layout; without ``frozen`` the ids are renumbered 0..n-1.
+    """
+    from core.inventory import BUY_COST, used
+
+    have = used(layout)
+    left = {p.number: max(stock.owned.get(p.number, 0) - have.get(p.number, 0), 0) for p in parts}
+    most = int(1 + BUY_COST) if stock.buy else None
+    frozen = set(frozen)
+    replaced: dict[int, list[Brick]] = {}
+    lacking: list[Brick] = []
+    by_size = sorted(parts, key=lambda p: (-p.cells, p.number))
+    for part in by_size:
+        excess = have.get(part.number, 0) - stock.owned.get(part.number, 0)
+        for b in reversed(layout.bricks):
+            if excess <= 0:
+                break
+            if b.part != part.number or b.kind != "lego" or b.id in frozen:
+                continue
+            pieces = _split(tuple(b.size), by_size, left, most)
+            if pieces is None:
+                lacking.append(b)
+                continue
+            for _, _, number in pieces:
+                left[number] -= 1
+            replaced[b.id] = [Brick(-1, number, size, tuple(int(c) + o for c, o in zip(b.cell, at)))
+                              for at, size, number in pieces]
+            excess -= 1
+    if lacking and not stock.buy:
+        raise InputError(_lacking_words(lacking))
+    bricks: list[Brick] = []
+    start = max((b.id for b in layout.bricks), default=-1) + 1
+    for b in layout.bricks:
+        for piece in replaced.get(b.id, [b]):
+            if piece.id < 0:
+                piece, start = dataclasses.replace(piece, id=start), start + 1
+            bricks.append(dataclasses.replace(piece))
+    if not frozen:
+        bricks = [dataclasses.replace(b, id=n) for n, b in enumerate(bricks)]
+    return Layout(layout.grid, bricks)
+
+
+def _lacking_words(lacking: list[Brick]) -> str:
+    """The one line of a layout that the owned parts cannot cover."""
+    from core.catalog import BY_NUMBER
+
+    cells = sum(int(np.prod(b.size)) for b in lacking)
+    wanted: dict[str, int] = {}
+    for b in lacking:
+        wanted[b.part] = wanted.get(b.part, 0) + 1
+    where = ", ".join(f"({b.cell[0]}, {b.cell[1]}, {b.cell[2]})" for b in lacking[:3])
+    more = f" and {len(lacking) - 3} more bricks' cells" if len(lacking) > 3 else ""
+    need = ", ".join(f"{n}x {p} {BY_NUMBER[p].name}" for p, n in sorted(wanted.items()))
+    return (f"--inventory-only: the owned parts cannot cover {cells} cell(s), at cells {where}"
+            f"{more}; {need} more would do (or leave out --inventory-only to buy them)")
+
+
+def _split(box: tuple[int, int, int], parts: tuple[Part, ...], left: dict[str, int],
+           most: int | None) -> list[tuple] | None:
+    """Owned parts (``left``: design -> count still free) filling ``box`` (sx, sy, layers)
+    exactly, as (offset, size, design number), at most ``most`` of them (None: any number);
+    None where none is found within :data:`SPLIT_TRIES` tries.  Larger parts first, each
+    placed in a corner of what is left (a guillotine cut)."""
+    options = [((sx, sy, p.layers), p.number) for p in parts for sx, sy in p.orientations()]
+    tries = [0]
+    free = dict(left)
+
+    def fill(lo, size, budget):
+        if 0 in size:
+            return []
+        if budget is not None and budget <= 0:
+            return None
+        for (sx, sy, sz), number in options:
+            if tries[0] >= SPLIT_TRIES:
+                return None
+            if free.get(number, 0) <= 0 or sx > size[0] or sy > size[1] or sz > size[2]:
+                continue
+            if size[2] % sz:
+                continue
+            tries[0] += 1
+            free[number] -= 1
+            rest = [((lo[0] + sx, lo[1], lo[2]), (size[0] - sx, size[1], sz)),
+                    ((lo[0], lo[1] + sy, lo[2]), (sx, size[1] - sy, sz)),
+                    ((lo[0], lo[1], lo[2] + sz), (size[0], size[1], size[2] - sz))]
+            got = [(lo, (sx, sy, sz), number)]
+            for at, part_size in rest:
+                more = fill(at, part_size, None if budget is None else budget - len(got))
+                if more is None:
+                    break
+                got += more
+            else:
+                if budget is None or len(got) <= budget:
+                    return got
+            for _, _, n in got:
+                free[n] += 1
+        return None
+
+    found = fill((0, 0, 0), box, most)
+    return found

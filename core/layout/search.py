@@ -46,6 +46,7 @@ from scipy.sparse.csgraph import connected_components
 from core.catalog import CATALOG, Part
 from core.connectivity import articulation_points, component_labels, pairs_csr, regions
 from core.errors import InputError
+from core.inventory import BUY_COST, Stock, used as used_designs
 from core.layout.bounds import (_SIX, MAX_VARIABLES, _highs, _set_partitioning_lp,
                                 _summed_volume, cover_matrix, fitting_boxes, more_time)
 from core.model import Brick, Layout
@@ -185,7 +186,7 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
             seed: int = 0, progress: Progress | None = None, frozen: Iterable[int] | None = None,
             apart: np.ndarray | None = None, failing_joints: FailingJoints | None = None,
             next_id: int | None = None, others: tuple[Layout, ...] = (),
-            bound: dict | None = None) -> Layout:
+            bound: dict | None = None, stock: Stock | None = None) -> Layout:
     """A layout of the same cells that is at least as good as ``layout`` on :func:`quality`.
 
     Promises: the result covers exactly the filled cells of ``layout.grid``
@@ -207,14 +208,19 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
     key there can be (:func:`at_best`) is returned as it is, as no window can better it.
     ``progress(fraction, message)`` is called after every window; an
     exception it raises (a cancel) propagates.  ``layout`` is not changed.
+    With ``stock`` (:class:`core.inventory.Stock`, which ``layout`` keeps to where buying is not
+    allowed) no window uses more of a design than is owned (plus, where buying is allowed, what
+    is bought, each bought brick counting :data:`core.inventory.BUY_COST` more on the key's
+    bricks); then ``others``, ``bound`` and the merge of the layouts found are not used.
     Raises InputError for an unknown ``effort``.
     """
     level = EFFORT_LEVELS[check_effort(effort)]
     report = progress or _silent
     frozen_ids = set(frozen or ())
-    if level.max_windows == 0 or not layout.bricks or at_best(layout, bound, failing_joints):
+    if level.max_windows == 0 or not layout.bricks or (
+            stock is None and at_best(layout, bound, failing_joints)):
         return _copy(layout, renumber=False)
-    extra = tuple(others) if level.relaxed_start else ()
+    extra = tuple(others) if level.relaxed_start and stock is None else ()
     starts = {name: _starts(name, effort, layout, 1 + len(extra))
               for name in EFFORTS[1:EFFORTS.index(effort) + 1]}
     planned = [count * (1 + (len(extra) if name == "normal" else 0))
@@ -238,15 +244,15 @@ def improve(layout: Layout, parts: tuple[Part, ...] = CATALOG, effort: str = "no
             work = max(level.work - spent, int((1.0 - SEED_WORK_SHARE) * level.work)) \
                 if level.work and last else None
             better, iterations = _stage(begin, parts, EFFORT_LEVELS[name], begin_seed, share,
-                                        frozen_ids, apart, failing_joints, next_id, work)
+                                        frozen_ids, apart, failing_joints, next_id, work, stock)
             found.append(better)
             spent += iterations
             done += 1
         done = sum(planned[:index + 1])
-        keys = [(quality(f, failing_joints), j, k) for f, (j, _, k) in zip(found, begins)]
+        keys = [(_judged(f, failing_joints, stock), j, k) for f, (j, _, k) in zip(found, begins)]
         current = found[keys.index(min(keys))]
         seen += found
-        if len(seen) > 1:
+        if len(seen) > 1 and stock is None:
             report(done / total, "improve: merging the layouts found")
             current = _merged(seen, current, layout, parts, failing_joints, next_id) or current
     report(1.0, "improve: done")
@@ -315,7 +321,8 @@ def best_starts(cells: int) -> int:
 
 
 def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, frozen: set[int],
-           apart, failing_joints, next_id, work: int | None = None) -> tuple[Layout, int]:
+           apart, failing_joints, next_id, work: int | None = None,
+           stock: Stock | None = None) -> tuple[Layout, int]:
     """One effort level's search from ``layout``: compaction, then the full key, back to
     the best layout on :func:`quality` it held; from ``layout`` again on the full key
     should none be better than ``layout`` (its progress goes on from where the first
@@ -330,7 +337,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
     # every window re-judges the whole layout's graph: on big builds fewer windows, so that
     # the effort stays seconds
     budget = min(budget, max(1, int(MAX_WORK / max(len(layout.bricks), 1))))
-    search = _Search(layout, parts, seed, frozen, apart, failing_joints)
+    search = _Search(layout, parts, seed, frozen, apart, failing_joints, stock)
     start = search.strict
     search.count_weak(False)
     search.run(level, int(budget * level.compact_share), report, budget,
@@ -345,7 +352,7 @@ def _stage(layout: Layout, parts, level: Effort, seed: int, report: Progress, fr
 
         def again(fraction, message):
             report(reached + (1.0 - reached) * fraction, message)
-        search = _Search(layout, parts, seed, frozen, apart, failing_joints)
+        search = _Search(layout, parts, seed, frozen, apart, failing_joints, stock)
         search.run(level, budget - int(budget * level.compact_share), again, budget,
                    work=None if work is None else max(work - spent, 0))
     search.sweep_layers(level, report)
@@ -377,6 +384,12 @@ def _repair_weak(search: "_Search", level: Effort, report: Progress) -> None:
             return
         budget = search.windows + level.weak_windows
         search.run(EFFORT_LEVELS["best"], budget, said, budget, none_weak, weak_only=weak_only)
+
+
+def _judged(layout: Layout, failing_joints: FailingJoints | None, stock: Stock | None) -> Key:
+    """:func:`quality`, its bricks counted as ``stock`` prices them (:meth:`Stock.cost`)."""
+    key = quality(layout, failing_joints)
+    return key if stock is None else key[:4] + (stock.cost(used_designs(layout)),)
 
 
 def quality(layout: Layout, failing_joints: FailingJoints | None = None) -> Key:
@@ -1082,7 +1095,7 @@ class _Search:
     """
 
     def __init__(self, layout: Layout, parts, seed: int, frozen: set[int], apart,
-                 failing: FailingJoints | None):
+                 failing: FailingJoints | None, stock: Stock | None = None):
         self.grid = layout.grid
         self.filled = np.ascontiguousarray(np.asarray(layout.grid.filled, dtype=bool))
         self.apart = None if apart is None else np.asarray(apart, dtype=bool) & self.filled
@@ -1090,6 +1103,9 @@ class _Search:
         self.rng = np.random.default_rng(seed)
         self.failing = failing
         self.source = layout
+        self.stock = stock
+        # LEGO bricks of each design, kept up to date where a stock limits them
+        self.used = used_designs(layout) if stock is not None else {}
         self.rec: list[tuple[int, int, int, int, int, int]] = []
         self.part: list[str] = []
         self.orig: list[Brick | None] = []
@@ -1127,19 +1143,25 @@ class _Search:
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
                                                                     self.dead)
 
-    def _evaluate(self, lab, n, dead, graph=None) -> tuple[SearchKey, Key, np.ndarray, np.ndarray]:
+    def _evaluate(self, lab, n, dead, graph=None, used=None) -> tuple[SearchKey, Key, np.ndarray,
+                                                                      np.ndarray]:
         """(the search's key, the :func:`quality` key, degrees, articulation mask) of the
         label grid ``lab`` of ``n`` records of which ``dead`` are removed, whose brick graph
-        is ``graph`` (pair keys and touching cells; None: the search's own)."""
+        is ``graph`` (pair keys and touching cells; None: the search's own) and whose LEGO
+        bricks of each design are ``used`` (None: the search's own; counted only with a
+        stock, whose bought bricks cost more)."""
         keys, touching = (self.keys, self.touching) if graph is None else graph
         comps, weak, thin, deg, art = _key_of_graph(*_csr_of(keys, n), touching, n, dead)
         failing = 0
         if self.failing is not None:
             failing = int(self.failing(self._layout_of(lab)))
-        strict = (comps, failing, weak - thin, weak, n - dead)
+        bricks = n - dead
+        if self.stock is not None:
+            bricks += BUY_COST * self.stock.bought(self.used if used is None else used)
+        strict = (comps, failing, weak - thin, weak, bricks)
         if not self.weak_on:
             weak = thin = 0
-        return (comps, failing, weak, weak - thin, n - dead), strict, deg, art
+        return (comps, failing, weak, weak - thin, bricks), strict, deg, art
 
     def _layout_of(self, lab) -> Layout:
         """The layout of a label grid (for a force model): bricks in index order; indices
@@ -1150,6 +1172,28 @@ class _Search:
             x, y, z, sx, sy, sz = self.rec[i] if i < len(self.rec) else self._pending[i]
             bricks.append(Brick(len(bricks), self._part_of(i), (sx, sy, sz), (x, y, z)))
         return Layout(self.grid, bricks)
+
+    @property
+    def bricks(self) -> int:
+        """The number of bricks now."""
+        return len(self.rec) - self.dead
+
+    def _limits(self, ids: list[int]):
+        """The window program's design rows when bricks ``ids`` are freed (None without a
+        stock): (box size codes, sorted; each one's design row; the designs' owned counts
+        left over by the fixed bricks; whether more may be bought)."""
+        if self.stock is None:
+            return None
+        designs = sorted({p for _, p in self.shapes})
+        row = {d: j for j, d in enumerate(designs)}
+        codes = np.array([_size_code(*size) for size, _ in self.shapes], dtype=np.int64)
+        order = np.argsort(codes)
+        rows = np.array([row[p] for _, p in self.shapes], dtype=np.int64)[order]
+        fixed = dict(self.used)
+        for i in ids:
+            fixed[self.part[i]] = fixed.get(self.part[i], 0) - 1
+        left = np.array([self.stock.owned.get(d, 0) - fixed.get(d, 0) for d in designs], dtype=float)
+        return codes[order], rows, left, self.stock.buy
 
     def _part_of(self, i):
         return self.part[i] if i < len(self.part) else self._pending_part[i]
@@ -1252,7 +1296,7 @@ class _Search:
                         if enough is not None and enough():
                             return
                     report(min(self.windows / total, 1.0),
-                           f"improve: window {self.windows}/{total}, {self.key[4]} bricks, "
+                           f"improve: window {self.windows}/{total}, {self.bricks} bricks, "
                            + (f"{self.key[2]} weak points" if self.weak_on else "compacting"))
             if not progressed:
                 return
@@ -1285,7 +1329,8 @@ class _Search:
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
             window = (boxes, free, self.filled[sl], np.where(free, -1, self.lab[sl]),
                       current, self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
-            chosen, spent = _solve_window(*window)
+            limits = self._limits(ids)
+            chosen, spent = _solve_window(*window, limits=limits)
             self.iterations += spent
             if chosen is not TOO_LARGE:
                 break
@@ -1306,7 +1351,7 @@ class _Search:
                 return False
             for box in weak:
                 penalty[box] = penalty.get(box, 0.0) + WEAK_COST
-            chosen, spent = _solve_window(*window, penalty)
+            chosen, spent = _solve_window(*window, penalty, limits=limits)
             self.iterations += spent
             if chosen is TOO_LARGE:
                 return False
@@ -1349,7 +1394,7 @@ class _Search:
                         continue
                     self.solve([ids[g] for g in group], wide, shapes)
                     done += 1
-                    report(1.0, f"improve: layer window {done}, {self.key[4]} bricks")
+                    report(1.0, f"improve: layer window {done}, {self.bricks} bricks")
 
     def _try(self, ids: list[int], chosen: list[tuple], lo) -> tuple[bool, np.ndarray]:
         """Replace bricks ``ids`` by the boxes ``chosen`` (window coordinates from ``lo``)
@@ -1382,7 +1427,15 @@ class _Search:
         np.add.at(touching, np.concatenate(come), 1)
         np.subtract.at(touching, np.concatenate(gone), 1)
         dead = self.dead + len(ids)
-        key, strict, deg, art = self._evaluate(self.lab, n + len(chosen), dead, (keys, touching))
+        used = None
+        if self.stock is not None:
+            used = dict(self.used)
+            for i in ids:
+                used[self.part[i]] -= 1
+            for p in self._pending_part.values():
+                used[p] = used.get(p, 0) + 1
+        key, strict, deg, art = self._evaluate(self.lab, n + len(chosen), dead, (keys, touching),
+                                               used)
         if key > self.key or (key == self.key and self.weak_on):
             self.lab[sl] = before
             return False, art
@@ -1392,6 +1445,8 @@ class _Search:
             self._add(self._pending[i], self._pending_part[i], None, False)
         self.keys, self.counts, self.touching = keys, counts, touching
         self.dead, self.key, self.strict, self.deg, self.art = dead, key, strict, deg, art
+        if used is not None:
+            self.used = used
         if strict < self.best[0]:
             self.best = (strict, np.flatnonzero(self.alive))
         return True, art
@@ -1414,6 +1469,11 @@ class _Search:
             x, y, z, sx, sy, sz = self.rec[i]
             self.lab[x:x + sx, y:y + sy, z:z + sz] = i
         self.dead = len(self.rec) - len(alive)
+        if self.stock is not None:
+            self.used = {}
+            for i in alive:
+                if self.orig[i] is None or self.orig[i].kind == "lego":
+                    self.used[self.part[i]] = self.used.get(self.part[i], 0) + 1
         self.keys, self.counts, self.touching = _contacts_of(self.lab, len(self.rec))
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec),
                                                                     self.dead)
@@ -1598,7 +1658,7 @@ def _fixed_leaf_targets(free, filled, lab):
 
 
 def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cost: float,
-                  penalty: dict | None = None):
+                  penalty: dict | None = None, limits=None):
     """The best re-cover of the ``free`` cells of a local box by the placements ``boxes``
     (:func:`_placements`), as a list of boxes, or None; with the simplex iterations HiGHS
     spent on it (a count of work that, unlike seconds, is the same on every run).
@@ -1608,7 +1668,9 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     allows.  ``current`` (the freed bricks' boxes) is the starting solution.  Where the
     LP relaxation is fractional: branch and bound over ``boxes`` when they are at most
     ``level.mip_columns``, else over the placements the relaxation uses and ``current``
-    when those are, else :data:`TOO_LARGE`.
+    when those are, else :data:`TOO_LARGE`.  ``limits`` (:meth:`_Search._limits`, None:
+    none) add a row per design: its placements at most the owned count left, plus a bought
+    count (at most 0 where buying is not allowed) priced :data:`core.inventory.BUY_COST`.
     """
     n = len(boxes)
     if n == 0:
@@ -1639,14 +1701,24 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     ft, fq = (_covering(boxes, targets, ptr, idx, cell_index) if len(targets)
               else (np.empty(0, np.int64), np.empty(0, np.int64)))
     n_leaf, n_fixed = leaves.size, len(targets)
-    n_cols = n + n_leaf + n_fixed
-    n_rows = m + n_leaf + n_fixed
+    design, n_buy = None, 0
+    if limits is not None:
+        codes, design_rows, left, may_buy = limits
+        design = design_rows[np.searchsorted(codes, _size_code(boxes[:, 3], boxes[:, 4], boxes[:, 5]))]
+        n_buy = len(left)
+    n_cols = n + n_leaf + n_fixed + n_buy
+    n_rows = m + n_leaf + n_fixed + n_buy
     leaf_rows = m + np.arange(n_leaf)
     fixed_rows = m + n_leaf + np.arange(n_fixed)
     r_rows = [rows, leaf_rows, m + t, leaf_rows, fixed_rows[ft], fixed_rows]
     r_cols = [cols, cand[leaves], q, n + np.arange(n_leaf), fq, n + n_leaf + np.arange(n_fixed)]
     r_vals = [np.ones(rows.size), np.ones(n_leaf), np.ones(q.size), -np.ones(n_leaf),
               np.ones(fq.size), -np.ones(n_fixed)]
+    if n_buy:
+        buy_rows = m + n_leaf + n_fixed + np.arange(n_buy)
+        r_rows += [buy_rows[design], buy_rows]
+        r_cols += [np.arange(n), n + n_leaf + n_fixed + np.arange(n_buy)]
+        r_vals += [np.ones(n), -np.ones(n_buy)]
     a = sparse.csc_matrix((np.concatenate(r_vals), (np.concatenate(r_rows).astype(np.int64),
                                                    np.concatenate(r_cols).astype(np.int64))),
                           shape=(n_rows, n_cols))
@@ -1654,11 +1726,15 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     lp = highspy.HighsLp()
     lp.num_col_ = n_cols
     lp.num_row_ = n_rows
-    lp.col_cost_ = np.concatenate([cost, np.full(n_leaf + n_fixed, leaf_cost)])
+    lp.col_cost_ = np.concatenate([cost, np.full(n_leaf + n_fixed, leaf_cost),
+                                   np.full(n_buy, BUY_COST)])
     lp.col_lower_ = np.zeros(n_cols)
-    lp.col_upper_ = np.ones(n_cols)
-    lp.row_lower_ = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed, -highspy.kHighsInf)])
-    lp.row_upper_ = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed)])
+    lp.col_upper_ = np.concatenate([np.ones(n + n_leaf + n_fixed),
+                                    np.full(n_buy, highspy.kHighsInf if n_buy and may_buy else 0.0)])
+    lp.row_lower_ = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed + n_buy,
+                                                        -highspy.kHighsInf)])
+    lp.row_upper_ = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed),
+                                    left if n_buy else np.zeros(0)])
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
     lp.a_matrix_.num_col_ = n_cols
     lp.a_matrix_.num_row_ = n_rows
@@ -1689,12 +1765,12 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
         # the placements the relaxation uses and the current bricks: the same relaxation,
         # small enough for branch and bound
         chosen, more = _solve_window(boxes[keep], free, filled, lab, current, rng, level,
-                                     leaf_cost, penalty)
+                                     leaf_cost, penalty, limits)
         return chosen, spent + more
     if not lp_done:
         h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
                                 np.full(n, highspy.HighsVarType.kInteger))
-        start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:])
+        start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:], n_buy)
         if start is not None:
             sol = highspy.HighsSolution()
             sol.col_value = list(start)
@@ -1711,24 +1787,34 @@ def _solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_co
     return [tuple(int(v) for v in b) for b in chosen], spent
 
 
-def _start_solution(boxes, current, a, n, n_cols, m, upper):
-    """The column values of the current bricks (leaf variables at their least), or None.
+def _start_solution(boxes, current, a, n, n_cols, m, upper, n_buy=0):
+    """The column values of the current bricks (leaf variables and the last ``n_buy``, the
+    bought counts, at their least), or None.
 
-    ``upper`` are the right-hand sides of the leaf rows ``sum x - y <= upper``.
+    ``upper`` are the right-hand sides of the leaf and design rows ``sum x - y <= upper``.
     """
     x = np.zeros(n_cols)
     for i in _rows_of(boxes, current):
         if i is None:
             return None
         x[i] = 1.0
-    if n_cols > n:
-        rows = a[m:].tocsr()
-        need = rows[:, :n] @ x[:n] - upper
-        aux = rows[:, n:].tocoo()
-        y = np.zeros(n_cols - n)
+    n_aux = n_cols - n - n_buy
+    if n_aux:
+        rows = a[m:m + n_aux].tocsr()
+        need = rows[:, :n] @ x[:n] - upper[:n_aux]
+        aux = rows[:, n:n + n_aux].tocoo()
+        y = np.zeros(n_aux)
         np.maximum.at(y, aux.col, need[aux.row])
-        x[n:] = np.clip(y, 0.0, 1.0)
+        x[n:n + n_aux] = np.clip(y, 0.0, 1.0)
+    if n_buy:
+        rows = a[m + n_aux:].tocsr()
+        x[n + n_aux:] = np.maximum(rows[:, :n] @ x[:n] - upper[n_aux:], 0.0)
     return x
+
+
+def _size_code(sx, sy, sz):
+    """One number for a box size (cells x, y, z), for looking sizes up in bulk."""
+    return (np.asarray(sx, dtype=np.int64) * 4096 + sy) * 64 + sz
 
 
 def _rows_of(boxes: np.ndarray, current) -> list[int | None]:

@@ -113,10 +113,12 @@ class TestParity(unittest.TestCase):
     def path(self, name: str) -> str:
         return os.path.join(self.tmp.name, name)
 
-    def cli(self, model: str, out: str, boxes, previous: str | None = None) -> dict:
-        """``python -m core fabricate`` on ``model`` with the Fabrication's settings; its outputs."""
+    def cli(self, model: str, out: str, boxes, previous: str | None = None, more=()) -> dict:
+        """``python -m core fabricate`` on ``model`` with the Fabrication's settings (and the
+        options ``more``); its outputs."""
         args = [str(PYTHON), "-m", "core", "fabricate", model, "--out", out, "--no-picture",
                 "--quiet"] + [f"--high-res={','.join(f'{v:.6f}' for v in b)}" for b in boxes]
+        args += list(more)
         if previous:
             args += ["--previous", previous]
         env = dict(os.environ, FABRICKATOR_SLICER="none")
@@ -203,6 +205,28 @@ class TestParity(unittest.TestCase):
                     if p.is_file()}
         self.assertEqual({n for n in cli_files if not n.startswith("iteration/")} - {"layout.png"},
                          {n for n in wb_files if not n.startswith("iteration/")} - {"layout.png"})
+
+    def test_an_inventory_gives_the_same_bricks_and_colours_as_the_command_line(self):
+        body, _ = pocketed_pad(self.doc)
+        box = self.path("box.csv")
+        Path(box).write_text("Part,Color,Quantity\n3001,4,6\n3003,0,20\n3004,15,30\n"
+                             "3024,71,50\n3023,72,40\n")
+        f = fab().make_fabrication(body, slice_print_times=False)
+        f.Inventory = [box]
+        f.BuyColour = "Black"
+        self.doc.recompute()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        cli = self.cli(self.source_file(body, "inv"), self.path("cli-inv"), [],
+                       more=["--inventory", box, "--colour", "Black"])
+
+        def coloured(data):
+            data = json.loads(data) if isinstance(data, str) else data
+            return sorted((b["part"], tuple(b["cell"]), b.get("colour"), b.get("owned"))
+                          for b in data["bricks"])
+        self.assertEqual(bricks_of(f.LayoutJson), bricks_of(cli["layout"]))
+        self.assertEqual(coloured(f.LayoutJson), coloured(cli["layout"]))
+        self.assertTrue(any(b[3] for b in coloured(f.LayoutJson)))
+        self.assertEqual(fab().report(f)["inventory"]["to_buy"], cli["report"]["inventory"]["to_buy"])
 
     def test_properties_and_preferences_default_to_the_one_table(self):
         from core.request import DEFAULTS

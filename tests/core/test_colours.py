@@ -114,10 +114,13 @@ def test_palette_is_a_checked_setting_with_a_cli_flag(tmp_path):
 
 
 def test_colour_table_is_consistent():
-    for code, (name, bl, bl_name, hex_rgb) in colours.COLORS.items():
+    for code, (name, bl, bl_name, hex_rgb, rb) in colours.COLORS.items():
         assert re.fullmatch(r"#[0-9A-F]{6}", hex_rgb), code
         assert colours.name(code) == name and colours.bricklink_id(code) == bl
+        assert colours.from_bricklink(bl) == code and colours.from_rebrickable(rb) == code
+        assert colours.by_name(bl_name.upper()) == code == colours.by_name(name)
     assert len({v[1] for v in colours.COLORS.values()}) == len(colours.COLORS)
+    assert len({v[4] for v in colours.COLORS.values()}) == len(colours.COLORS)
     assert colours.BOM_COLOR not in colours.RANDOM_CODES
     assert colours.PRINTED_COLOR not in colours.RANDOM_CODES
     # printed parts stand out from every brick colour
@@ -125,7 +128,28 @@ def test_colour_table_is_consistent():
         assert colours.delta_e(colours.rgb(code), colours.rgb(colours.PRINTED_COLOR)) > 15, code
 
 
+def test_inventory_colour_ids_from_design_notes():
+    # DESIGN.md "The maker's workshop": Rebrickable ids equal LDraw codes for these, and
+    # BrickLink numbers them 11 Black, 7 Blue, 5 Red, 3 Yellow, 1 White, 86 LBG, 85 DBG
+    for ldraw, bricklink in ((0, 11), (1, 7), (4, 5), (14, 3), (15, 1), (71, 86), (72, 85)):
+        assert colours.from_rebrickable(ldraw) == ldraw
+        assert colours.from_bricklink(bricklink) == ldraw
+    assert colours.by_name("light bluish gray") == 71
+    with pytest.raises(InputError, match="colour"):
+        colours.by_name("plaid")
+
+
 def test_delta_e():
     assert colours.delta_e((1, 1, 1), (1, 1, 1)) == 0
     assert colours.delta_e((0, 0, 0), (1, 1, 1)) == pytest.approx(100, abs=0.1)
     assert colours.delta_e((1, 0, 0), (0, 1, 0)) > 100
+
+
+def test_a_makers_own_colours_are_drawn_in_the_bom_palette():
+    from core.model import Brick, Grid, Layout
+
+    grid = Grid(filled=np.ones((4, 2, 6), dtype=bool), origin=(0.0, 0.0, 0.0), cell=(8.0, 8.0, 3.2))
+    lay = Layout(grid, [Brick(0, "3001", (4, 2, 3), (0, 0, 0)), Brick(1, "3001", (4, 2, 3), (0, 0, 3))])
+    assert colours.display_codes(lay, colouring={0: (0, True), 1: (71, False)}).tolist() == [0, 71]
+    assert colours.display_codes(lay).tolist() == [71, 71]
+    assert colours.brick_colours(lay, colouring={0: (15, True)})[0].tolist() == [1.0, 1.0, 1.0]

@@ -15,9 +15,10 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: the driver runs them (regions are read before the grid is fitted to them), then the
 #: exports, then the drivers and tools that use them all.  The force model comes before
 #: the layout: the exact-cover bounds solve with its HiGHS settings and reinforce asks it.
+#: The maker's inventory (read before any geometry) limits the layout and colours the outputs.
 ORDER = [
     "io", "parts", "layout", "printing", "instructions",
-    "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog",
+    "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog", "inventory",
     "connectivity", "parts.brick_solids", "parts.thickness", "io.brep", "io.repair", "io.meshes", "voxelize", "hollow",
     "high_res", "grid_fit",
     "forces.limits", "forces.joints", "forces.solver", "forces.verdict", "forces.bodies",

@@ -39,7 +39,8 @@ def test_the_other_defaults_read_the_table():
     ({"seed": -1}, "--seed"), ({"seed": 1.5}, "--seed"), ({"scale": 0.0}, "--scale"),
     ({"scale": float("nan")}, "--scale"), ({"seconds_per_brick": -3}, "--seconds-per-brick"),
     ({"seconds_per_part": True}, "--seconds-per-part"), ({"stud_fit": 5.0}, "stud"),
-    ({"colour": "red"}, "unknown setting"), ({"effort": "fastest"}, "--effort"),
+    ({"flavour": "red"}, "unknown setting"), ({"effort": "fastest"}, "--effort"),
+    ({"colour": "plaid"}, "--colour"), ({"inventory_only": True}, "--inventory-only"),
 ])
 def test_bad_settings_are_one_line_input_errors(settings, words):
     with pytest.raises(InputError) as err:
