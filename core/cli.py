@@ -87,6 +87,9 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
     _stability_parser(sub)
+    sub.add_parser("printers", help="list the printers --printer can name",
+                   description="List the printer presets of PrusaSlicer's installed vendor "
+                               "bundles, by vendor, with each build volume (x, y, z mm).")
     return parser
 
 
@@ -137,7 +140,8 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
-                            "clutch_n", "hollow"),
+                            "clutch_n", "hollow", "printer", "print_preset", "filament",
+                            "slicer_config"),
                         units=request.UNITS)
 
 
@@ -216,7 +220,7 @@ def _command(argv: list[str] | None) -> int:
     quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
-               "stability": _stability}.get(args.command, _fabricate)
+               "stability": _stability, "printers": _printers}.get(args.command, _fabricate)
     given = sys.stdout
     out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
@@ -553,6 +557,18 @@ def _naming(path, line: str) -> str:
     after the file's name."""
     named = line.startswith((path.name + ":", os.fspath(path) + ":"))
     return line if named else f"{path.name}: {line}"
+
+
+def _printers(args) -> int:
+    """The ``printers`` command: the printer names by vendor with their build volume."""
+    from core import printers
+
+    lines = printers.listing_lines(printers.bundle_folder())
+    if not lines:
+        raise InputError("no PrusaSlicer vendor bundles found: install PrusaSlicer, or give "
+                         "fabricate --slicer-config FILE.ini")
+    print("\n".join(lines))
+    return 0
 
 
 def _calibration_strip(args) -> int:

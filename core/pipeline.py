@@ -28,7 +28,7 @@ from core import changes_page, high_res as high_res_stage, hollow as hollow_stag
 from core import iterate as iterate_stage
 from core import improve as improve_stage
 from core import layout as layout_stage, result
-from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
+from core import mesh_io, output_dir, printed as printed_stage, printers, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
 from core import stability as stability_stage, voxelize
 from core.errors import InputError
@@ -92,8 +92,14 @@ class Fabrication:
         return self.request.seconds_per_part
 
     @property
-    def profile(self) -> str | None:
-        return self.request.profile
+    def profile(self) -> str | dict | None:
+        """What the parts are sliced with (:func:`core.printers.profile`)."""
+        return printers.profile(self.request)
+
+    @property
+    def printer(self) -> printers.Printer | None:
+        """The printer the request chose (:func:`core.printers.chosen`), None for the default."""
+        return printers.chosen(self.request)
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -188,6 +194,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         return value
 
     chosen = catalog.select(req.parts)
+    printers.chosen(req)                    # a bad printer or config ends the run before any work
     model = timed("load", 0.0, mesh_io.load_model, req.model, units=req.units, scale=req.scale,
                   up=req.up)
     loaded = [high_res_stage.load_region(p, units=req.units, scale=req.scale, up=req.up)
@@ -351,7 +358,7 @@ def _slicer_settings(req: Request) -> dict[str, str]:
     """The slicer settings printed parts are made with (their walls, infill and filament
     weigh them in the force check); the committed profile when they cannot be read."""
     try:
-        return print_time_stage.load_profile(req.profile)
+        return print_time_stage.load_profile(printers.profile(req))
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
 
@@ -439,8 +446,9 @@ class _Slicing:
         binary = print_time_stage.slicer_path() if req.slice_parts and likely else None
         if binary is None:
             return cls(work=work)
-        return cls(binary, req.profile, work,
-                   print_time_stage.in_background(_full_time, mesh.copy(), req.profile, binary, work))
+        profile = printers.profile(req)
+        return cls(binary, profile, work,
+                   print_time_stage.in_background(_full_time, mesh.copy(), profile, binary, work))
 
     def with_parts(self, printing: list) -> "_Slicing":
         """This, with the plates of the parts ``printing`` being posed and sliced too."""
@@ -724,6 +732,7 @@ def report(fab: Fabrication) -> dict:
             else f"full model: {full.method}; printed parts: {plate.method}",
             "method_words": print_method_words(full.method, plate.method),
         },
+        **({} if fab.printer is None else {"printer": fab.printer.to_json()}),
         "assembly_s": round(assembly_seconds(fab), 1),
         "assembly_split_s": {"lego": round(lego_s, 1), "insert_printed_parts": round(insert_s, 1)},
         "fabrication_s": None if making is None else round(making, 1),
@@ -928,7 +937,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
 
 def _inputs(req: Request) -> list[str]:
     """The files a run of ``req`` reads (an output folder must not hold them)."""
-    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else [])]
+    return [req.model, *req.high_res_solids, *([req.profile] if req.profile else []),
+            *([req.slicer_config] if req.slicer_config else [])]
 
 
 def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:

@@ -309,8 +309,11 @@ def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = 
     :func:`resolve_slicer`; :func:`core.slicer_profile.bundle_profile`), or
     FALLBACK_PROFILE when there is no slicer, no bundle beside it, or the
     bundle lacks the presets.  Raises InputError when a given file cannot
-    be read.
+    be read.  A dict (a chosen printer's config, :mod:`core.printers`) is the settings
+    themselves.
     """
+    if isinstance(profile, dict):
+        return dict(profile)
     if profile is None:
         binary, _ = resolve_slicer(slicer)
         bundle = slicer_profile.find_bundle(binary)

@@ -1,0 +1,172 @@
+"""Choosing the printer: PrusaSlicer's vendor bundles, their compatibility conditions, a user's config."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from core import printers, slicer_profile
+from core.errors import InputError
+from core.request import Request
+
+ROOT = Path(__file__).resolve().parents[2]
+FOLDER = printers.bundle_folder()
+needs_bundles = pytest.mark.skipif(FOLDER is None, reason="no PrusaSlicer vendor bundles installed")
+
+MINI = "Original Prusa MINI & MINI+"
+ENDER = "Creality Ender-3 (0.4 mm nozzle)"
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "core", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+
+
+def one_line(proc: subprocess.CompletedProcess) -> str:
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if not ln.startswith("[")]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    return lines[0]
+
+
+MK3_NOTES = r"Do not remove!\nPRINTER_VENDOR_PRUSA3D\nPRINTER_MODEL_MK3\n"
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('printer_model=="MINI"', False),
+    ('printer_model!="MINI"', True),
+    ("printer_notes=~/.*PRINTER_MODEL_MK3.*/", True),      # spans the \n lines, as boost's regex
+    ("printer_notes=~/.*PRINTER_MODEL_MK2.*/", False),
+    ("printer_notes!~/.*PRINTER_MODEL_MK2.*/", True),
+    ("nozzle_diameter[0]==0.4", True),                      # "0.40" == 0.4 as numbers
+    ("nozzle_diameter[1]==0.6", True),
+    ("nozzle_diameter[0]>0.35 and nozzle_diameter[0]<=0.4", True),
+    ("nozzle_diameter[0]>=0.6 or printer_model==\"MK3S\"", True),
+    ("single_extruder_multi_material", False),
+    ("! single_extruder_multi_material", True),
+    ("not (printer_model==\"MK3S\" and nozzle_diameter[0]==0.4)", False),
+    ("num_extruders==2 && ! (printer_model==\"MINI\")", True),
+    ("(printer_model==\"MINI\" or printer_model==\"MK3S\") and nozzle_diameter[0]==0.4", True),
+    ("", True),
+])
+def test_condition_by_hand(text, expected):
+    config = {"printer_model": "MK3S", "printer_notes": MK3_NOTES, "nozzle_diameter": "0.40,0.6",
+              "single_extruder_multi_material": "0"}
+    assert printers.holds(printers.condition(text), config) is expected
+
+
+@pytest.mark.parametrize("text", ["printer_model==", "(a==1", "a==1 b==2", "a=1"])
+def test_condition_refuses_what_is_not_one(text):
+    with pytest.raises(printers.ConditionError):
+        printers.condition(text)
+
+
+@needs_bundles
+def test_every_installed_condition_parses():
+    found = [(b.vendor, name, sec[key]) for b in printers.bundles(FOLDER)
+             for (_, name), sec in b.sections.items()
+             for key in ("compatible_printers_condition", "compatible_prints_condition") if key in sec]
+    assert len(found) > 100
+    for vendor, name, text in found:
+        printers.condition(text)
+
+
+@needs_bundles
+def test_every_installed_printer_gets_a_print_and_a_filament():
+    names = [n for b in printers.bundles(FOLDER) for n in printers.fff_printers(b)]
+    assert len(names) > 100 and MINI in names and ENDER in names
+    assert "Original Prusa SL1" not in names                 # a resin printer
+    for name in names:
+        chosen = printers.choose(name, folder=FOLDER)
+        assert chosen.config["printer_settings_id"] == name
+        assert chosen.config["print_settings_id"] == chosen.print_preset
+
+
+@needs_bundles
+def test_the_mk3s_named_is_todays_default_profile():
+    chosen = printers.choose(slicer_profile.PRESETS["printer"], folder=FOLDER)
+    assert (chosen.print_preset, chosen.filament) == ("0.20mm QUALITY @MK3", "Prusament PLA")
+    assert chosen.config == slicer_profile.bundle_profile(FOLDER / slicer_profile.VENDOR_BUNDLE)
+
+
+@needs_bundles
+def test_mini_and_ender_get_their_own_presets():
+    """The bundles say (read by hand): the MINI's 0.20 mm print is "0.20mm QUALITY @MINI",
+    its filament Prusament PLA and its bed 180 mm; the Ender-3's is Creality's own."""
+    mini = printers.choose(MINI, folder=FOLDER)
+    assert (mini.print_preset, mini.filament, mini.vendor) == ("0.20mm QUALITY @MINI", "Prusament PLA",
+                                                               "Prusa Research")
+    assert mini.config["bed_shape"] == "0x0,180x0,180x180,0x180"
+    assert mini.config["max_print_height"] == "180"
+    ender = printers.choose(ENDER, folder=FOLDER)
+    assert ender.vendor == "Creality" and ender.print_preset.startswith("0.20 mm")
+    assert "@CREALITY" in ender.print_preset and ender.filament == "Generic PLA @CREALITY"
+    assert float(ender.config["layer_height"]) == 0.2
+    other = printers.choose(MINI, "0.15mm QUALITY @MINI", "Prusament PETG @MINI", folder=FOLDER)
+    assert float(other.config["layer_height"]) == 0.15 and other.config["filament_type"] == "PETG"
+
+
+@needs_bundles
+def test_incompatible_or_unknown_names_name_the_nearest():
+    with pytest.raises(InputError, match="nearest.*Original Prusa MINI & MINI\\+"):
+        printers.choose("Original Prusa MINI", folder=FOLDER)
+    with pytest.raises(InputError, match="print preset for"):
+        printers.choose(MINI, "0.20mm QUALITY @MK3", folder=FOLDER)
+
+
+def test_default_request_chooses_no_printer():
+    req = Request(model="x.stl")
+    assert printers.chosen(req) is None and printers.profile(req) is None
+    with pytest.raises(InputError, match="--printer"):
+        printers.chosen(Request(model="x.stl", filament="Prusament PLA"))
+
+
+def _flat(tmp_path, layer="0.3") -> Path:
+    path = tmp_path / "mine.ini"
+    path.write_text("# generated by PrusaSlicer 2.5.0\nbed_shape = 0x0,200x0,200x200,0x200\n"
+                    f"layer_height = {layer}\nmax_print_height = 150\nnozzle_diameter = 0.4\n"
+                    "printer_settings_id = My printer\nprint_settings_id = My print\n"
+                    "filament_settings_id = \"My PLA\"\n")
+    return path
+
+
+def test_user_config_is_taken_as_it_is(tmp_path):
+    chosen = printers.from_file(_flat(tmp_path))
+    assert (chosen.printer, chosen.print_preset, chosen.filament) == ("My printer", "My print", "My PLA")
+    assert chosen.config["layer_height"] == "0.3" and chosen.vendor == "user config"
+    assert chosen.to_json()["build_volume_mm"] == [200.0, 200.0, 150.0]
+
+
+def test_foreign_configs_are_refused(tmp_path):
+    with pytest.raises(InputError, match="cannot read"):
+        printers.from_file(tmp_path / "absent.ini")
+    bundle = tmp_path / "bundle.ini"
+    bundle.write_text("[printer:X]\nbed_shape = 0x0,1x1\n")
+    with pytest.raises(InputError, match="sections"):
+        printers.from_file(bundle)
+    other = tmp_path / "other.ini"
+    other.write_text("[core]\n" * 0 + "editor = vim\n")
+    with pytest.raises(InputError, match="lacks layer_height"):
+        printers.from_file(other)
+
+
+@pytest.mark.slow
+@needs_bundles
+def test_cli_lists_and_refuses(tmp_path):
+    listed = cli("printers")
+    assert listed.returncode == 0, listed.stderr
+    lines = listed.stdout.splitlines()
+    assert any(ln.startswith("Prusa Research (bundle ") for ln in lines)
+    assert any(ln.split() == MINI.split() + ["180", "x", "180", "x", "180", "mm"] for ln in lines)
+    box = tmp_path / "box.stl"
+    trimesh.creation.box((16.0, 16.0, 9.6)).export(box)
+    line = one_line(cli("fabricate", str(box), "--out", str(tmp_path / "o"), "--printer", "Ender 3"))
+    assert "unknown printer 'Ender 3'" in line and line.count("'Creality") + line.count("'") >= 6
+    line = one_line(cli("fabricate", str(box), "--out", str(tmp_path / "o"),
+                        "--slicer-config", str(tmp_path / "none.ini")))
+    assert "--slicer-config" in line and "cannot read" in line
+    assert not (tmp_path / "o").exists()
