@@ -6,7 +6,7 @@ B-rep of that mesh, one planar face per triangle, written directly as
 STEP text (:func:`write_faceted_step`).  Both stay in model coordinates,
 where the part belongs in the assembly.
 
-The plate ``parts/plate.3mf`` holds every part in its print pose
+The plate ``parts/plate-1.3mf`` holds every part in its print pose
 (:func:`print_pose`: the pose PrusaSlicer prints fastest with the supports
 it needs, never studs down, never the engraved ID facing down), each on
 the bed (min z = 0), packed in rows within the printer's bed
@@ -268,7 +268,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     changed.  The plates come from :func:`plates` (``bed``, ``profile`` and
     ``slicer`` as there), or are ``beds`` when given (what :func:`plates`
     returned for these ``parts``, so that the poses are not searched again):
-    ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
+    ``plate-1.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
     printed with as PrusaSlicer's project config
     (:func:`core.print_time.plate_3mf`): the
     profile's, with :data:`core.print_time.SUPPORT_SETTINGS` when a part on
@@ -291,7 +291,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     if beds is None:
         beds = plates(parts, bed, profile, slicer) if parts else []
     for number, items in enumerate(beds, start=1):
-        name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
+        name = f"plate-{number}.3mf"
         for index, _, pose in items:
             files[parts[index].id]["pose"] = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
         config = print_time.plate_config(profile, supports=any(pose.supports for _, _, pose in items),

@@ -637,8 +637,9 @@ def _minutes(seconds: float) -> str:
 
 
 def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title: str = "",
-         assembly_s: float | None = None) -> tuple[str, dict]:
-    """The whole ``instructions.html`` text, and facts about its picture.
+         assembly_s: float | None = None, printed_on: str | None = None) -> tuple[str, dict]:
+    """The whole ``instructions.html`` text, and facts about its picture; its summary
+    ends with "printed on: ``printed_on``" when that names the printer.
 
     Raises ValueError when ``order`` does not cover every brick of ``layout``.
     """
@@ -668,6 +669,8 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
                f"{len(order.steps)} steps")
     if assembly_s is not None:
         summary += f", about {_minutes(assembly_s)} to build"
+    if printed_on and n_parts:
+        summary += f"; printed on: {printed_on}"
     warn = ""
     if order.unattached or order.early_parts:
         bits = []
@@ -686,9 +689,10 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
 
 
 def write_instructions(layout: Layout, order: build_order.BuildOrder, path: str | os.PathLike,
-                       printed_parts=(), title: str = "", assembly_s: float | None = None) -> dict:
-    """Write ``instructions.html`` at ``path``; returns facts about its picture and size."""
-    text, facts = page(layout, order, printed_parts, title, assembly_s)
+                       printed_parts=(), title: str = "", assembly_s: float | None = None,
+                       printed_on: str | None = None) -> dict:
+    """Write ``instructions.html`` at ``path`` (:func:`page`); returns facts about its picture and size."""
+    text, facts = page(layout, order, printed_parts, title, assembly_s, printed_on)
     Path(path).write_text(text, encoding="utf-8")
     facts["bytes"] = len(text.encode("utf-8"))
     return facts
@@ -698,9 +702,10 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
                    seconds_per_brick: float = build_order.SECONDS_PER_BRICK,
                    seconds_per_part: float = build_order.SECONDS_PER_PART,
                    bricks_per_step: int = build_order.BRICKS_PER_STEP,
-                   order: build_order.BuildOrder | None = None) -> dict:
+                   order: build_order.BuildOrder | None = None, printed_on: str | None = None) -> dict:
     """Write the builder's files of ``layout`` into ``folder``, in the build ``order``
-    (planned here when None; ``layout`` is not changed).
+    (planned here when None; ``layout`` is not changed); ``printed_on`` names the printer
+    the instructions say the parts are printed on.
 
     Writes ``instructions.html``, ``assembly.mpd`` (LDraw MPD with ``0 STEP``
     per step and the printed parts embedded), ``bom.csv`` and
@@ -729,7 +734,7 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     timings["order"] = time.perf_counter() - t
     t = time.perf_counter()
     facts = write_instructions(layout, order, folder / FILES["instructions"], printed_parts,
-                               title, seconds)
+                               title, seconds, printed_on)
     timings["html"] = time.perf_counter() - t
     t = time.perf_counter()
     ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title, props=order.props)

@@ -448,7 +448,8 @@ class _Slicing:
             return cls(work=work)
         profile = printers.profile(req)
         return cls(binary, profile, work,
-                   print_time_stage.in_background(_full_time, mesh.copy(), profile, binary, work))
+                   print_time_stage.in_background(_full_time, mesh.copy(), profile, binary, work,
+                                                  printers.chosen(req) is not None))
 
     def with_parts(self, printing: list) -> "_Slicing":
         """This, with the plates of the parts ``printing`` being posed and sliced too."""
@@ -463,10 +464,15 @@ def _sliced_under(work: str | None):
     return contextlib.nullcontext(work) if work is not None else output_dir.scratch("slice")
 
 
-def _full_time(mesh, profile, slicer, work: str | None = None) -> print_time_stage.PrintEstimate:
+def _full_time(mesh, profile, slicer, work: str | None = None,
+               chosen: bool = False) -> print_time_stage.PrintEstimate:
     """The whole model's print time in its fastest pose (the speed-up's baseline),
-    sliced under ``work`` (a scratch folder when None)."""
+    sliced under ``work`` (a scratch folder when None); on a ``chosen`` printer, as if
+    its bed were large enough where the model does not fit it
+    (:func:`core.print_time.reference_time`)."""
     with _sliced_under(work) as folder:
+        if chosen:
+            return print_time_stage.reference_time(mesh, folder, profile=profile, slicer=slicer)
         return print_time_stage.print_time([mesh], folder, profile=profile, slicer=slicer)
 
 
@@ -500,9 +506,10 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
     printing = fab.to_print
     slicer = started.slicer or "auto"
     full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile,
-                                                          slicer, started.work)
+                                                          slicer, started.work, fab.printer is not None)
     beds, results = (started.parts.result() if started.parts is not None
                      else _plates_time(printing, fab.profile, slicer, started.work))
+    printers.check_plates(fab.printer, beds, [p.id for p in printing])
     full = full.result()
     methods = sorted({r.method for r in results})
     parts = print_time_stage.PrintEstimate(
@@ -731,6 +738,7 @@ def report(fab: Fabrication) -> dict:
             "method": full.method if full.method == plate.method
             else f"full model: {full.method}; printed parts: {plate.method}",
             "method_words": print_method_words(full.method, plate.method),
+            "print_plates": len(fab.plates or ()), "full_model_on_enlarged_bed": full.enlarged_bed,
         },
         **({} if fab.printer is None else {"printer": fab.printer.to_json()}),
         "assembly_s": round(assembly_seconds(fab), 1),
@@ -904,7 +912,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     from core import instructions
     assembly = instructions.write_assembly(
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
-        seconds_per_part=fab.seconds_per_part, order=fab.order)
+        seconds_per_part=fab.seconds_per_part, order=fab.order,
+        printed_on=None if fab.printer is None else fab.printer.label)
     (tmp / "layout.json").write_text(json.dumps(fab.layout.to_json()))
     if fab.request.picture:
         progress(0.95, "picture")

@@ -183,7 +183,8 @@ class PrintEstimate:
     the pose :func:`print_time` turned the mesh into (several meshes'
     joined by ", "), None when every mesh came in its print pose.
     ``cached`` says the slicer's answer came from :mod:`core.slice_cache`
-    (the same plate sliced before; no G-code then).
+    (the same plate sliced before; no G-code then).  ``enlarged_bed`` says it
+    was sliced on a bed enlarged to fit (:func:`reference_time`).
     """
 
     seconds: float
@@ -192,6 +193,7 @@ class PrintEstimate:
     supports: bool = False
     pose: str | None = None
     cached: bool = False
+    enlarged_bed: bool = False
 
 
 @dataclass
@@ -665,7 +667,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     Writes the plate as a 3MF carrying its settings (:func:`plate_3mf`,
     the file ``core.export`` writes for the user) and the G-code into a new
     folder under ``workdir``, and slices it as a user would
-    (``prusa-slicer --dont-arrange --export-gcode plate.3mf``), the parts
+    (``prusa-slicer --dont-arrange --export-gcode plate-1.3mf``), the parts
     where :func:`arrange` puts them (as given when they lie apart on the
     bed, as ``core.export``'s plates do), each in its orientation.  The
     settings are the profile's (:func:`plate_config`; ``profile`` None: the
@@ -945,3 +947,45 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike | 
     seconds = estimate_seconds(parts) + sum(support_seconds(*support_need(m, overhang)[:2]) for m in supported)
     label = ESTIMATE_METHOD.rstrip(")") + (", with supports" if supported else "")
     return PrintEstimate(seconds, f"{label}; {reason}){posing}", None, bool(supported), pose)
+
+
+def fits(extents, volume) -> bool:
+    """Whether a part of ``extents`` (x, y, z mm, as it stands) fits the build ``volume``,
+    as it stands or turned a quarter about z."""
+    extents, volume = np.asarray(extents, float), np.asarray(volume, float) + 1e-6
+    return bool(extents[2] <= volume[2] and (np.all(extents[:2] <= volume[:2])
+                                             or np.all(extents[1::-1] <= volume[:2])))
+
+
+def fits_some_pose(mesh: trimesh.Trimesh, volume) -> bool:
+    """Whether ``mesh`` fits the build ``volume`` in one of its :func:`candidate_poses`."""
+    return any(fits(np.ptp(trimesh.transform_points(mesh.convex_hull.vertices, rotation), axis=0), volume)
+               for _, rotation in candidate_poses(mesh))
+
+
+def enlarged(config: dict[str, str], extents) -> dict[str, str]:
+    """``config`` with a rectangular bed and a height large enough for a part of
+    ``extents`` in any pose (its longest side, ARRANGE_GAP_MM spare on each side)."""
+    volume = build_volume(config)
+    side = float(np.max(extents)) + 2 * ARRANGE_GAP_MM
+    x, y = max(volume[0], side), max(volume[1], side)
+    return {**config, "bed_shape": f"0x0,{x:g}x0,{x:g}x{y:g},0x{y:g}",
+            "max_print_height": f"{max(volume[2], side):g}"}
+
+
+def reference_time(mesh: trimesh.Trimesh, workdir: str | os.PathLike, profile=None,
+                   slicer: str | None = "auto") -> PrintEstimate:
+    """The whole model's print time on the printer of ``profile`` (:func:`print_time`, its
+    fastest pose); when it fits that printer's build volume in no candidate pose, the
+    time as if the bed were large enough (:func:`enlarged`), marked ``enlarged_bed`` and
+    so named in ``method``."""
+    binary, _ = resolve_slicer(slicer)
+    config = load_profile(profile, binary)
+    volume = build_volume(config)
+    if fits_some_pose(mesh, volume):
+        return print_time([mesh], workdir, profile=profile, slicer=slicer)
+    result = print_time([mesh], workdir, profile=enlarged(config, mesh.extents), slicer=slicer)
+    size = " x ".join(f"{v:g}" for v in np.round(volume, 1))
+    return replace(result, enlarged_bed=True,
+                   method=f"{result.method}; the model fits the printer's {size} mm in no pose: "
+                          f"timed as if the bed were large enough")

@@ -483,3 +483,21 @@ def profile(req):
     dict), else the request's ``profile`` file (None: the default profile)."""
     printer = chosen(req)
     return dict(printer.config) if printer is not None else req.profile
+
+
+def check_plates(printer: Printer | None, beds, ids) -> None:
+    """Raise InputError naming the first printed part that, in its print pose on ``beds``
+    (:func:`core.export.plates`; ``ids`` the parts' names by index), fits the build volume
+    of the chosen ``printer`` in no way; nothing for the default printer (None)."""
+    if printer is None:
+        return
+    from core.print_time import build_volume, fits
+    volume = build_volume(printer.config)
+    for items in beds:
+        for index, mesh, _ in items:
+            if not fits(mesh.extents, volume):
+                size = " x ".join(f"{v:.0f}" for v in mesh.extents)
+                room = " x ".join(f"{v:g}" for v in volume)
+                raise InputError(f"printed part {ids[index]} ({size} mm in its print pose, studs "
+                                 f"never down) does not fit the {printer.printer}'s build volume "
+                                 f"{room} mm: mark a smaller region or choose a larger printer")

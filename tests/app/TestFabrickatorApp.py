@@ -793,7 +793,7 @@ class TestDocument(FabrickatorTestCase):
         for name in ("parts", "layout.json", "layout.png", "report.json", "instructions.html",
                      "assembly.mpd", "bom.csv", "iteration"):
             self.assertIn(name, written)
-        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate.3mf", "layout.json",
+        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate-1.3mf", "layout.json",
                      "report.json", "instructions.html"):
             self.assertGreater((out / name).stat().st_size, 0)
         self.assertEqual(json.loads((out / "layout.json").read_text())["bricks"],

@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
 import trimesh
 
-from core import printers, slicer_profile
+from core import pipeline, print_time, printers, slicer_profile
 from core.errors import InputError
 from core.request import Request
+
+from conftest import HMD_HIGH_RES
 
 ROOT = Path(__file__).resolve().parents[2]
 FOLDER = printers.bundle_folder()
@@ -169,4 +172,101 @@ def test_cli_lists_and_refuses(tmp_path):
     line = one_line(cli("fabricate", str(box), "--out", str(tmp_path / "o"),
                         "--slicer-config", str(tmp_path / "none.ini")))
     assert "--slicer-config" in line and "cannot read" in line
+    assert not (tmp_path / "o").exists()
+
+
+def _resliced(plate: Path, folder: Path) -> float:
+    """PrusaSlicer's own time of a written plate, sliced by hand as a user would."""
+    gcode = folder / (plate.stem + ".gcode")
+    run = subprocess.run([print_time.slicer_path(), "--loglevel", "1", "--dont-arrange", "--export-gcode",
+                          "--output", str(gcode), str(plate)], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return print_time.gcode_seconds(gcode)
+
+
+@pytest.fixture(scope="module")
+def mk3s_demo(hmd_step, tmp_path_factory) -> dict:
+    """The demo's report on the default printer."""
+    return pipeline.fabricate(hmd_step, tmp_path_factory.mktemp("mk3s") / "out", high_res=HMD_HIGH_RES,
+                              effort="fast", picture=False)
+
+
+@pytest.mark.slow
+@needs_bundles
+@pytest.mark.skipif(print_time.slicer_path() is None, reason="PrusaSlicer is not installed")
+@pytest.mark.parametrize("name", [MINI, ENDER, "Anycubic i3 Mega"])
+def test_demo_is_timed_on_the_printer(name, hmd_step, tmp_path, mk3s_demo):
+    """Each written plate, re-sliced by hand, gives the report's printed-parts time (2 %);
+    the plates carry the printer's presets, the instructions name it, and the times are
+    not the MK3S's."""
+    out = tmp_path / "out"
+    doc = pipeline.fabricate(hmd_step, out, high_res=HMD_HIGH_RES, effort="fast", picture=False,
+                             printer=name)
+    chosen = printers.choose(name, folder=FOLDER)
+    assert doc["printer"]["printer"] == name and doc["printer"]["bundle_version"] == chosen.bundle_version
+    plates = sorted((out / "parts").glob("plate*.3mf"))
+    assert plates
+    total = 0.0
+    for plate in plates:
+        with zipfile.ZipFile(plate) as archive:
+            settings = archive.read(print_time.SLIC3R_CONFIG).decode()
+        assert f"; printer_settings_id = {name}\n" in settings
+        assert f"; print_settings_id = {chosen.print_preset}\n" in settings
+        total += _resliced(plate, tmp_path)
+    times = doc["print_time_s"]
+    assert total == pytest.approx(times["printed_parts"], rel=0.02)
+    assert "prusa-slicer" in times["method"]
+    assert times["printed_parts"] != mk3s_demo["print_time_s"]["printed_parts"]
+    assert times["full_model"] != mk3s_demo["print_time_s"]["full_model"]
+    assert f"printed on: {chosen.label}" in (out / "instructions.html").read_text(encoding="utf-8")
+
+
+def test_fits_by_hand():
+    assert print_time.fits((170, 100, 180), (180, 180, 180))
+    assert print_time.fits((100, 200, 10), (250, 210, 210))
+    assert print_time.fits((240, 200, 10), (210, 250, 210))          # a quarter turn about z
+    assert not print_time.fits((190, 10, 10), (180, 180, 180))
+    assert not print_time.fits((10, 10, 181), (180, 180, 180))
+    tower = trimesh.creation.box((20.0, 20.0, 200.0))
+    assert not print_time.fits_some_pose(tower, (180, 180, 180))
+    assert print_time.fits_some_pose(tower, (250, 210, 210))          # lying down
+
+
+def test_enlarged_bed_takes_the_longest_side():
+    config = {"bed_shape": "0x0,180x0,180x180,0x180", "max_print_height": "180", "x": "1"}
+    big = print_time.enlarged(config, (20.0, 30.0, 200.0))
+    assert list(print_time.build_volume(big)) == [220.0, 220.0, 220.0] and big["x"] == "1"
+    assert config["bed_shape"] == "0x0,180x0,180x180,0x180"
+
+
+@pytest.mark.slow
+@needs_bundles
+@pytest.mark.skipif(print_time.slicer_path() is None, reason="PrusaSlicer is not installed")
+def test_reference_time_of_a_model_larger_than_the_printer(tmp_path):
+    """A 200 mm tower fits the MINI in no pose: sliced on a bed enlarged to fit, and said so;
+    on the MK3S it lies down and is sliced on its own bed."""
+    tower = trimesh.creation.box((20.0, 20.0, 200.0))
+    mini = printers.choose(MINI, folder=FOLDER).config
+    result = print_time.reference_time(tower, tmp_path, profile=mini)
+    assert result.enlarged_bed and result.method.startswith("prusa-slicer")
+    assert "180 x 180 x 180 mm in no pose" in result.method and result.seconds > 0
+    mk3s = print_time.reference_time(tower, tmp_path)
+    assert not mk3s.enlarged_bed and mk3s.method.startswith("prusa-slicer")
+
+
+@pytest.mark.slow
+@needs_bundles
+def test_part_larger_than_the_printer_is_refused(tmp_path):
+    """A 24 x 24 x 192 mm tower marked whole prints as one part, which fits the MINI's
+    180 mm cube in no pose: one line naming the part and the volume, exit 2, no output."""
+    tower = tmp_path / "tower.stl"
+    box = trimesh.creation.box((24.0, 24.0, 192.0))
+    box.apply_translation(-box.bounds[0])
+    box.export(tower)
+    proc = subprocess.run([sys.executable, "-m", "core", "fabricate", str(tower), "--out", str(tmp_path / "o"),
+                           "--high-res=-1,-1,-1,25,25,193", "--printer", MINI, "--quiet"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env={**__import__("os").environ, "FABRICKATOR_SLICER": "none"})
+    line = one_line(proc)
+    assert "printed part P1" in line and "180 x 180 x 180 mm" in line and MINI in line
     assert not (tmp_path / "o").exists()
