@@ -27,6 +27,7 @@ import warnings
 
 from core import __version__, request
 from core.errors import InputError, bug_line, check_path, memory_shortage
+from core.interfaces import Fit
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -66,6 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--out", required=True, metavar="DIR",
                help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
     _model_options(fab)
+    fab.set_defaults(stud_fit=None, socket_fit=None)     # not given: the printer's saved fit
     request.add_options(fab, ("seconds_per_brick", "seconds_per_part", "previous", "connectors",
                               "fit_grid", "picture", "palette"))
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -84,9 +86,21 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("--timeout", type=float, default=None, metavar="S",
                help="stop after S seconds (default: run until Ctrl-C)")
     _model_options(wat)
+    wat.set_defaults(stud_fit=None, socket_fit=None)
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
     _stability_parser(sub)
+    fit = sub.add_parser("save-fit", help="save the stud and socket fit the calibration strip "
+                                          "found for a printer and filament",
+                         description="Save --stud-fit and --socket-fit for the printer (and "
+                                     "filament) named, in the user's fits file; fabricate and "
+                                     "watch use them whenever that printer is chosen and the fit "
+                                     "is not given.")
+    request.add_options(fit, ("printer", "print_preset", "filament", "slicer_config"))
+    fit.add_argument("--stud-fit", dest="stud_fit", type=float, required=True, metavar="MM",
+                     help="the stud fit the strip found")
+    fit.add_argument("--socket-fit", dest="socket_fit", type=float, required=True, metavar="MM",
+                     help="the socket fit the strip found")
     sub.add_parser("printers", help="list the printers --printer can name",
                    description="List the printer presets of PrusaSlicer's installed vendor "
                                "bundles, by vendor, with each build volume (x, y, z mm).")
@@ -220,7 +234,7 @@ def _command(argv: list[str] | None) -> int:
     quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
-               "stability": _stability, "printers": _printers}.get(args.command, _fabricate)
+               "stability": _stability, "printers": _printers, "save-fit": _save_fit}.get(args.command, _fabricate)
     given = sys.stdout
     out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
@@ -505,6 +519,7 @@ def _fabricate(args) -> int:
     from core import pipeline
 
     _check_paths(args, out_name_checked=True)
+    _fit_of_printer(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
     doc = pipeline.fabricate(request.from_options(args, args.model), args.out, progress=progress)
     _summary(doc, args.out)
@@ -519,6 +534,7 @@ def _watch(args) -> int:
 
     _check_paths(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
+    _fit_of_printer(args)
     job = request.from_options(args, "watched")
     timeout = request.timeout_seconds(args.timeout)
     if job.previous is not None:
@@ -557,6 +573,40 @@ def _naming(path, line: str) -> str:
     after the file's name."""
     named = line.startswith((path.name + ":", os.fspath(path) + ":"))
     return line if named else f"{path.name}: {line}"
+
+
+def _fit_of_printer(args) -> None:
+    """Fill the stud and socket fit ``args`` leave out (None): the fit saved for the chosen
+    printer and filament (:func:`core.calibration.saved_fit`), else the defaults; set
+    ``args.fit_source`` to where they came from."""
+    from core import calibration, printers
+
+    names = ("stud_fit", "socket_fit")
+    given = [n for n in names if getattr(args, n) is not None]
+    chosen = printers.chosen(args) if len(given) < len(names) else None
+    path = calibration.fits_file()
+    saved = None if chosen is None else calibration.saved_fit(chosen.printer, chosen.filament, path)
+    source = (f"saved for {chosen.printer} / {chosen.filament} in {path}" if saved is not None
+              else "default")
+    for name in names:
+        if getattr(args, name) is None:
+            setattr(args, name, getattr(saved or Fit(), name))
+    args.fit_source = ("given" if len(given) == len(names) else source if not given
+                       else f"{', '.join(given)} given, the rest {source}")
+
+
+def _save_fit(args) -> int:
+    """The ``save-fit`` command: the fit saved for the printer and filament, in one line."""
+    from core import calibration, printers
+
+    chosen = printers.chosen(args)
+    if chosen is None:
+        raise InputError("save-fit needs the printer: give --printer NAME or --slicer-config FILE.ini")
+    fit = Fit(stud_fit=args.stud_fit, socket_fit=args.socket_fit).check()
+    path = calibration.save_fit(chosen.printer, chosen.filament, fit)
+    print(f"saved stud fit {fit.stud_fit:+g} mm, socket fit {fit.socket_fit:+g} mm for "
+          f"{chosen.printer} / {chosen.filament} in {path}")
+    return 0
 
 
 def _printers(args) -> int:

@@ -741,6 +741,8 @@ def report(fab: Fabrication) -> dict:
             "print_plates": len(fab.plates or ()), "full_model_on_enlarged_bed": full.enlarged_bed,
         },
         **({} if fab.printer is None else {"printer": fab.printer.to_json()}),
+        "fit": {"stud_fit": fab.interface.stud_fit, "socket_fit": fab.interface.socket_fit,
+                "source": fab.request.fit_source},
         "assembly_s": round(assembly_seconds(fab), 1),
         "assembly_split_s": {"lego": round(lego_s, 1), "insert_printed_parts": round(insert_s, 1)},
         "fabrication_s": None if making is None else round(making, 1),

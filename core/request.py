@@ -113,6 +113,8 @@ class Request:
                                               "one of 0.20 mm layers)", "--print-preset", "NAME")
     filament: str | None = _setting(None, "a filament preset compatible with --printer (default: "
                                           "a PLA)", "--filament", "NAME")
+    fit_source: str = _setting("default", "where the stud and socket fit come from (the report "
+                                          "says): default, given, or the fit saved for the printer")
     slicer_config: str | None = _setting(None, "a config PrusaSlicer exported (File > Export > "
                                                "Export Config), sliced with as it is, instead of "
                                                "--printer", "--slicer-config", "FILE.ini")
