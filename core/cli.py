@@ -67,7 +67,6 @@ def _parser() -> argparse.ArgumentParser:
     fab.add_argument("--out", required=True, metavar="DIR",
                help="output folder (report.json, layout.json, layout.png, instructions.html, assembly.mpd, bom.csv, bricklink.xml, parts/)")
     _model_options(fab)
-    fab.set_defaults(stud_fit=None, socket_fit=None)     # not given: the printer's saved fit
     request.add_options(fab, ("seconds_per_brick", "seconds_per_part", "previous", "connectors",
                               "fit_grid", "picture", "palette"))
     fab.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -86,7 +85,6 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("--timeout", type=float, default=None, metavar="S",
                help="stop after S seconds (default: run until Ctrl-C)")
     _model_options(wat)
-    wat.set_defaults(stud_fit=None, socket_fit=None)
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
     _stability_parser(sub)
@@ -150,8 +148,19 @@ def _calibration_parser(sub) -> None:
                      help=f"step between two columns (default {calibration.STEP_MM:g})")
 
 
+class _Stored(argparse._StoreAction):
+    """argparse's plain option that also notes in ``given`` that it was given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        super().__call__(parser, namespace, values, option_string)
+        namespace.given = set(getattr(namespace, "given", ())) | {self.dest}
+
+
 def _model_options(p: argparse.ArgumentParser) -> None:
-    """The options that say how to read a model and what to print (fabricate and watch)."""
+    """The options that say how to read a model and what to print (fabricate and watch);
+    ``given`` names the plain ones given (the stud and socket fit, :func:`_fit_of_printer`)."""
+    p.register("action", None, _Stored)
+    p.set_defaults(given=set())
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
                             "clutch_n", "hollow", "printer", "print_preset", "filament",
@@ -576,21 +585,21 @@ def _naming(path, line: str) -> str:
 
 
 def _fit_of_printer(args) -> None:
-    """Fill the stud and socket fit ``args`` leave out (None): the fit saved for the chosen
-    printer and filament (:func:`core.calibration.saved_fit`), else the defaults; set
-    ``args.fit_source`` to where they came from."""
+    """Set the stud and socket fit ``args`` do not give (``args.given``) to the fit saved for
+    the chosen printer and filament (:func:`core.calibration.saved_fit`) when there is one,
+    and ``args.fit_source`` to where they came from."""
     from core import calibration, printers
 
     names = ("stud_fit", "socket_fit")
-    given = [n for n in names if getattr(args, n) is not None]
+    given = [n for n in names if n in args.given]
     chosen = printers.chosen(args) if len(given) < len(names) else None
     path = calibration.fits_file()
     saved = None if chosen is None else calibration.saved_fit(chosen.printer, chosen.filament, path)
     source = (f"saved for {chosen.printer} / {chosen.filament} in {path}" if saved is not None
               else "default")
     for name in names:
-        if getattr(args, name) is None:
-            setattr(args, name, getattr(saved or Fit(), name))
+        if saved is not None and name not in given:
+            setattr(args, name, getattr(saved, name))
     args.fit_source = ("given" if len(given) == len(names) else source if not given
                        else f"{', '.join(given)} given, the rest {source}")
 
