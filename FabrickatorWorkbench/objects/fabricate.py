@@ -183,6 +183,7 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         hollow=int(obj.Hollow),
         effort=str(obj.Effort), lower_bound=bool(obj.LowerBound),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
+        printer=(getattr(obj, "Printer", "") or preferences.get("Printer") or "").strip() or None,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
         clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale)).checked()
 
