@@ -469,10 +469,10 @@ def _full_time(mesh, profile, slicer, work: str | None = None,
     """The whole model's print time in its fastest pose (the speed-up's baseline),
     sliced under ``work`` (a scratch folder when None); on a ``chosen`` printer, as if
     its bed were large enough where the model does not fit it
-    (:func:`core.print_time.reference_time`)."""
+    (:func:`core.printers.reference_time`)."""
     with _sliced_under(work) as folder:
         if chosen:
-            return print_time_stage.reference_time(mesh, folder, profile=profile, slicer=slicer)
+            return printers.reference_time(mesh, folder, profile=profile, slicer=slicer)
         return print_time_stage.print_time([mesh], folder, profile=profile, slicer=slicer)
 
 

@@ -24,10 +24,13 @@ import functools
 import os
 import re
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from core import slicer_profile
+import numpy as np
+import trimesh
+
+from core import print_time, slicer_profile
 from core.errors import InputError
 
 #: Where the vendor bundles lie when no slicer binary points to them (Debian's package).
@@ -74,11 +77,10 @@ class Printer:
         return ", ".join(p for p in (self.printer, self.print_preset, self.filament) if p)
 
     def to_json(self) -> dict:
-        from core.print_time import build_volume
         return {"printer": self.printer, "print_preset": self.print_preset, "filament": self.filament,
                 "vendor": self.vendor, "bundle_version": self.bundle_version, "source": self.source,
                 "layer_height_mm": _float(self.config.get("layer_height")),
-                "build_volume_mm": [round(float(v), 3) for v in build_volume(self.config)]}
+                "build_volume_mm": [round(float(v), 3) for v in print_time.build_volume(self.config)]}
 
 
 # ----------------------------------------------------------------- conditions
@@ -289,8 +291,7 @@ def bundle_folder(slicer: str | None = None) -> Path | None:
     :func:`core.print_time.slicer_path` finds, or ``prusa-slicer`` on PATH), else
     DEFAULT_BUNDLES when it exists, else None."""
     if slicer is None:
-        from core.print_time import slicer_path
-        slicer = slicer_path() or shutil.which("prusa-slicer")
+        slicer = print_time.slicer_path() or shutil.which("prusa-slicer")
     found = slicer_profile.find_bundle(slicer)
     if found is not None:
         return found.parent
@@ -325,13 +326,12 @@ def fff_printers(bundle: Bundle) -> list[str]:
 
 def listing(folder: str | os.PathLike | None) -> dict[str, list[tuple[str, list[float]]]]:
     """``vendor -> [(printer name, [x, y, z] build volume mm)]`` of every bundle in ``folder``."""
-    from core.print_time import build_volume
     out: dict[str, list] = {}
     for bundle in bundles(folder):
         for name in fff_printers(bundle):
             config = slicer_profile.resolve(bundle.sections, "printer", name)
             try:
-                size = [float(v) for v in build_volume(config)]
+                size = [float(v) for v in print_time.build_volume(config)]
             except InputError:
                 continue
             out.setdefault(bundle.vendor, []).append((name, size))
@@ -422,7 +422,6 @@ def from_file(path: str | os.PathLike) -> Printer:
     """The flat config PrusaSlicer exported to ``path``, as it is.  Raises InputError when the
     file cannot be read or is not such a config (a vendor bundle's ``[sections]``, or
     none of FLAT_KEYS, or a bed that build_volume cannot read)."""
-    from core.print_time import build_volume
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeError) as exc:
@@ -439,7 +438,7 @@ def from_file(path: str | os.PathLike) -> Printer:
         raise InputError(f"--slicer-config {path}: not a PrusaSlicer config, it lacks "
                          f"{', '.join(missing)} (export one with File > Export > Export Config)")
     try:
-        build_volume(config)
+        print_time.build_volume(config)
     except InputError:
         raise InputError(f"--slicer-config {path}: its bed_shape / max_print_height "
                          f"cannot be read") from None
@@ -491,8 +490,7 @@ def check_plates(printer: Printer | None, beds, ids) -> None:
     of the chosen ``printer`` in no way; nothing for the default printer (None)."""
     if printer is None:
         return
-    from core.print_time import build_volume, fits
-    volume = build_volume(printer.config)
+    volume = print_time.build_volume(printer.config)
     for items in beds:
         for index, mesh, _ in items:
             if not fits(mesh.extents, volume):
@@ -501,3 +499,45 @@ def check_plates(printer: Printer | None, beds, ids) -> None:
                 raise InputError(f"printed part {ids[index]} ({size} mm in its print pose, studs "
                                  f"never down) does not fit the {printer.printer}'s build volume "
                                  f"{room} mm: mark a smaller region or choose a larger printer")
+
+
+def fits(extents, volume) -> bool:
+    """Whether a part of ``extents`` (x, y, z mm, as it stands) fits the build ``volume``,
+    as it stands or turned a quarter about z."""
+    extents, volume = np.asarray(extents, float), np.asarray(volume, float) + 1e-6
+    return bool(extents[2] <= volume[2] and (np.all(extents[:2] <= volume[:2])
+                                             or np.all(extents[1::-1] <= volume[:2])))
+
+
+def fits_some_pose(mesh: trimesh.Trimesh, volume) -> bool:
+    """Whether ``mesh`` fits the build ``volume`` in one of its :func:`core.print_time.candidate_poses`."""
+    return any(fits(np.ptp(trimesh.transform_points(mesh.convex_hull.vertices, rotation), axis=0), volume)
+               for _, rotation in print_time.candidate_poses(mesh))
+
+
+def enlarged(config: dict[str, str], extents) -> dict[str, str]:
+    """``config`` with a rectangular bed and a height large enough for a part of
+    ``extents`` in any pose (its longest side, ARRANGE_GAP_MM spare on each side)."""
+    volume = print_time.build_volume(config)
+    side = float(np.max(extents)) + 2 * print_time.ARRANGE_GAP_MM
+    x, y = max(volume[0], side), max(volume[1], side)
+    return {**config, "bed_shape": f"0x0,{x:g}x0,{x:g}x{y:g},0x{y:g}",
+            "max_print_height": f"{max(volume[2], side):g}"}
+
+
+def reference_time(mesh: trimesh.Trimesh, workdir: str | os.PathLike, profile=None,
+                   slicer: str | None = "auto") -> print_time.PrintEstimate:
+    """The whole model's print time on the printer of ``profile``
+    (:func:`core.print_time.print_time`, its fastest pose); when it fits that printer's build volume in no candidate pose, the
+    time as if the bed were large enough (:func:`enlarged`), marked ``enlarged_bed`` and
+    so named in ``method``."""
+    binary, _ = print_time.resolve_slicer(slicer)
+    config = print_time.load_profile(profile, binary)
+    volume = print_time.build_volume(config)
+    if fits_some_pose(mesh, volume):
+        return print_time.print_time([mesh], workdir, profile=profile, slicer=slicer)
+    result = print_time.print_time([mesh], workdir, profile=enlarged(config, mesh.extents), slicer=slicer)
+    size = " x ".join(f"{v:g}" for v in np.round(volume, 1))
+    return replace(result, enlarged_bed=True,
+                   method=f"{result.method}; the model fits the printer's {size} mm in no pose: "
+                          f"timed as if the bed were large enough")

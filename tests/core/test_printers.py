@@ -222,19 +222,19 @@ def test_demo_is_timed_on_the_printer(name, hmd_step, tmp_path, mk3s_demo):
 
 
 def test_fits_by_hand():
-    assert print_time.fits((170, 100, 180), (180, 180, 180))
-    assert print_time.fits((100, 200, 10), (250, 210, 210))
-    assert print_time.fits((240, 200, 10), (210, 250, 210))          # a quarter turn about z
-    assert not print_time.fits((190, 10, 10), (180, 180, 180))
-    assert not print_time.fits((10, 10, 181), (180, 180, 180))
+    assert printers.fits((170, 100, 180), (180, 180, 180))
+    assert printers.fits((100, 200, 10), (250, 210, 210))
+    assert printers.fits((240, 200, 10), (210, 250, 210))          # a quarter turn about z
+    assert not printers.fits((190, 10, 10), (180, 180, 180))
+    assert not printers.fits((10, 10, 181), (180, 180, 180))
     tower = trimesh.creation.box((20.0, 20.0, 200.0))
-    assert not print_time.fits_some_pose(tower, (180, 180, 180))
-    assert print_time.fits_some_pose(tower, (250, 210, 210))          # lying down
+    assert not printers.fits_some_pose(tower, (180, 180, 180))
+    assert printers.fits_some_pose(tower, (250, 210, 210))          # lying down
 
 
 def test_enlarged_bed_takes_the_longest_side():
     config = {"bed_shape": "0x0,180x0,180x180,0x180", "max_print_height": "180", "x": "1"}
-    big = print_time.enlarged(config, (20.0, 30.0, 200.0))
+    big = printers.enlarged(config, (20.0, 30.0, 200.0))
     assert list(print_time.build_volume(big)) == [220.0, 220.0, 220.0] and big["x"] == "1"
     assert config["bed_shape"] == "0x0,180x0,180x180,0x180"
 
@@ -247,10 +247,10 @@ def test_reference_time_of_a_model_larger_than_the_printer(tmp_path):
     on the MK3S it lies down and is sliced on its own bed."""
     tower = trimesh.creation.box((20.0, 20.0, 200.0))
     mini = printers.choose(MINI, folder=FOLDER).config
-    result = print_time.reference_time(tower, tmp_path, profile=mini)
+    result = printers.reference_time(tower, tmp_path, profile=mini)
     assert result.enlarged_bed and result.method.startswith("prusa-slicer")
     assert "180 x 180 x 180 mm in no pose" in result.method and result.seconds > 0
-    mk3s = print_time.reference_time(tower, tmp_path)
+    mk3s = printers.reference_time(tower, tmp_path)
     assert not mk3s.enlarged_bed and mk3s.method.startswith("prusa-slicer")
 
 
