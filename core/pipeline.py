@@ -298,6 +298,13 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     if req.high_res_bricks:
         regions = regions + high_res_stage.Regions.of_bricks(layout, req.high_res_bricks)
     groups = _edited(layout, high_res_stage.groups(layout, ids), req.part_edits)
+    printer = printers.chosen(req)
+    if groups and before is None and printer is not None:
+        groups, cut = printed_stage.fitting_groups(
+            layout, groups, print_time_stage.build_volume(printer.config), req.fit)
+        notes += [f"a printed part of {' x '.join(f'{v:g}' for v in box)} mm fits the "
+                  f"{printer.printer} in no pose: split along brick seams into {n} parts that "
+                  f"each fit, joined by their own studs and sockets" for box, n in cut]
     made: list[printed_stage.PrintedPart] = []
     clamp = links = reprint = None
     if groups and before is not None:

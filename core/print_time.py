@@ -184,7 +184,7 @@ class PrintEstimate:
     joined by ", "), None when every mesh came in its print pose.
     ``cached`` says the slicer's answer came from :mod:`core.slice_cache`
     (the same plate sliced before; no G-code then).  ``enlarged_bed`` says it
-    was sliced on a bed enlarged to fit (:func:`reference_time`).
+    was sliced on a bed enlarged to fit (:func:`core.printers.reference_time`).
     """
 
     seconds: float

@@ -7,6 +7,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
@@ -254,22 +255,52 @@ def test_reference_time_of_a_model_larger_than_the_printer(tmp_path):
     assert not mk3s.enlarged_bed and mk3s.method.startswith("prusa-slicer")
 
 
+def _fabricate_marked_whole(tmp_path, size, *extra) -> subprocess.CompletedProcess:
+    """``fabricate`` a box of ``size`` mm, marked whole, on the MINI (no slicer: quick)."""
+    import os
+
+    model = tmp_path / "box.stl"
+    box = trimesh.creation.box(size)
+    box.apply_translation(-box.bounds[0])
+    box.export(model)
+    region = "--high-res=-1,-1,-1," + ",".join(f"{v + 1:g}" for v in size)
+    return subprocess.run([sys.executable, "-m", "core", "fabricate", str(model), "--out", str(tmp_path / "o"),
+                           region, "--printer", MINI, "--quiet", *extra], cwd=ROOT, capture_output=True,
+                          text=True, timeout=900, env={**os.environ, "FABRICKATOR_SLICER": "none"})
+
+
 @pytest.mark.slow
 @needs_bundles
-def test_part_larger_than_the_printer_is_refused(tmp_path):
-    """A 24 x 24 x 192 mm tower marked whole prints as one part, which fits the MINI's
-    180 mm cube in no pose: one line naming the part and the volume, exit 2, no output."""
-    tower = tmp_path / "tower.stl"
-    box = trimesh.creation.box((24.0, 24.0, 192.0))
-    box.apply_translation(-box.bounds[0])
-    box.export(tower)
-    proc = subprocess.run([sys.executable, "-m", "core", "fabricate", str(tower), "--out", str(tmp_path / "o"),
-                           "--high-res=-1,-1,-1,25,25,193", "--printer", MINI, "--quiet"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=600,
-                          env={**__import__("os").environ, "FABRICKATOR_SLICER": "none"})
-    line = one_line(proc)
+def test_part_wider_than_the_printer_is_refused(tmp_path):
+    """A 200 x 24 x 9.6 mm bar marked whole is wider than the MINI's 180 mm bed in every
+    layer: one line naming the part and the volume, exit 2, no output."""
+    line = one_line(_fabricate_marked_whole(tmp_path, (200.0, 24.0, 9.6)))
     assert "printed part P1" in line and "180 x 180 x 180 mm" in line and MINI in line
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+@needs_bundles
+def test_part_taller_than_the_printer_is_split_along_brick_seams(tmp_path):
+    """A 24 x 24 x 192 mm tower marked whole (one part, 60 layers) is taller than the MINI's
+    180 mm: it comes out as parts that each fit the MINI in their print pose, stacked on
+    each other's studs, that together hold the tower's volume (their studs and sockets
+    aside: within 2 %), and the report says so."""
+    import json
+
+    done = _fabricate_marked_whole(tmp_path, (24.0, 24.0, 192.0))
+    assert done.returncode == 0, done.stderr
+    doc = json.loads((tmp_path / "o" / "report.json").read_text())
+    parts = doc["printed_parts"]
+    assert len(parts) >= 2
+    volume = 0.0
+    for part in parts:
+        mesh = trimesh.load(tmp_path / "o" / part["stl"], force="mesh")
+        assert np.all(np.sort(mesh.extents) <= 180 + 1e-6), (part["id"], mesh.extents)
+        volume += mesh.volume
+    assert volume == pytest.approx(24 * 24 * 192, rel=0.02)
+    assert any("split along brick seams" in note for note in doc["notes"])
+    assert doc["print_time_s"]["full_model_on_enlarged_bed"] is True
 
 
 @pytest.mark.slow
