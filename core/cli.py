@@ -705,6 +705,12 @@ def _summary(doc: dict, out) -> None:
               f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
               f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
               f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
+        if doc.get("printer"):
+            p = doc["printer"]
+            plates = pt.get("print_plates", 1)
+            print(f"printed on: {p['printer']} ({p['print_preset']}, {p['filament']}), {plates} plate"
+                  f"{'s' if plates != 1 else ''}; fit: stud {doc['fit']['stud_fit']:+g}, socket "
+                  f"{doc['fit']['socket_fit']:+g} mm ({doc['fit']['source']})")
     for part in doc["printed_parts"]:
         if not part["engaged"]["clamps"]:
             sys.stderr.write(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}\n")

@@ -178,6 +178,7 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         part_edits=tuple({"op": e["op"], "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
                          for e in edits(obj)),
         stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value),
+        fit_source="the Fabrication's StudFit and SocketFit",
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
         hollow=int(obj.Hollow),
