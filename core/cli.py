@@ -592,9 +592,10 @@ def _fit_of_printer(args) -> None:
 
     names = ("stud_fit", "socket_fit")
     given = [n for n in names if n in args.given]
-    chosen = printers.chosen(args) if len(given) < len(names) else None
+    chosen = printers.chosen(args)              # a bad printer or config: one line, now
     path = calibration.fits_file()
-    saved = None if chosen is None else calibration.saved_fit(chosen.printer, chosen.filament, path)
+    saved = (None if chosen is None or len(given) == len(names)
+             else calibration.saved_fit(chosen.printer, chosen.filament, path))
     source = (f"saved for {chosen.printer} / {chosen.filament} in {path}" if saved is not None
               else "default")
     for name in names:
