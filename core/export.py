@@ -108,8 +108,8 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     there; two parts' pose searches at a time) and packed on as few beds as this simple
     rule gives.
 
-    ``bed`` is the printable (x, y) in mm (default: the profile's,
-    :func:`core.print_time.build_volume`).  Shelf packing: each part is
+    ``bed`` is the printable (x, y) in mm from the origin (default: the profile's bed,
+    :func:`core.print_time.bed_rectangle`, where it lies).  Shelf packing: each part is
     turned about z so its longer side runs along the bed's longer side
     when that fits, the parts are taken tallest footprint (y) first and
     set left to right in rows, SPACING_MM apart and from the bed's edges; a
@@ -120,9 +120,9 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     every mesh has min z = 0, is marked posed, and the footprints do not
     overlap.
     """
-    size = np.asarray(bed if bed is not None else
-                      print_time.build_volume(print_time.load_profile(profile, slicer))[:2],
-                      dtype=float)
+    rectangle = (np.array([[0.0, 0.0], bed], dtype=float) if bed is not None else
+                 print_time.bed_rectangle(print_time.load_profile(profile, slicer)))
+    size, origin = rectangle[1] - rectangle[0], rectangle[0]
     laid = []
     flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer, workdir), parts, 2)
     for index, (mesh, pose) in enumerate(flat):
@@ -147,7 +147,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
             out.append([])
             x, y, row = SPACING_MM, SPACING_MM, 0.0
         move = np.eye(4)
-        move[:2, 3] = [x, y]
+        move[:2, 3] = origin + (x, y)
         mesh.apply_transform(move)
         pose.matrix = move @ pose.matrix
         out[-1].append((index, mesh, pose))

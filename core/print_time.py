@@ -335,14 +335,13 @@ def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = 
 
 
 def build_volume(config: dict[str, str]) -> np.ndarray:
-    """Printable size (x, y, z) in mm: the ``bed_shape`` bounding box and ``max_print_height``.
+    """Printable size (x, y, z) in mm: the size of :func:`bed_rectangle` and ``max_print_height``.
 
     Raises InputError when the profile lacks either key or they are malformed.
     """
+    bed = bed_rectangle(config)
     try:
-        corners = np.array([[float(v) for v in point.split("x")]
-                            for point in config["bed_shape"].split(",")])
-        return np.append(np.ptp(corners, axis=0), float(config["max_print_height"]))
+        return np.append(bed[1] - bed[0], float(config["max_print_height"]))
     except (KeyError, ValueError) as exc:
         raise InputError(f"slicer profile: no valid bed_shape / max_print_height ({exc})") from None
 
@@ -805,16 +804,24 @@ def in_background(fn, *args) -> Future:
 
 
 def bed_rectangle(config: dict[str, str]) -> np.ndarray:
-    """The bed's min and max corner (2x2, mm) from the profile's ``bed_shape``.
+    """The bed's min and max corner (2x2, mm) from the profile's ``bed_shape``: its
+    bounding box when it has four corners (a rectangle), else (a delta's round bed) the
+    square centred on its corners' mean that stays within their least distance from it.
 
     Raises InputError when the profile has no valid bed_shape.
     """
     try:
         corners = np.array([[float(v) for v in point.split("x")]
                             for point in config["bed_shape"].split(",")])
+        if corners.ndim != 2 or corners.shape[1] != 2 or len(corners) < 3:
+            raise ValueError(f"bed_shape {config['bed_shape']!r}")
     except (KeyError, ValueError) as exc:
         raise InputError(f"slicer profile: no valid bed_shape ({exc})") from None
-    return np.array([corners.min(axis=0), corners.max(axis=0)])
+    if len(corners) <= 4:
+        return np.array([corners.min(axis=0), corners.max(axis=0)])
+    centre = corners.mean(axis=0)
+    half = float(np.min(np.linalg.norm(corners - centre, axis=1))) / math.sqrt(2)
+    return np.array([centre - half, centre + half])
 
 
 def _apart(meshes: list[trimesh.Trimesh], bed: np.ndarray) -> bool:

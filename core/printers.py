@@ -347,7 +347,7 @@ def listing_lines(folder: str | os.PathLike | None) -> list[str]:
         bundle = found[vendor]
         lines.append(f"{vendor} (bundle {bundle.version}, {bundle.path})")
         width = max(len(name) for name, _ in entries)
-        lines += [f"  {name:<{width}}  {' x '.join(f'{v:g}' for v in size)} mm" for name, size in entries]
+        lines += [f"  {name:<{width}}  {' x '.join(f'{round(v, 1):g}' for v in size)} mm" for name, size in entries]
     return lines
 
 

@@ -330,3 +330,17 @@ def test_a_config_prusaslicer_saved_is_sliced_as_it_is(tmp_path):
     with zipfile.ZipFile(plate) as archive:
         assert "; layer_height = 0.3\n" in archive.read(print_time.SLIC3R_CONFIG).decode()
     assert _resliced(plate, tmp_path) == pytest.approx(doc["print_time_s"]["printed_parts"], rel=0.02)
+
+
+def test_a_round_bed_packs_into_its_inscribed_square():
+    """A delta's bed_shape is a circle's corners: the parts go in the square inside it
+    (radius 100 about (0, 0): 141.4 mm a side); a rectangle stays its bounding box."""
+    import math
+
+    circle = ",".join(f"{100 * math.cos(a):.4f}x{100 * math.sin(a):.4f}"
+                      for a in [2 * math.pi * n / 72 for n in range(72)])
+    bed = print_time.bed_rectangle({"bed_shape": circle})
+    assert bed.ravel().tolist() == pytest.approx([-70.7107, -70.7107, 70.7107, 70.7107], abs=1e-3)
+    assert print_time.bed_rectangle({"bed_shape": "0x0,250x0,250x210,0x210"}).tolist() == [[0, 0], [250, 210]]
+    with pytest.raises(InputError, match="bed_shape"):
+        print_time.bed_rectangle({"bed_shape": ""})
