@@ -161,7 +161,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        loaded (:func:`core.reinforce.reinforce`).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
-       by ``part_edits``, become printed parts (:func:`core.printed.build_parts`;
+       by ``part_edits``, on a chosen printer (:func:`core.printers.chosen`) cut
+       at layer seams where a group fits it in no pose (:func:`core.printed.fitting_groups`),
+       become printed parts (:func:`core.printed.build_parts`;
        iterating, kept parts stay and only changed ones are cut again,
        :func:`core.iterate.printed_parts`).
     6. **stability**: the brick graph (:func:`core.stability.analyse`) and the
@@ -169,7 +171,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        (:func:`core.build_order.plan`; the layout's bricks get their steps),
        8. with an iteration, the **changes** (:func:`core.iterate.changes`),
        9. with printed parts and ``slice_parts``, **print times**
-       (:func:`print_times`).
+       (:func:`print_times`) on the chosen printer's beds.
 
     Raises :class:`~core.errors.InputError` for bad input; otherwise the
     layout covers every filled cell once.
