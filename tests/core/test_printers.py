@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import subprocess
 import sys
 import zipfile
@@ -219,7 +220,8 @@ def test_demo_is_timed_on_the_printer(name, hmd_step, tmp_path, mk3s_demo):
     assert "prusa-slicer" in times["method"]
     assert times["printed_parts"] != mk3s_demo["print_time_s"]["printed_parts"]
     assert times["full_model"] != mk3s_demo["print_time_s"]["full_model"]
-    assert f"printed on: {chosen.label}" in (out / "instructions.html").read_text(encoding="utf-8")
+    page = (out / "instructions.html").read_text(encoding="utf-8")
+    assert f"printed on: {html.escape(chosen.label)}" in page
 
 
 def test_fits_by_hand():
