@@ -43,7 +43,7 @@ examples/build/hmd.step: examples/hmd.py $(VENV)/.installed
 
 demo: examples/build/hmd.step
 	$(PY) -m core fabricate examples/build/hmd.step $(DEMO_HIGH_RES) --out $(DEMO_OUT)
-	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate.3mf), instructions.html, assembly.mpd, bom.csv, bricklink.xml"
+	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate-1.3mf), instructions.html, assembly.mpd, bom.csv, bricklink.xml"
 
 # the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb),
 # on this machine's FreeCAD (0.20 on Debian 12), then on FreeCAD 1.x (Python 3.13) the quick

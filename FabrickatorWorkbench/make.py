@@ -341,7 +341,7 @@ def layout(fab):
 def export(fab, folder) -> list[str]:
     """Write the last result of ``fab`` into ``folder`` exactly as the command line writes an
     output folder (:func:`core.pipeline.write_outputs`): the printed parts (``parts/``:
-    STL, STEP, ``plate.3mf``), ``layout.json``, ``layout.png``, ``report.json``, the
+    STL, STEP, ``plate-1.3mf``), ``layout.json``, ``layout.png``, ``report.json``, the
     instructions, the iteration snapshot and, after an iteration, ``changes.html``.
     Returns the names written (top level).  Reads the document only.
 

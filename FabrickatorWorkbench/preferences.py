@@ -37,6 +37,7 @@ DEFAULTS = {
     "SocketFit": ("Float", None),
     "SlicerPath": ("String", ""),
     "SlicerProfile": ("String", ""),
+    "Printer": ("String", ""),
     "SecondsPerBrick": ("Float", None),
     "SliceOnRecompute": ("Bool", False),
     "Palette": ("String", None),
@@ -49,7 +50,7 @@ TABLE_FIELDS = {"StudFit": "stud_fit", "SocketFit": "socket_fit",
 #: Widget (object name in preferences.ui) of each preference on the page.
 WIDGETS = {"BrickSet": "brickSet", "StudFit": "studFit", "SocketFit": "socketFit",
            "SecondsPerBrick": "secondsPerBrick", "SlicerPath": "slicerPath",
-           "SlicerProfile": "slicerProfile", "SliceOnRecompute": "sliceOnRecompute",
+           "SlicerProfile": "slicerProfile", "Printer": "printer", "SliceOnRecompute": "sliceOnRecompute",
            "Palette": "palette"}
 
 

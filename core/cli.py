@@ -27,6 +27,7 @@ import warnings
 
 from core import __version__, request
 from core.errors import InputError, bug_line, check_path, memory_shortage
+from core.parts.interfaces import Fit
 
 
 #: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
@@ -87,6 +88,20 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
     _stability_parser(sub)
+    fit = sub.add_parser("save-fit", help="save the stud and socket fit the calibration strip "
+                                          "found for a printer and filament",
+                         description="Save --stud-fit and --socket-fit for the printer (and "
+                                     "filament) named, in the user's fits file; fabricate and "
+                                     "watch use them whenever that printer is chosen and the fit "
+                                     "is not given.")
+    request.add_options(fit, ("printer", "print_preset", "filament", "slicer_config"))
+    fit.add_argument("--stud-fit", dest="stud_fit", type=float, required=True, metavar="MM",
+                     help="the stud fit the strip found")
+    fit.add_argument("--socket-fit", dest="socket_fit", type=float, required=True, metavar="MM",
+                     help="the socket fit the strip found")
+    sub.add_parser("printers", help="list the printers --printer can name",
+                   description="List the printer presets of PrusaSlicer's installed vendor "
+                               "bundles, by vendor, with each build volume (x, y, z mm).")
     return parser
 
 
@@ -133,11 +148,23 @@ def _calibration_parser(sub) -> None:
                      help=f"step between two columns (default {calibration.STEP_MM:g})")
 
 
+class _Stored(argparse._StoreAction):
+    """argparse's plain option that also notes in ``given`` that it was given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        super().__call__(parser, namespace, values, option_string)
+        namespace.given = set(getattr(namespace, "given", ())) | {self.dest}
+
+
 def _model_options(p: argparse.ArgumentParser) -> None:
-    """The options that say how to read a model and what to print (fabricate and watch)."""
+    """The options that say how to read a model and what to print (fabricate and watch);
+    ``given`` names the plain ones given (the stud and socket fit, :func:`_fit_of_printer`)."""
+    p.register("action", None, _Stored)
+    p.set_defaults(given=set())
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
-                            "clutch_n", "hollow", "inventory", "inventory_only", "colour"),
+                            "clutch_n", "hollow", "inventory", "inventory_only", "colour",
+                            "printer", "print_preset", "filament", "slicer_config"),
                         units=request.UNITS)
 
 
@@ -216,7 +243,7 @@ def _command(argv: list[str] | None) -> int:
     quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
-               "stability": _stability}.get(args.command, _fabricate)
+               "stability": _stability, "printers": _printers, "save-fit": _save_fit}.get(args.command, _fabricate)
     given = sys.stdout
     out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
@@ -502,6 +529,7 @@ def _fabricate(args) -> int:
     from core import pipeline
 
     _check_paths(args, out_name_checked=True)
+    _fit_of_printer(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
     doc = pipeline.fabricate(request.from_options(args, args.model), args.out, progress=progress)
     _summary(doc, args.out)
@@ -517,6 +545,7 @@ def _watch(args) -> int:
 
     _check_paths(args)
     progress = None if args.quiet else _progress_printer(sys.stderr)
+    _fit_of_printer(args)
     job = request.from_options(args, "watched")
     timeout = request.timeout_seconds(args.timeout)
     if job.previous is not None:
@@ -555,6 +584,55 @@ def _naming(path, line: str) -> str:
     after the file's name."""
     named = line.startswith((path.name + ":", os.fspath(path) + ":"))
     return line if named else f"{path.name}: {line}"
+
+
+def _fit_of_printer(args) -> None:
+    """Set the stud and socket fit ``args`` do not give (``args.given``) to the fit saved for
+    the chosen printer and filament (:func:`core.parts.calibration.saved_fit`) when there is one,
+    and ``args.fit_source`` to where they came from."""
+    from core.parts import calibration
+    from core.printing import printers
+
+    names = ("stud_fit", "socket_fit")
+    given = [n for n in names if n in args.given]
+    chosen = printers.chosen(args)              # a bad printer or config: one line, now
+    path = calibration.fits_file()
+    saved = (None if chosen is None or len(given) == len(names)
+             else calibration.saved_fit(chosen.printer, chosen.filament, path))
+    source = (f"saved for {chosen.printer} / {chosen.filament} in {path}" if saved is not None
+              else "default")
+    for name in names:
+        if saved is not None and name not in given:
+            setattr(args, name, getattr(saved, name))
+    args.fit_source = ("given" if len(given) == len(names) else source if not given
+                       else f"{', '.join(given)} given, the rest {source}")
+
+
+def _save_fit(args) -> int:
+    """The ``save-fit`` command: the fit saved for the printer and filament, in one line."""
+    from core.parts import calibration
+    from core.printing import printers
+
+    chosen = printers.chosen(args)
+    if chosen is None:
+        raise InputError("save-fit needs the printer: give --printer NAME or --slicer-config FILE.ini")
+    fit = Fit(stud_fit=args.stud_fit, socket_fit=args.socket_fit).check()
+    path = calibration.save_fit(chosen.printer, chosen.filament, fit)
+    print(f"saved stud fit {fit.stud_fit:+g} mm, socket fit {fit.socket_fit:+g} mm for "
+          f"{chosen.printer} / {chosen.filament} in {path}")
+    return 0
+
+
+def _printers(args) -> int:
+    """The ``printers`` command: the printer names by vendor with their build volume."""
+    from core.printing import printers
+
+    lines = printers.listing_lines(printers.bundle_folder())
+    if not lines:
+        raise InputError("no PrusaSlicer vendor bundles found: install PrusaSlicer, or give "
+                         "fabricate --slicer-config FILE.ini")
+    print("\n".join(lines))
+    return 0
 
 
 def _calibration_strip(args) -> int:
@@ -640,6 +718,12 @@ def _summary(doc: dict, out) -> None:
               f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
               f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
               f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
+        if doc.get("printer"):
+            p = doc["printer"]
+            plates = pt.get("print_plates", 1)
+            print(f"printed on: {p['printer']} ({p['print_preset']}, {p['filament']}), {plates} plate"
+                  f"{'s' if plates != 1 else ''}; fit: stud {doc['fit']['stud_fit']:+g}, socket "
+                  f"{doc['fit']['socket_fit']:+g} mm ({doc['fit']['source']})")
     for part in doc["printed_parts"]:
         if not part["engaged"]["clamps"]:
             sys.stderr.write(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}\n")

@@ -35,7 +35,7 @@ from core.layout import search as improve_stage
 from core.model import CELL_MM, Grid, Layout
 from core.parts import connectors as connectors_stage, printed as printed_stage
 from core.parts.interfaces import Fit
-from core.printing import print_time as print_time_stage
+from core.printing import print_time as print_time_stage, printers
 from core.request import UNITS, Request, request as request_of
 
 Progress = Callable[[float, str], None]
@@ -96,8 +96,14 @@ class Fabrication:
         return self.request.seconds_per_part
 
     @property
-    def profile(self) -> str | None:
-        return self.request.profile
+    def profile(self) -> str | dict | None:
+        """What the parts are sliced with (:func:`core.printing.printers.profile`)."""
+        return printers.profile(self.request)
+
+    @property
+    def printer(self) -> printers.Printer | None:
+        """The printer the request chose (:func:`core.printing.printers.chosen`), None for the default."""
+        return printers.chosen(self.request)
 
     @property
     def to_print(self) -> list[printed_stage.PrintedPart]:
@@ -159,7 +165,9 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        loaded (:func:`core.layout.reinforce.reinforce`).
     5. **printed_parts**: the bricks touching marked cells (and
        ``high_res_bricks``), grouped (:func:`core.high_res.groups`), edited
-       by ``part_edits``, become printed parts (:func:`core.parts.printed.build_parts`;
+       by ``part_edits``, on a chosen printer (:func:`core.printing.printers.chosen`) cut
+       at layer seams where a group fits it in no pose (:func:`core.parts.printed.fitting_groups`),
+       become printed parts (:func:`core.parts.printed.build_parts`;
        iterating, kept parts stay and only changed ones are cut again,
        :func:`core.iterate.printed_parts`).
     6. **stability**: the brick graph (:func:`core.stability.analyse`) and the
@@ -167,7 +175,7 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
        (:func:`core.instructions.build_order.plan`; the layout's bricks get their steps),
        8. with an iteration, the **changes** (:func:`core.iterate.changes`),
        9. with printed parts and ``slice_parts``, **print times**
-       (:func:`print_times`).
+       (:func:`print_times`) on the chosen printer's beds.
 
     Raises :class:`~core.errors.InputError` for bad input; otherwise the
     layout covers every filled cell once.
@@ -192,6 +200,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         return value
 
     chosen = catalog.select(req.parts)
+    printers.chosen(req)                    # a bad printer or config ends the run before any work
     owned = timed("inventory", 0.0, inventory_stage.read, req.inventory) if req.inventory else None
     stock = None if owned is None else inventory_stage.Stock(owned.owned(chosen),
                                                              buy=not req.inventory_only)
@@ -307,6 +316,13 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     if req.high_res_bricks:
         regions = regions + high_res_stage.Regions.of_bricks(layout, req.high_res_bricks)
     groups = _edited(layout, high_res_stage.groups(layout, ids), req.part_edits)
+    printer = printers.chosen(req)
+    if groups and before is None and printer is not None:
+        groups, cut = printed_stage.fitting_groups(
+            layout, groups, print_time_stage.build_volume(printer.config), req.fit)
+        notes += [f"a printed part of {' x '.join(f'{v:g}' for v in box)} mm fits the "
+                  f"{printer.printer} in no pose: split along brick seams into {n} parts that "
+                  f"each fit, joined by their own studs and sockets" for box, n in cut]
     made: list[printed_stage.PrintedPart] = []
     clamp = links = reprint = None
     if groups and before is not None:
@@ -383,7 +399,7 @@ def _slicer_settings(req: Request) -> dict[str, str]:
     """The slicer settings printed parts are made with (their walls, infill and filament
     weigh them in the force check); the committed profile when they cannot be read."""
     try:
-        return print_time_stage.load_profile(req.profile)
+        return print_time_stage.load_profile(printers.profile(req))
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
 
@@ -471,8 +487,10 @@ class _Slicing:
         binary = print_time_stage.slicer_path() if req.slice_parts and likely else None
         if binary is None:
             return cls(work=work)
-        return cls(binary, req.profile, work,
-                   print_time_stage.in_background(_full_time, mesh.copy(), req.profile, binary, work))
+        profile = printers.profile(req)
+        return cls(binary, profile, work,
+                   print_time_stage.in_background(_full_time, mesh.copy(), profile, binary, work,
+                                                  printers.chosen(req) is not None))
 
     def with_parts(self, printing: list) -> "_Slicing":
         """This, with the plates of the parts ``printing`` being posed and sliced too."""
@@ -487,10 +505,15 @@ def _sliced_under(work: str | None):
     return contextlib.nullcontext(work) if work is not None else output_dir.scratch("slice")
 
 
-def _full_time(mesh, profile, slicer, work: str | None = None) -> print_time_stage.PrintEstimate:
+def _full_time(mesh, profile, slicer, work: str | None = None,
+               chosen: bool = False) -> print_time_stage.PrintEstimate:
     """The whole model's print time in its fastest pose (the speed-up's baseline),
-    sliced under ``work`` (a scratch folder when None)."""
+    sliced under ``work`` (a scratch folder when None); on a ``chosen`` printer, as if
+    its bed were large enough where the model does not fit it
+    (:func:`core.printing.printers.reference_time`)."""
     with _sliced_under(work) as folder:
+        if chosen:
+            return printers.reference_time(mesh, folder, profile=profile, slicer=slicer)
         return print_time_stage.print_time([mesh], folder, profile=profile, slicer=slicer)
 
 
@@ -524,9 +547,10 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
     printing = fab.to_print
     slicer = started.slicer or "auto"
     full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile,
-                                                          slicer, started.work)
+                                                          slicer, started.work, fab.printer is not None)
     beds, results = (started.parts.result() if started.parts is not None
                      else _plates_time(printing, fab.profile, slicer, started.work))
+    printers.check_plates(fab.printer, beds, [p.id for p in printing])
     full = full.result()
     methods = sorted({r.method for r in results})
     parts = print_time_stage.PrintEstimate(
@@ -755,7 +779,11 @@ def report(fab: Fabrication) -> dict:
             "method": full.method if full.method == plate.method
             else f"full model: {full.method}; printed parts: {plate.method}",
             "method_words": print_method_words(full.method, plate.method),
+            "print_plates": len(fab.plates or ()), "full_model_on_enlarged_bed": full.enlarged_bed,
         },
+        **({} if fab.printer is None else {"printer": fab.printer.to_json()}),
+        "fit": {"stud_fit": fab.interface.stud_fit, "socket_fit": fab.interface.socket_fit,
+                "source": fab.request.fit_source},
         "assembly_s": round(assembly_seconds(fab), 1),
         "assembly_split_s": {"lego": round(lego_s, 1), "insert_printed_parts": round(insert_s, 1)},
         "fabrication_s": None if making is None else round(making, 1),
@@ -940,7 +968,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     assembly = instructions.write_assembly(
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
         seconds_per_part=fab.seconds_per_part, order=fab.order, colouring=fab.colouring,
-        inventory=fab.inventory, bought=colours.by_name(fab.request.colour))
+        inventory=fab.inventory, bought=colours.by_name(fab.request.colour),
+        printed_on=None if fab.printer is None else fab.printer.label)
     (tmp / "layout.json").write_text(json.dumps(
         inventory_stage.with_colours(fab.layout.to_json(), fab.colouring)))
     if fab.request.picture:
@@ -977,7 +1006,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
 def _inputs(req: Request) -> list[str]:
     """The files a run of ``req`` reads (an output folder must not hold them)."""
     return [req.model, *req.high_res_solids, *([req.profile] if req.profile else []),
-            *req.inventory]
+            *([req.slicer_config] if req.slicer_config else []), *req.inventory]
 
 
 def fabricate(job, out: str | os.PathLike, progress: Progress | None = None, **settings) -> dict:

@@ -97,6 +97,19 @@ class Request:
                                                    "shifting it so that the high-res regions "
                                                    "print the least")
     profile: str | None = _setting(None, "a PrusaSlicer ini to slice with instead of the installed slicer's presets")
+    printer: str | None = _setting(None, "a printer preset of PrusaSlicer's installed vendor bundles "
+                                         "to slice for, with its bed and height (python -m core "
+                                         "printers lists them); default: Original Prusa i3 MK3S",
+                                   "--printer", "NAME")
+    print_preset: str | None = _setting(None, "a print preset compatible with --printer (default: "
+                                              "one of 0.20 mm layers)", "--print-preset", "NAME")
+    filament: str | None = _setting(None, "a filament preset compatible with --printer (default: "
+                                          "a PLA)", "--filament", "NAME")
+    fit_source: str = _setting("default", "where the stud and socket fit come from (the report "
+                                          "says): default, given, or the fit saved for the printer")
+    slicer_config: str | None = _setting(None, "a config PrusaSlicer exported (File > Export > "
+                                               "Export Config), sliced with as it is, instead of "
+                                               "--printer", "--slicer-config", "FILE.ini")
     previous: str | None = _setting(None, "an earlier --out of the same object: align, diff, keep "
                                           "its layout where nothing changed, reprint only changed "
                                           "parts (changes.html)", "--previous", "DIR")
@@ -216,6 +229,9 @@ class Request:
             seconds_per_brick=float(self.seconds_per_brick),
             seconds_per_part=float(self.seconds_per_part),
             profile=None if self.profile is None else os.fspath(self.profile),
+            printer=self.printer or None, print_preset=self.print_preset or None,
+            filament=self.filament or None,
+            slicer_config=os.fspath(self.slicer_config) if self.slicer_config else None,
             previous=None if self.previous is None else os.fspath(self.previous))
 
 

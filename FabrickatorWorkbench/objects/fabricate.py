@@ -178,11 +178,13 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         part_edits=tuple({"op": e["op"], "boxes": [_scaled_box(b, scale) for b in e["boxes"]]}
                          for e in edits(obj)),
         stud_fit=float(obj.StudFit.Value), socket_fit=float(obj.SocketFit.Value),
+        fit_source="the Fabrication's StudFit and SocketFit",
         seconds_per_brick=float(obj.SecondsPerBrick),
         seconds_per_part=float(obj.SecondsPerPart), fit_grid=bool(obj.FitGrid),
         hollow=int(obj.Hollow),
         effort=str(obj.Effort), lower_bound=bool(obj.LowerBound),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
+        printer=(getattr(obj, "Printer", "") or preferences.get("Printer") or "").strip() or None,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
         clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale),
         inventory=tuple(str(p) for p in obj.Inventory if str(p).strip()),

@@ -80,6 +80,10 @@ PROPERTIES = (
          QT("App::Property", "Printed sockets are 4.8 mm + this between the walls a real stud "
                              "touches (signed; smaller clamps tighter); see the Calibration strip"),
          partial(setting_default, "socket_fit")),
+    Prop("App::PropertyString", "Printer", "Fabrication",
+         QT("App::Property", "PrusaSlicer printer preset the parts are timed and packed for "
+                             "(python -m core printers lists them); empty: the preference's "
+                             "printer, or the MK3S"), ""),
     Prop("App::PropertyInteger", "Seed", "Fabrication",
          QT("App::Property", "Seed of the layout: the same seed gives the same layout"),
          partial(setting_default, "seed")),

@@ -397,8 +397,10 @@ def _minutes(seconds: float) -> str:
 
 
 def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title: str = "",
-         assembly_s: float | None = None, colouring: dict | None = None) -> tuple[str, dict]:
-    """The whole ``instructions.html`` text, and facts about its picture.
+         assembly_s: float | None = None, colouring: dict | None = None,
+         printed_on: str | None = None) -> tuple[str, dict]:
+    """The whole ``instructions.html`` text, and facts about its picture; its summary
+    ends with "printed on: ``printed_on``" when that names the printer.
 
     Raises ValueError when ``order`` does not cover every brick of ``layout``.
     """
@@ -428,6 +430,8 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
                f"{len(order.steps)} steps")
     if assembly_s is not None:
         summary += f", about {_minutes(assembly_s)} to build"
+    if printed_on and n_parts:
+        summary += f"; printed on: {printed_on}"
     warn = ""
     if order.unattached or order.early_parts:
         bits = []
@@ -447,9 +451,9 @@ def page(layout: Layout, order: build_order.BuildOrder, printed_parts=(), title:
 
 def write_instructions(layout: Layout, order: build_order.BuildOrder, path: str | os.PathLike,
                        printed_parts=(), title: str = "", assembly_s: float | None = None,
-                       colouring: dict | None = None) -> dict:
-    """Write ``instructions.html`` at ``path``; returns facts about its picture and size."""
-    text, facts = page(layout, order, printed_parts, title, assembly_s, colouring)
+                       colouring: dict | None = None, printed_on: str | None = None) -> dict:
+    """Write ``instructions.html`` at ``path`` (:func:`page`); returns facts about its picture and size."""
+    text, facts = page(layout, order, printed_parts, title, assembly_s, colouring, printed_on)
     Path(path).write_text(text, encoding="utf-8")
     facts["bytes"] = len(text.encode("utf-8"))
     return facts
@@ -460,9 +464,10 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
                    seconds_per_part: float = build_order.SECONDS_PER_PART,
                    bricks_per_step: int = build_order.BRICKS_PER_STEP,
                    order: build_order.BuildOrder | None = None, colouring: dict | None = None,
-                   inventory=None, bought: int = ldraw.LEGO_COLOR) -> dict:
+                   inventory=None, bought: int = ldraw.LEGO_COLOR, printed_on: str | None = None) -> dict:
     """Write the builder's files of ``layout`` into ``folder``, in the build ``order``
-    (planned here when None; ``layout`` is not changed).
+    (planned here when None; ``layout`` is not changed); ``printed_on`` names the printer
+    the instructions say the parts are printed on.
 
     Writes ``instructions.html``, ``assembly.mpd`` (LDraw MPD with ``0 STEP``
     per step and the printed parts embedded), ``bom.csv`` and
@@ -494,7 +499,7 @@ def write_assembly(layout: Layout, printed_parts, folder: str | os.PathLike, tit
     timings["order"] = time.perf_counter() - t
     t = time.perf_counter()
     facts = write_instructions(layout, order, folder / FILES["instructions"], printed_parts,
-                               title, seconds, colouring)
+                               title, seconds, colouring, printed_on)
     timings["html"] = time.perf_counter() - t
     t = time.perf_counter()
     ldraw.write(layout, printed_parts, order.steps, folder / FILES["ldraw"], title=title, props=order.props,

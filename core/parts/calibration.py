@@ -32,7 +32,9 @@ Everything is in mm.
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -257,6 +259,10 @@ Using the values
 ----------------
   python -m core fabricate MODEL --stud-fit STUD --socket-fit SOCKET --out DIR
 
+or save them for your printer and filament, used whenever you name that
+printer (--printer NAME, or --slicer-config FILE.ini):
+  python -m core save-fit --printer NAME --stud-fit STUD --socket-fit SOCKET
+
 In FreeCAD: Edit > Preferences > Fabrickator, "Stud fit" and "Socket fit"
 (for new Fabrications); an existing Fabrication has its own StudFit and
 SocketFit properties (also in the "Lay out" dialog).  Defaults: stud fit
@@ -330,3 +336,62 @@ def _placed(shape: cq.Shape, cx: float, cy: float, z: float) -> cq.Shape:
 
     box = shape.BoundingBox()
     return shape.translate(cq.Vector(cx - box.center.x, cy - box.center.y, z - box.zmin))
+
+
+#: File name of the fits saved per printer and filament, in :func:`fits_file`'s folder.
+FITS_NAME = "fits.json"
+
+
+def fits_file() -> Path:
+    """Where the fits found with the strip are saved: ``$XDG_CONFIG_HOME/fabrickator/fits.json``
+    (when XDG_CONFIG_HOME is an absolute path), else ``~/.config/fabrickator/fits.json``."""
+    base = os.environ.get("XDG_CONFIG_HOME", "")
+    folder = Path(base) if os.path.isabs(base) else Path.home() / ".config"
+    return folder / "fabrickator" / FITS_NAME
+
+
+def saved_fits(path: str | os.PathLike | None = None) -> dict:
+    """The saved fits, ``{printer: {filament: {"stud_fit": mm, "socket_fit": mm}}}``, of
+    ``path`` (default :func:`fits_file`); empty when there is none.  Raises InputError
+    naming the file when it is unreadable or not such a table."""
+    path = Path(path or fits_file())
+    if not path.exists():
+        return {}
+    try:
+        table = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeError, ValueError) as exc:
+        raise InputError(f"saved fits {path}: cannot read them ({getattr(exc, 'strerror', None) or exc})") from None
+    ok = isinstance(table, dict) and all(
+        isinstance(by, dict) and all(isinstance(v, dict) and {"stud_fit", "socket_fit"} <= set(v)
+                                     for v in by.values()) for by in table.values())
+    if not ok:
+        raise InputError(f"saved fits {path}: not a table of printer -> filament -> stud_fit, socket_fit")
+    return table
+
+
+def saved_fit(printer: str, filament: str, path: str | os.PathLike | None = None) -> Fit | None:
+    """The fit saved for ``printer`` and ``filament`` (:func:`saved_fits`), or None."""
+    entry = saved_fits(path).get(printer, {}).get(filament)
+    if entry is None:
+        return None
+    return Fit(stud_fit=float(entry["stud_fit"]), socket_fit=float(entry["socket_fit"])).check()
+
+
+def save_fit(printer: str, filament: str, fit: Fit, path: str | os.PathLike | None = None) -> Path:
+    """Save ``fit`` (checked) for ``printer`` and ``filament`` into ``path`` (default
+    :func:`fits_file`, its folder made when missing), keeping the other printers' fits;
+    returns the file.  The file is replaced whole.  Raises InputError when it cannot
+    be written."""
+    fit.check()
+    path = Path(path or fits_file())
+    table = saved_fits(path)
+    table.setdefault(printer, {})[filament] = {"stud_fit": float(fit.stud_fit),
+                                               "socket_fit": float(fit.socket_fit)}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temp = path.with_name(path.name + ".tmp")
+        temp.write_text(json.dumps(table, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        os.replace(temp, path)
+    except OSError as exc:
+        raise InputError(f"cannot save the fit into {path}: {exc.strerror or exc}") from None
+    return path

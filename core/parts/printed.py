@@ -267,6 +267,42 @@ def split(groups: list[list[int]], brick_ids) -> list[list[int]]:
     return [g for g in out if g] + [[i] for i in sorted(ids)]
 
 
+def fitting_groups(layout: Layout, groups: list[list[int]], volume,
+                   fit: Fit = Fit()) -> tuple[list[list[int]], list[tuple[list[float], int]]]:
+    """``groups`` with each one whose box (its bricks' cells and a stud on top) fits the
+    printer's build ``volume`` (x, y, z mm) in no orientation cut along layer seams (levels
+    no brick of it crosses) into slabs as tall as ``volume`` allows standing, each slab's
+    connected pieces (:func:`core.high_res.groups`) a group of its own; pieces stacked
+    this way clamp each other with their own studs and sockets (:func:`build_parts`).
+    A group whose every layer is wider than the bed stays whole.  Returns the groups and,
+    per group that was cut, (its box in mm, how many groups it became)."""
+    by_id = {b.id: b for b in layout.bricks}
+    cell = np.asarray(layout.grid.cell, dtype=float)
+    room = np.sort(np.asarray(volume, dtype=float)) + 1e-6
+    layers = int((float(volume[2]) - fit.stud_height) // cell[2])
+    out: list[list[int]] = []
+    cut: list[tuple[list[float], int]] = []
+    for group in groups:
+        bricks = [by_id[i] for i in group]
+        lo = np.min([b.cell for b in bricks], axis=0)
+        hi = np.max([np.add(b.cell, b.size) for b in bricks], axis=0)
+        box = (hi - lo) * cell + (0.0, 0.0, fit.stud_height)
+        if np.all(np.sort(box) <= room) or layers < 1 or hi[2] - lo[2] <= layers:
+            out.append(list(group))
+            continue
+        crossed = {z for b in bricks for z in range(b.cell[2] + 1, b.cell[2] + b.size[2])}
+        start, slabs = int(lo[2]), []
+        while start < hi[2]:
+            seams = [z for z in range(start + 1, min(start + layers, int(hi[2])) + 1) if z not in crossed]
+            end = max(seams) if seams else int(hi[2])
+            slabs.append([b.id for b in bricks if start <= b.cell[2] < end])
+            start = end
+        pieces = [piece for slab in slabs if slab for piece in high_res.groups(layout, slab)]
+        out += pieces
+        cut.append(([round(float(v), 1) for v in box], len(pieces)))
+    return out, cut
+
+
 def build_parts(layout: Layout, groups: list[list[int]], source: ModelSolid, fit: Fit = Fit(),
                 connectors: bool = True, engrave: bool = True,
                 links: connectors_stage.Connectors | None = None) -> list[PrintedPart]:

@@ -6,7 +6,7 @@ B-rep of that mesh, one planar face per triangle, written directly as
 STEP text (:func:`write_faceted_step`).  Both stay in model coordinates,
 where the part belongs in the assembly.
 
-The plate ``parts/plate.3mf`` holds every part in its print pose
+The plate ``parts/plate-1.3mf`` holds every part in its print pose
 (:func:`print_pose`: the pose PrusaSlicer prints fastest with the supports
 it needs, never studs down, never the engraved ID facing down), each on
 the bed (min z = 0), packed in rows within the printer's bed
@@ -108,8 +108,8 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     there; two parts' pose searches at a time) and packed on as few beds as this simple
     rule gives.
 
-    ``bed`` is the printable (x, y) in mm (default: the profile's,
-    :func:`core.printing.print_time.build_volume`).  Shelf packing: each part is
+    ``bed`` is the printable (x, y) in mm from the origin (default: the profile's bed,
+    :func:`core.printing.print_time.bed_rectangle`, where it lies).  Shelf packing: each part is
     turned about z so its longer side runs along the bed's longer side
     when that fits, the parts are taken tallest footprint (y) first and
     set left to right in rows, SPACING_MM apart and from the bed's edges; a
@@ -120,9 +120,9 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     every mesh has min z = 0, is marked posed, and the footprints do not
     overlap.
     """
-    size = np.asarray(bed if bed is not None else
-                      print_time.build_volume(print_time.load_profile(profile, slicer))[:2],
-                      dtype=float)
+    rectangle = (np.array([[0.0, 0.0], bed], dtype=float) if bed is not None else
+                 print_time.bed_rectangle(print_time.load_profile(profile, slicer)))
+    size, origin = rectangle[1] - rectangle[0], rectangle[0]
     laid = []
     flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer, workdir), parts, 2)
     for index, (mesh, pose) in enumerate(flat):
@@ -147,7 +147,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
             out.append([])
             x, y, row = SPACING_MM, SPACING_MM, 0.0
         move = np.eye(4)
-        move[:2, 3] = [x, y]
+        move[:2, 3] = origin + (x, y)
         mesh.apply_transform(move)
         pose.matrix = move @ pose.matrix
         out[-1].append((index, mesh, pose))
@@ -268,7 +268,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     changed.  The plates come from :func:`plates` (``bed``, ``profile`` and
     ``slicer`` as there), or are ``beds`` when given (what :func:`plates`
     returned for these ``parts``, so that the poses are not searched again):
-    ``plate.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
+    ``plate-1.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
     printed with as PrusaSlicer's project config
     (:func:`core.printing.print_time.plate_3mf`): the
     profile's, with :data:`core.printing.print_time.SUPPORT_SETTINGS` when a part on
@@ -291,7 +291,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     if beds is None:
         beds = plates(parts, bed, profile, slicer) if parts else []
     for number, items in enumerate(beds, start=1):
-        name = "plate.3mf" if number == 1 else f"plate-{number}.3mf"
+        name = f"plate-{number}.3mf"
         for index, _, pose in items:
             files[parts[index].id]["pose"] = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
         config = print_time.plate_config(profile, supports=any(pose.supports for _, _, pose in items),

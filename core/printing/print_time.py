@@ -184,7 +184,8 @@ class PrintEstimate:
     the pose :func:`print_time` turned the mesh into (several meshes'
     joined by ", "), None when every mesh came in its print pose.
     ``cached`` says the slicer's answer came from :mod:`core.printing.slice_cache`
-    (the same plate sliced before; no G-code then).
+    (the same plate sliced before; no G-code then).  ``enlarged_bed`` says it
+    was sliced on a bed enlarged to fit (:func:`core.printing.printers.reference_time`).
     """
 
     seconds: float
@@ -193,6 +194,7 @@ class PrintEstimate:
     supports: bool = False
     pose: str | None = None
     cached: bool = False
+    enlarged_bed: bool = False
 
 
 @dataclass
@@ -310,8 +312,11 @@ def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = 
     :func:`resolve_slicer`; :func:`core.printing.slicer_profile.bundle_profile`), or
     FALLBACK_PROFILE when there is no slicer, no bundle beside it, or the
     bundle lacks the presets.  Raises InputError when a given file cannot
-    be read.
+    be read.  A dict (a chosen printer's config, :mod:`core.printing.printers`) is the settings
+    themselves.
     """
+    if isinstance(profile, dict):
+        return dict(profile)
     if profile is None:
         binary, _ = resolve_slicer(slicer)
         bundle = slicer_profile.find_bundle(binary)
@@ -331,14 +336,13 @@ def load_profile(profile: str | os.PathLike | None = None, slicer: str | None = 
 
 
 def build_volume(config: dict[str, str]) -> np.ndarray:
-    """Printable size (x, y, z) in mm: the ``bed_shape`` bounding box and ``max_print_height``.
+    """Printable size (x, y, z) in mm: the size of :func:`bed_rectangle` and ``max_print_height``.
 
     Raises InputError when the profile lacks either key or they are malformed.
     """
+    bed = bed_rectangle(config)
     try:
-        corners = np.array([[float(v) for v in point.split("x")]
-                            for point in config["bed_shape"].split(",")])
-        return np.append(np.ptp(corners, axis=0), float(config["max_print_height"]))
+        return np.append(bed[1] - bed[0], float(config["max_print_height"]))
     except (KeyError, ValueError) as exc:
         raise InputError(f"slicer profile: no valid bed_shape / max_print_height ({exc})") from None
 
@@ -663,7 +667,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     Writes the plate as a 3MF carrying its settings (:func:`plate_3mf`,
     the file ``core.printing.export`` writes for the user) and the G-code into a new
     folder under ``workdir``, and slices it as a user would
-    (``prusa-slicer --dont-arrange --export-gcode plate.3mf``), the parts
+    (``prusa-slicer --dont-arrange --export-gcode plate-1.3mf``), the parts
     where :func:`arrange` puts them (as given when they lie apart on the
     bed, as ``core.printing.export``'s plates do), each in its orientation.  The
     settings are the profile's (:func:`plate_config`; ``profile`` None: the
@@ -801,16 +805,24 @@ def in_background(fn, *args) -> Future:
 
 
 def bed_rectangle(config: dict[str, str]) -> np.ndarray:
-    """The bed's min and max corner (2x2, mm) from the profile's ``bed_shape``.
+    """The bed's min and max corner (2x2, mm) from the profile's ``bed_shape``: its
+    bounding box when it has four corners (a rectangle), else (a delta's round bed) the
+    square centred on its corners' mean that stays within their least distance from it.
 
     Raises InputError when the profile has no valid bed_shape.
     """
     try:
         corners = np.array([[float(v) for v in point.split("x")]
                             for point in config["bed_shape"].split(",")])
+        if corners.ndim != 2 or corners.shape[1] != 2 or len(corners) < 3:
+            raise ValueError(f"bed_shape {config['bed_shape']!r}")
     except (KeyError, ValueError) as exc:
         raise InputError(f"slicer profile: no valid bed_shape ({exc})") from None
-    return np.array([corners.min(axis=0), corners.max(axis=0)])
+    if len(corners) <= 4:
+        return np.array([corners.min(axis=0), corners.max(axis=0)])
+    centre = corners.mean(axis=0)
+    half = float(np.min(np.linalg.norm(corners - centre, axis=1))) / math.sqrt(2)
+    return np.array([centre - half, centre + half])
 
 
 def _apart(meshes: list[trimesh.Trimesh], bed: np.ndarray) -> bool:
@@ -943,3 +955,4 @@ def print_time(meshes, workdir: str | os.PathLike, profile: str | os.PathLike | 
     seconds = estimate_seconds(parts) + sum(support_seconds(*support_need(m, overhang)[:2]) for m in supported)
     label = ESTIMATE_METHOD.rstrip(")") + (", with supports" if supported else "")
     return PrintEstimate(seconds, f"{label}; {reason}){posing}", None, bool(supported), pose)
+

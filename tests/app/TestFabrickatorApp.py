@@ -238,6 +238,26 @@ class TestFabrication(FabrickatorTestCase):
         f.Effort = "fast"
         self.assertEqual(fabricate.request(f, "part.stl", (), ()).effort, "fast")
 
+    def test_printer_property_overrides_the_preference(self):
+        """Printer, empty by default (the MK3S): the preference names the printer of every
+        Fabrication, a Fabrication's own Printer wins, and the request carries it."""
+        from FabrickatorWorkbench import preferences
+        from FabrickatorWorkbench.objects import fabricate
+
+        body, _, _ = padded_body(self.doc)
+        f = fab().make_fabrication(body)
+        self.assertEqual(f.Printer, "")
+        try:
+            self.assertIsNone(fabricate.request(f, "part.stl", (), ()).printer)
+            preferences.set("Printer", "Original Prusa MINI & MINI+")
+            self.assertEqual(fabricate.request(f, "part.stl", (), ()).printer,
+                             "Original Prusa MINI & MINI+")
+            f.Printer = "Creality Ender-3 (0.4 mm nozzle)"
+            self.assertEqual(fabricate.request(f, "part.stl", (), ()).printer,
+                             "Creality Ender-3 (0.4 mm nozzle)")
+        finally:
+            preferences.reset("Printer")
+
     def test_lower_bound_property_gives_the_bounds_of_the_command_line(self):
         """LowerBound, off by default as in the core's table: on, the Fabrication's report has
         the bounds ``--lower-bound`` gives for the same 5 x 3 stud box two bricks high (six
@@ -793,7 +813,7 @@ class TestDocument(FabrickatorTestCase):
         for name in ("parts", "layout.json", "layout.png", "report.json", "instructions.html",
                      "assembly.mpd", "bom.csv", "iteration"):
             self.assertIn(name, written)
-        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate.3mf", "layout.json",
+        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate-1.3mf", "layout.json",
                      "report.json", "instructions.html"):
             self.assertGreater((out / name).stat().st_size, 0)
         self.assertEqual(json.loads((out / "layout.json").read_text())["bricks"],

@@ -12,12 +12,16 @@ from __future__ import annotations
 import contextlib
 import io
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
 from core.cli import main
+from core.errors import InputError
+from core.parts import calibration
+from core.parts.interfaces import Fit
 
 DEFAULT_VALUES = [-0.10, -0.05, 0.0, 0.05, 0.10, 0.15, 0.20]
 BLOCK_TOP = 2.0 + 1.0          # socket depth + roof
@@ -212,3 +216,72 @@ def test_an_unwritable_out_is_one_line_and_status_two(tmp_path, capsys):
         assert status == 2 and lines == []
         assert len(err.strip().splitlines()) == 1 and str(out) in err
 
+
+
+def test_fits_are_saved_per_printer_and_filament(tmp_path, monkeypatch):
+    import json
+
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "cfg"))
+    path = calibration.fits_file()
+    assert path == tmp_path / "cfg" / "fabrickator" / "fits.json" and not path.exists()
+    assert calibration.saved_fit("Printer A", "PLA") is None
+    calibration.save_fit("Printer A", "PLA", Fit(stud_fit=0.1, socket_fit=-0.05))
+    calibration.save_fit("Printer B", "PETG", Fit(stud_fit=0.0, socket_fit=0.15))
+    assert json.loads(path.read_text()) == {
+        "Printer A": {"PLA": {"stud_fit": 0.1, "socket_fit": -0.05}},
+        "Printer B": {"PETG": {"stud_fit": 0.0, "socket_fit": 0.15}}}
+    assert calibration.saved_fit("Printer A", "PLA") == Fit(stud_fit=0.1, socket_fit=-0.05)
+    assert calibration.saved_fit("Printer A", "PETG") is None
+    path.write_text("[1, 2]")
+    with pytest.raises(InputError, match="saved fits"):
+        calibration.saved_fit("Printer A", "PLA")
+
+
+@pytest.mark.slow
+def test_fabricate_uses_the_fit_saved_for_the_printer(tmp_path):
+    """save-fit, then fabricate on that printer: the report's fit is the saved one and says
+    where it came from; a fit given on the command line wins; the default printer keeps
+    the default fit."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    import trimesh
+
+    from core.printing import printers
+    if printers.bundle_folder() is None:
+        pytest.skip("no PrusaSlicer vendor bundles installed")
+    env = {**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "cfg"), "FABRICKATOR_SLICER": "none"}
+    root = Path(__file__).resolve().parents[2]
+    mini = "Original Prusa MINI & MINI+"
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "core", *args], cwd=root, env=env,
+                              capture_output=True, text=True, timeout=600)
+
+    saved = run("save-fit", "--printer", mini, "--stud-fit", "0.1", "--socket-fit", "-0.05")
+    assert saved.returncode == 0, saved.stderr
+    assert "Prusament PLA" in saved.stdout and str(tmp_path / "cfg") in saved.stdout
+    box = tmp_path / "box.stl"
+    mesh = trimesh.creation.box((40.0, 24.0, 19.2))
+    mesh.apply_translation(-mesh.bounds[0])
+    mesh.export(box)
+    region = "--high-res=0,0,12,16,24,19.2"
+    fits = {}
+    for name, extra in (("mini", ["--printer", mini]), ("given", ["--printer", mini, "--stud-fit", "0"]),
+                        ("default", [])):
+        done = run("fabricate", str(box), region, "--quiet", "--out", str(tmp_path / name), *extra)
+        assert done.returncode == 0, done.stderr
+        fits[name] = json.loads((tmp_path / name / "report.json").read_text())["fit"]
+        said = [line for line in done.stdout.splitlines() if line.startswith("printed on: ")]
+        assert said == ([] if name == "default" else
+                        [f"printed on: {mini} (0.20mm QUALITY @MINI, Prusament PLA), 1 plate; fit: stud "
+                         f"{fits[name]['stud_fit']:+g}, socket {fits[name]['socket_fit']:+g} mm "
+                         f"({fits[name]['source']})"])
+    assert fits["mini"]["stud_fit"] == 0.1 and fits["mini"]["socket_fit"] == -0.05
+    assert fits["mini"]["source"].startswith(f"saved for {mini} / Prusament PLA in {tmp_path}")
+    assert fits["given"]["stud_fit"] == 0.0 and fits["given"]["socket_fit"] == -0.05
+    assert fits["given"]["source"].startswith("stud_fit given, the rest saved for")
+    assert fits["default"] == {"stud_fit": Fit().stud_fit, "socket_fit": Fit().socket_fit,
+                               "source": "default"}

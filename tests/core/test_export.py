@@ -39,7 +39,7 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
     before = [(p.stl, p.step, p.pose) for p in parts]
     names, parts = export.export_parts(parts, tmp_path / "parts")
     assert before == [(None, None, None)] * 2, "export_parts must not change its input"
-    assert names == ["P1.stl", "P1.step", "P2.stl", "P2.step", "plate.3mf"]
+    assert names == ["P1.stl", "P1.step", "P2.stl", "P2.step", "plate-1.3mf"]
     outside_model = _manifold(model)
     for p in parts:
         mesh = trimesh.load(tmp_path / p.stl, force="mesh")
@@ -48,10 +48,10 @@ def test_exported_parts_are_watertight_and_inside_the_model(tmp_path):
         step = cq.importers.importStep(str(tmp_path / p.step)).val()
         assert step.isValid() and len(step.Solids()) == p.pieces
         assert step.Volume() == pytest.approx(mesh.volume, rel=1e-6)
-    plate = trimesh.load(tmp_path / "parts" / "plate.3mf")
+    plate = trimesh.load(tmp_path / "parts" / "plate-1.3mf")
     assert len(plate.geometry) == 2 and plate.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
     for p in parts:
-        assert p.pose["plate"] == "parts/plate.3mf" and p.pose["studs_up"] >= 0
+        assert p.pose["plate"] == "parts/plate-1.3mf" and p.pose["studs_up"] >= 0
         # The pose maps the part's model-coordinate mesh onto its place on the plate.
         placed = p.mesh.copy().apply_transform(np.array(p.pose["matrix"]))
         assert placed.bounds == pytest.approx(plate.geometry[p.id].bounds, abs=1e-6)
@@ -143,7 +143,7 @@ def test_parts_that_fill_a_bed_go_on_more_plates(tmp_path):
         assert all(np.all(b[1][:2] <= 60 - export.SPACING_MM + 1e-9) for b in boxes)
         assert not any(_overlap(a, b) for n, a in enumerate(boxes) for b in boxes[n + 1:])
     names, parts = export.export_parts(parts, tmp_path / "parts", bed=(60, 60))
-    assert "plate.3mf" in names and "plate-2.3mf" in names
+    assert "plate-1.3mf" in names and "plate-2.3mf" in names
     on = {p.pose["plate"] for p in parts}
     assert on == {f"parts/{n}" for n in names if n.endswith(".3mf")}
 
@@ -224,7 +224,7 @@ def test_plate_config_switches_supports_on_when_a_part_needs_them(tmp_path):
     assert not brick.pose["supports"] and arm.pose["supports"]
     configs = {}
     for name in ("plain", "mixed"):
-        with zipfile.ZipFile(tmp_path / name / "plate.3mf") as archive:
+        with zipfile.ZipFile(tmp_path / name / "plate-1.3mf") as archive:
             text = archive.read(print_time.SLIC3R_CONFIG).decode()
         configs[name] = dict(line[2:].split(" = ", 1) for line in text.splitlines() if " = " in line)
     assert configs["plain"]["support_material"] == "0"
@@ -244,7 +244,7 @@ def test_the_plate_prints_in_prusaslicer_as_timed(tmp_path):
     # parts where the plate puts them (the GUI keeps them; the command line needs --dont-arrange).
     gcode = tmp_path / "opened.gcode"
     run = subprocess.run([print_time.slicer_path(), "--dont-arrange", "--export-gcode", "--output", str(gcode),
-                          str(tmp_path / "parts" / "plate.3mf")], capture_output=True, text=True)
+                          str(tmp_path / "parts" / "plate-1.3mf")], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-500:]
     assert "; support_material = 1" in gcode.read_text(errors="replace")
     # The same plate, the same settings: the same time (to PrusaSlicer's own run-to-run jitter).

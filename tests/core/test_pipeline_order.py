@@ -25,7 +25,7 @@ ORDER = [
     "forces.program", "forces.decompose", "forces.analyse", "forces.build_steps", "forces",
     "layout.bounds", "layout.greedy", "layout.search", "align", "diff", "parts.connectors",
     "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
-    "printing.slicer_profile", "printing.slice_cache", "printing.print_time", "printing.export",
+    "printing.slicer_profile", "printing.slice_cache", "printing.print_time", "printing.printers", "printing.export",
     "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom", "instructions.drawing_order",
     "instructions.page", "instructions.changes_page", "picking", "face_region",
     "iterate", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",

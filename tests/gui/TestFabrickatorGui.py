@@ -403,7 +403,7 @@ class TestCommands(GuiTestCase):
         answer_modal(choose_path(out), "FabrickatorChooseFolder")
         Gui.runCommand("Fabrickator_Export")
         settle()
-        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate.3mf", "instructions.html",
+        for name in ("parts/P1.stl", "parts/P1.step", "parts/plate-1.3mf", "instructions.html",
                      "report.json", "layout.json", "layout.png"):
             self.assertTrue((out / name).is_file(), name)
 
