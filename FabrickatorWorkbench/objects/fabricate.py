@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import FreeCAD as App
 
-from core import inventory, request as core_request
+from core import request as core_request
 from core.errors import InputError, memory_shortage
 from core.model import CELL_MM
 from core.parts.interfaces import Fit
@@ -442,6 +442,7 @@ def _store_forces(obj, force: dict | None, build: dict | None = None) -> None:
 
 def _store(obj, result: Result, kept: int, changed: int) -> None:
     """Write the result's numbers and JSON into the Fabrication's properties."""
+    from core import inventory  # loads scipy
     fab, report = result.fab, result.report
     layout = fab.layout
     obj.LayoutJson = json.dumps(inventory.with_colours(layout.to_json(), fab.colouring))

@@ -34,7 +34,6 @@ import FreeCAD as App
 
 from core.catalog import BY_NUMBER
 from core.colours import brick_colours, palette_codes, rgb as code_rgb
-from core.inventory import colouring_of
 from core.model import Grid, Layout
 from FabrickatorWorkbench import bridge, preferences
 from FabrickatorWorkbench.objects import prototype as prototypes_module
@@ -306,6 +305,8 @@ def clear_changes(fab) -> int:
     protos_touched = []
     if marked:
         layout = stored_layout(fab)
+        from core.inventory import colouring_of  # loads scipy
+
         own = colouring_of(json.loads(fab.LayoutJson))
         rgb = {b.id: tuple(float(c) for c in colour)
                for b, colour in zip(layout.bricks, brick_colours(layout, preferences.palette(),
