@@ -55,8 +55,7 @@ test: $(VENV)/.installed
 	  echo "== building the FreeCAD 1.x root in the background, log: $(FREECAD1_LOG)"; \
 	  $(MAKE) --no-print-directory freecad1-root >$(FREECAD1_LOG) 2>&1 & root=$$!; \
 	else root=; fi; \
-	$(MAKE) --no-print-directory test-core && $(MAKE) --no-print-directory test-app && \
-	  $(MAKE) --no-print-directory test-gui; s=$$?; \
+	$(MAKE) --no-print-directory test-core && $(MAKE) --no-print-directory test-workbench; s=$$?; \
 	if [ -n "$$root" ]; then wait $$root || { s=1; echo "== the FreeCAD 1.x root failed:"; }; \
 	  cat $(FREECAD1_LOG); fi; \
 	[ $$s = 0 ] && $(MAKE) --no-print-directory test-freecad1
@@ -85,7 +84,7 @@ freecad1-root:
 
 test-freecad1: freecad1-root
 	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 's=0; $(FREECAD1_MAKE) test-quick || s=1; \
-	  $(FREECAD1_MAKE) test-app || s=1; $(FREECAD1_MAKE) test-gui || s=1; exit $$s'
+	  $(FREECAD1_MAKE) test-workbench || s=1; exit $$s'
 
 # the quick benchmark rows against their targets (bench/targets.py), about 3 minutes;
 # prints each row over its target with the stage that grew
@@ -109,7 +108,7 @@ FC_MOD = $(shell $(FREECADCMD) -c "import FreeCAD,sys; sys.stdout.write('MODDIR=
 FC_GUI_ENV := QTWEBENGINE_DISABLE_SANDBOX=1
 XVFB       := xvfb-run -a -s "-screen 0 1280x1024x24"
 
-.PHONY: install gui test-app test-gui bench-freecad
+.PHONY: install gui test-app test-gui test-workbench bench-freecad
 
 install: $(VENV)/.installed
 	@mod="$(FC_MOD)"; \
@@ -131,6 +130,14 @@ test-app: $(VENV)/.installed
 test-gui: $(VENV)/.installed
 	@cfg=$$(mktemp -d); $(FC_GUI_ENV) $(XVFB) $(FREECAD) -u $$cfg/user.cfg tests/gui/run_gui_tests.py \
 	  --module-path=$(CURDIR); status=$$?; rm -rf $$cfg; exit $$status
+
+# both workbench suites at once (each has its own user configuration); the app suite's
+# output is shown when both are done
+test-workbench: $(VENV)/.installed
+	@log=$$(mktemp); $(MAKE) --no-print-directory test-app >$$log 2>&1 & app=$$!; \
+	$(MAKE) --no-print-directory test-gui; gui=$$?; wait $$app; a=$$?; \
+	echo "== the app suite (freecadcmd):"; cat $$log; rm -f $$log; \
+	echo "== app suite: exit $$a, GUI suite: exit $$gui"; [ $$a = 0 ] && [ $$gui = 0 ]
 
 bench-freecad: examples/build/hmd.step
 	$(FREECADCMD) bench/bench_freecad.py
