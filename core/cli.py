@@ -87,7 +87,24 @@ def _parser() -> argparse.ArgumentParser:
     wat.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _calibration_parser(sub)
     _stability_parser(sub)
+    _suggest_parser(sub)
     return parser
+
+
+def _suggest_parser(sub) -> None:
+    """The ``suggest`` command: the regions a model's features ask to be printed."""
+    sug = sub.add_parser("suggest", help="list the regions that must be printed: holes, pins, "
+                                         "thin walls",
+                         description="Find the features of MODEL that the 8 x 8 x 3.2 mm grid "
+                                     "cannot hold (holes and pins under 20 mm from a STEP or "
+                                     "FCStd's round faces; round holes and walls thinner than a "
+                                     "cell in a mesh) and print one line per suggested region: "
+                                     "why, where, and its box as a --high-res option. "
+                                     "fabricate --suggest marks the same regions.")
+    sug.add_argument("model", metavar="MODEL")
+    sug.add_argument("--out", metavar="FILE", default=None,
+                     help="also write the regions as JSON (boxes in the frame of --high-res)")
+    request.add_options(sug, ("units", "scale", "up", "suggest_tolerance"), units=request.UNITS)
 
 
 def _stability_parser(sub) -> None:
@@ -137,7 +154,7 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     """The options that say how to read a model and what to print (fabricate and watch)."""
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
-                            "clutch_n", "hollow"),
+                            "clutch_n", "hollow", "suggest", "suggest_tolerance"),
                         units=request.UNITS)
 
 
@@ -216,7 +233,7 @@ def _command(argv: list[str] | None) -> int:
     quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
-               "stability": _stability}.get(args.command, _fabricate)
+               "stability": _stability, "suggest": _suggest}.get(args.command, _fabricate)
     given = sys.stdout
     out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
@@ -555,6 +572,37 @@ def _naming(path, line: str) -> str:
     return line if named else f"{path.name}: {line}"
 
 
+def _suggest(args) -> int:
+    """The ``suggest`` command: one line per suggested region on stdout, warnings on
+    stderr, and with --out the regions as JSON."""
+    import json
+    from pathlib import Path
+
+    from core import mesh_io, suggest
+
+    _check_paths(args)
+    job = request.from_options(args, args.model)
+    out = None
+    if args.out:
+        out = Path(args.out)
+        if out.is_dir() or not out.parent.is_dir():
+            raise InputError(f"--out {out}: name a file in an existing folder")
+    model = mesh_io.load_model(job.model, units=job.units, scale=job.scale, up=job.up)
+    for warning in model.warnings:
+        sys.stderr.write(f"warning: {warning}\n")
+    found = suggest.suggest(model, job.suggest_tolerance)
+    for region in found.regions:
+        print(region.line(model.offset_mm))
+    print(f"{len(found.regions)} region(s) suggested from the {found.source}, marking "
+          f"{found.share:.0%} of the part's cells")
+    for warning in found.warnings:
+        sys.stderr.write(f"warning: {warning}\n")
+    if out is not None:
+        _write_report(out, json.dumps(found.to_json(model.offset_mm), indent=1,
+                                       ensure_ascii=False) + "\n")
+    return 0
+
+
 def _calibration_strip(args) -> int:
     """The ``calibration-strip`` command: one line per file written, or one error line
     and exit status 2."""
@@ -619,6 +667,12 @@ def _summary(doc: dict, out) -> None:
     hollow = doc.get("hollow")
     if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
         print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
+    suggested = doc.get("high_res", {}).get("suggested")
+    if suggested is not None:
+        print(f"{len(suggested['regions'])} suggested region(s) marked ({suggested['share_of_cells']:.0%} "
+              f"of the cells; report.json high_res.suggested): "
+              + ("; ".join(r["reason"] for r in suggested["regions"][:3]) or "nothing found")
+              + (" ..." if len(suggested["regions"]) > 3 else ""))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]

@@ -30,7 +30,7 @@ from core import improve as improve_stage
 from core import layout as layout_stage, result
 from core import mesh_io, output_dir, printed as printed_stage, print_time as print_time_stage
 from core import forces as forces_stage, reinforce as reinforce_stage
-from core import stability as stability_stage, voxelize
+from core import stability as stability_stage, suggest as suggest_stage, voxelize
 from core.errors import InputError
 from core.interfaces import Fit
 from core.model import CELL_MM, Grid, Layout
@@ -198,6 +198,10 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         loaded = [dataclasses.replace(r, mesh=r.mesh.copy().apply_translation(shift)) for r in loaded]
         regions = (high_res_stage.Regions.of(req.high_res).moved(_translation(shift))
                    + high_res_stage.Regions.of((), loaded))
+    suggested = None
+    if req.suggest:
+        suggested = timed("suggest", 0.02, suggest_stage.suggest, model, req.suggest_tolerance)
+        regions = regions + high_res_stage.Regions.of(suggested.boxes)
     notes: list[str] = []
     before = alignment = None
     if req.previous is not None:
@@ -279,7 +283,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                    next_id=None if plan is None else plan.next_id, others=others, bound=bound)
     quality = improve_stage.layout_quality(greedy, layout, chosen, timings, req.lower_bound,
                                            bound=bound)
-    warnings = _unmarked(given, grid, req, marked.any())
+    warnings = _unmarked(given, grid, req, marked.any()) + list(suggested.warnings if suggested else ())
     reinforced = None
     if before is None:
         reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, chosen, req.ground,
@@ -337,7 +341,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     fab = Fabrication(req, model, chosen, grid, layout, stab, order, timings, made,
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
-                             "anchor_cells": int(np.count_nonzero(cells & ~marked))},
+                             "anchor_cells": int(np.count_nonzero(cells & ~marked)),
+                             **_suggested_marks(suggested, grid, model)},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
                       forces=force, reinforced=reinforced, hollowing=hollowing,
                       layout_quality=quality)
@@ -354,6 +359,17 @@ def _slicer_settings(req: Request) -> dict[str, str]:
         return print_time_stage.load_profile(req.profile)
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
+
+
+def _suggested_marks(suggested, grid: Grid, model) -> dict:
+    """The report's ``high_res.suggested`` with ``--suggest`` (nothing without): the regions
+    (boxes in the frame of --high-res), those dropped, and the share of ``grid``'s cells
+    they mark."""
+    if suggested is None:
+        return {}
+    doc = suggested.to_json(model.offset_mm)
+    doc["share_of_cells"] = round(suggest_stage.share_of(grid, suggested.boxes), 4)
+    return {"suggested": doc}
 
 
 def _translation(shift) -> np.ndarray:

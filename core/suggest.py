@@ -36,15 +36,17 @@ from scipy.sparse.csgraph import connected_components
 
 from core import high_res, thickness, voxelize
 from core.model import CELL_MM
+from core.request import DEFAULTS
 
 #: Features less than this across (mm) are suggested: holes, pins and bosses.
 LIMIT_MM = 20.0
 #: Material (mm) kept around a feature in its region, across its axis and along it.
 WALL_MM = 1.0
 END_MM = 0.5
-#: Default --tolerance (mm): a feature whose loss under legofication (a hole's or pin's
-#: radius, a wall's thickness) is not more than this is not suggested.
-TOLERANCE_MM = 0.5
+#: Default --tolerance (mm), from the one table of defaults: a feature whose loss under
+#: legofication (a hole's or pin's radius, a wall's thickness) is not more than this is
+#: not suggested.
+TOLERANCE_MM = DEFAULTS["suggest_tolerance"]
 #: Most share of the model's filled cells the suggestions may mark.
 MAX_SHARE = 0.35
 #: Concave faces of one surface that go at least this far round their axis (radians)
@@ -60,17 +62,27 @@ MERGE_GROWTH = 1.1
 
 @dataclass(frozen=True)
 class Feature:
-    """One feature found: ``kind`` (hole, pin, thin wall), its ``reason`` in words,
-    ``where`` in words, ``box`` the region box (2, 3) in model mm around it, and its
-    ``centre``, ``axis`` (None for a wall) and ``size_mm`` (diameter or thickness)."""
+    """One feature found: ``kind`` (hole, pin, wall), its ``reason`` in words, ``box`` the
+    region box (2, 3) in model mm around it, its ``centre``, ``axis`` (a wall's: across
+    it) and ``size_mm`` (diameter or thickness)."""
 
     kind: str
     reason: str
-    where: str
     box: np.ndarray
     centre: tuple
-    axis: tuple | None
+    axis: tuple
     size_mm: float
+
+    def place(self, offset=(0.0, 0.0, 0.0)) -> str:
+        """Where it is in words, its centre moved back by ``-offset``."""
+        at = _point(np.asarray(self.centre) - np.asarray(offset, dtype=float))
+        if self.kind == "wall":
+            return f"across {_axis_words(self.axis)} at {at}"
+        return f"axis {_axis_words(self.axis)} through {at}"
+
+    @property
+    def where(self) -> str:
+        return self.place()
 
 
 @dataclass(frozen=True)
@@ -88,12 +100,15 @@ class Region:
 
     @property
     def where(self) -> str:
+        """Where its first features are, in words."""
         return "; ".join(f.where for f in self.features[:3])
 
-    def line(self) -> str:
-        """One line: the reason, where, and the box."""
-        box = " to ".join(",".join(f"{v:.1f}" for v in c) for c in self.box)
-        return f"{self.reason} at {self.where} (box {box} mm)"
+    def line(self, offset=(0.0, 0.0, 0.0)) -> str:
+        """One line: the reason, where, and the box as a --high-res option (all moved back
+        by ``-offset``, as :meth:`to_json`)."""
+        doc = self.to_json(offset)
+        where = "; ".join(f["where"] for f in doc["features"][:3])
+        return f"{self.reason} at {where}: --high-res={doc['high_res']}"
 
     def to_json(self, offset=(0.0, 0.0, 0.0)) -> dict:
         """The region as JSON, its box and points moved back by ``-offset`` (the frame
@@ -102,9 +117,9 @@ class Region:
         return {"box_mm": [[round(float(v), 3) for v in c] for c in self.box + back],
                 "high_res": ",".join(f"{v:.3f}" for v in (self.box + back).ravel()),
                 "reason": self.reason,
-                "features": [{"kind": f.kind, "reason": f.reason, "where": f.where,
+                "features": [{"kind": f.kind, "reason": f.reason, "where": f.place(offset),
                               "centre_mm": [round(float(v), 3) for v in np.asarray(f.centre) + back],
-                              "axis": None if f.axis is None else [round(float(v), 4) for v in f.axis],
+                              "axis": [round(float(v), 4) for v in f.axis],
                               "size_mm": round(f.size_mm, 3)} for f in self.features]}
 
 
@@ -233,13 +248,11 @@ def _axis_words(axis) -> str:
 def _feature(kind: str, diameter: float, depth: float, centre, axis, lo, hi) -> Feature:
     """A hole or pin feature with its words and its region box: its faces' box ``lo``-``hi``
     grown by :data:`WALL_MM` across the axis and :data:`END_MM` along it."""
-    name = {"hole": "hole", "pin": "pin"}[kind]
-    reason = f"{name} Ø{diameter:.1f} mm, {depth:.1f} mm {'deep' if kind == 'hole' else 'long'}"
-    where = f"axis {_axis_words(axis)} through {_point(centre)}"
+    reason = f"{kind} Ø{diameter:.1f} mm, {depth:.1f} mm {'deep' if kind == 'hole' else 'long'}"
     a = np.abs(np.asarray(axis, dtype=float))
     grow = WALL_MM * np.sqrt(np.clip(1.0 - a * a, 0.0, 1.0)) + END_MM * a
     box = np.stack([np.asarray(lo, dtype=float) - grow, np.asarray(hi, dtype=float) + grow])
-    return Feature(kind, reason, where, box, tuple(float(v) for v in centre),
+    return Feature(kind, reason, box, tuple(float(v) for v in centre),
                    tuple(float(v) for v in axis), float(diameter))
 
 

@@ -182,3 +182,60 @@ def test_regions_that_nearly_touch_are_merged_and_far_ones_are_not(tmp_path):
     found = suggest.suggest(mesh_io.load_model(_step(plate, tmp_path)))
     sizes = sorted(len(r.features) for r in found.regions)
     assert sizes == [1, 2]
+
+
+def _plate_with_hole(tmp_path) -> Path:
+    import cadquery as cq
+
+    plate = (cq.Workplane("XY").box(64, 48, 9.6, centered=(True, True, False))
+             .faces(">Z").workplane().center(-12, 4).hole(6.5))
+    return _step(plate, tmp_path, "plate.step")
+
+
+def test_the_suggest_command_prints_a_line_per_region_and_writes_them(tmp_path, capsys):
+    from core import cli
+
+    path, out = _plate_with_hole(tmp_path), tmp_path / "regions.json"
+    assert cli.main(["suggest", str(path), "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == ("hole Ø6.5 mm, 9.6 mm deep at axis z through (-12.0, 4.0, 4.8): "
+                        "--high-res=-16.250,-0.250,-0.500,-7.750,8.250,10.100")
+    assert lines[1].startswith("1 region(s) suggested from the brep, marking ")
+    doc = json.loads(out.read_text())
+    assert doc["regions"][0]["high_res"] == "-16.250,-0.250,-0.500,-7.750,8.250,10.100"
+    assert doc["regions"][0]["features"][0]["centre_mm"] == [-12.0, 4.0, 4.8]
+    # by hand: the box spans x -16.25..-7.75 and y -0.25..8.25 on the 8 x 6 cell grid from
+    # x -32, y -24: it reaches into 3 columns in x, 3 in y, in all 3 layers: 27 of 144 cells
+    assert doc["share_of_cells"] == round(27 / 144, 4)
+
+
+def test_the_suggest_command_refuses_bad_input_in_one_line(tmp_path, capsys):
+    from core import cli
+
+    path = _plate_with_hole(tmp_path)
+    assert cli.main(["suggest", str(path), "--tolerance", "-1"]) == 2
+    assert cli.main(["suggest", str(tmp_path / "none.step")]) == 2
+    assert cli.main(["suggest", str(path), "--out", str(tmp_path / "no" / "r.json")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and all(line.startswith("error: ") for line in err)
+
+
+@pytest.mark.slow
+def test_fabricate_suggest_prints_the_hole_and_adds_the_users_marks(tmp_path):
+    from core import pipeline
+
+    path = _plate_with_hole(tmp_path)
+    fab = pipeline.run(str(path), suggest=True, slice_parts=False, picture=False,
+                       high_res=["20,-20,0,28,-12,3"])
+    assert len(fab.printed) == 2
+    doc = pipeline.report(fab)["high_res"]["suggested"]
+    assert [r["reason"] for r in doc["regions"]] == ["hole Ø6.5 mm, 9.6 mm deep"]
+    # the hole's wall (by hand: radius 3.25 round x -12, y 4) lies in printed bricks only
+    angle = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    wall = np.stack([-12 + 3.25 * np.cos(angle), 4 + 3.25 * np.sin(angle), np.full(24, 4.8)], 1)
+    grid, labels = fab.layout.grid, fab.layout.labels()
+    cells = np.floor((wall - grid.origin) / grid.cell).astype(int)
+    kinds = {fab.layout.bricks[labels[tuple(c)]].kind for c in cells}
+    assert kinds == {"printed"}
+    plain = pipeline.run(str(path), slice_parts=False, picture=False)
+    assert "suggested" not in pipeline.report(plain)["high_res"] and not plain.printed
