@@ -33,6 +33,7 @@ import numpy as np
 import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from core import high_res, thickness, voxelize
 from core.model import CELL_MM
@@ -56,6 +57,18 @@ MIN_TURN = math.pi * 0.99
 MIN_PIN_TURN = math.pi * 1.05
 #: Faces of one surface whose boxes come this close (mm) are one feature.
 TOUCH_MM = 0.01
+#: Mesh faces are one patch across edges that bend less than this (radians).
+SMOOTH_RAD = math.radians(40.0)
+#: A patch of fewer faces is no round feature.
+MIN_PATCH_FACES = 6
+#: A round patch's normals are at most this cosine off perpendicular to its axis.
+MAX_AXIS_COS = 0.1
+#: Its facet centres lie within this fraction of the radius from one circle.
+FIT_RESIDUAL = 0.08
+#: Its turn round the axis is counted in this many sectors.
+TURN_BINS = 36
+#: A thin wall is a spot of at least this much thin surface (mm²).
+MIN_WALL_MM2 = 16.0
 #: Two regions are merged when their union box marks at most this many times their cells.
 MERGE_GROWTH = 1.1
 
@@ -150,23 +163,27 @@ class Suggestions:
 def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_MM,
             max_share: float = MAX_SHARE) -> Suggestions:
     """The suggested regions of a loaded model (:class:`core.mesh_io.LoadedModel`), in its
-    frame: from its B-rep faces when it has one, else from its mesh; merged, and capped
-    at ``max_share`` of its cells (the costliest dropped with a warning)."""
+    frame: from its B-rep faces when it has one, else from its mesh; capped at
+    ``max_share`` of its cells (:func:`capped`: the costliest dropped with a warning) and
+    merged (:func:`merged`) as long as that stays under the cap."""
     if model.brep is not None:
         features, source = brep_features(model.brep, tolerance_mm, limit_mm), "brep"
     else:
         features, source = mesh_features(model.mesh, tolerance_mm, limit_mm), "mesh"
     grid = _grid(model)
-    regions = merged([Region(f.box, (f,)) for f in features], grid)
-    kept, dropped, share = _capped(grid, regions, max_share)
+    kept, dropped, wanted = capped(grid, [Region(f.box, (f,)) for f in features], max_share)
+    joined = merged(kept, grid)
+    share = share_of(grid, [r.box for r in joined])
+    if share > max_share:
+        joined, share = kept, share_of(grid, [r.box for r in kept])
     warnings = ()
     if dropped:
-        warnings = (f"the suggestions would mark {share[1]:.0%} of the part; "
-                    f"{len(dropped)} region(s) marking the most were dropped to stay under "
-                    f"{max_share:.0%} ({dropped[0].reason}{', ...' if len(dropped) > 1 else ''}): "
-                    f"a part that is mostly fine detail prints faster whole "
-                    f"(artistic or decorative shapes)",)
-    return Suggestions(tuple(kept), tuple(dropped), share[0], warnings, source)
+        warnings = (f"the suggestions would mark {wanted:.0%} of the part; {len(dropped)} "
+                    f"marking the most were dropped to stay under {max_share:.0%} "
+                    f"({'; '.join(r.reason for r in dropped[:3])}{' ...' if len(dropped) > 3 else ''}): "
+                    f"a part that is mostly fine detail prints faster whole (the limit for "
+                    f"artistic or decorative shapes)",)
+    return Suggestions(tuple(joined), tuple(dropped), share, warnings, source)
 
 
 def share_of(grid, boxes) -> float:
@@ -182,26 +199,28 @@ def _grid(model):
                            origin=origin, shape=shape, closed=model.watertight)
 
 
-def _capped(grid, regions: list, max_share: float):
-    """``regions`` without the costliest until they mark at most ``max_share`` of ``grid``:
-    (kept, dropped, (share kept, share of all))."""
+def capped(grid, regions: list, max_share: float):
+    """``regions`` kept while together they mark at most ``max_share`` of ``grid``'s cells,
+    holes and pins before walls, each kind cheapest (fewest cells) first:
+    ``(kept, dropped costliest first, share all of them would mark)``."""
     if not regions:
-        return [], [], (0.0, 0.0)
-    masks = [high_res.Regions.of([r.box]).cells(grid) for r in regions]
+        return [], [], 0.0
+    masks = [high_res.box_cells(grid, r.box) & grid.filled for r in regions]
     total = max(grid.count, 1)
-    union = np.logical_or.reduce(masks)
-    first = float(np.count_nonzero(union)) / total
-    order = sorted(range(len(regions)), key=lambda n: -np.count_nonzero(masks[n]))
-    dropped: list = []
-    share = first
+    wanted = float(np.count_nonzero(np.logical_or.reduce(masks))) / total
+    order = sorted(range(len(regions)), key=lambda n: (any(f.kind == "wall" for f in regions[n].features),
+                                                        int(np.count_nonzero(masks[n]))))
+    union = np.zeros(grid.shape, dtype=bool)
+    kept, dropped = [], []
     for n in order:
-        if share <= max_share:
-            break
-        dropped.append(n)
-        rest = [masks[m] for m in range(len(regions)) if m not in dropped]
-        share = float(np.count_nonzero(np.logical_or.reduce(rest))) / total if rest else 0.0
-    kept = [r for n, r in enumerate(regions) if n not in dropped]
-    return kept, [regions[n] for n in dropped], (share, first)
+        more = union | masks[n]
+        if np.count_nonzero(more) <= max_share * total:
+            union = more
+            kept.append(n)
+        else:
+            dropped.append(n)
+    dropped.sort(key=lambda n: -np.count_nonzero(masks[n]))
+    return [regions[n] for n in sorted(kept)], [regions[n] for n in dropped], wanted
 
 
 def merged(regions: list, grid) -> list:
@@ -209,28 +228,48 @@ def merged(regions: list, grid) -> list:
     box, when that box marks at most :data:`MERGE_GROWTH` times the cells of ``grid``
     the two mark (so that no sliver of LEGO is left between two printed parts)."""
     out = list(regions)
-    cells = [high_res.box_cells(grid, r.box) & grid.filled for r in out]
+    count = _cell_counter(grid)
     cell = np.asarray(grid.cell)
     changed = True
     while changed:
         changed = False
-        for a in range(len(out)):
-            for b in range(a + 1, len(out)):
-                ra, rb = out[a], out[b]
-                gap = np.maximum(ra.box[0], rb.box[0]) - np.minimum(ra.box[1], rb.box[1])
-                if np.any(gap >= cell):
-                    continue
-                union = np.stack([np.minimum(ra.box[0], rb.box[0]), np.maximum(ra.box[1], rb.box[1])])
-                marks = high_res.box_cells(grid, union) & grid.filled
-                if np.count_nonzero(marks) > MERGE_GROWTH * np.count_nonzero(cells[a] | cells[b]):
-                    continue
-                out[a], cells[a] = Region(union, ra.features + rb.features), marks
-                del out[b], cells[b]
+        lo = np.array([r.box[0] for r in out]).reshape(-1, 3)
+        hi = np.array([r.box[1] for r in out]).reshape(-1, 3)
+        gap = np.maximum(lo[:, None], lo[None]) - np.minimum(hi[:, None], hi[None])
+        near = np.all(gap < cell, axis=2) & np.triu(np.ones((len(out),) * 2, dtype=bool), 1)
+        for a, b in zip(*np.nonzero(near)):
+            ra, rb = out[a], out[b]
+            union = np.stack([np.minimum(ra.box[0], rb.box[0]), np.maximum(ra.box[1], rb.box[1])])
+            apart = count(ra.box) + count(rb.box) - count(ra.box, rb.box)
+            if count(union) <= MERGE_GROWTH * apart:
+                out[a] = Region(union, ra.features + rb.features)
+                del out[b]
                 changed = True
                 break
-            if changed:
-                break
     return out
+
+
+def _cell_counter(grid):
+    """A function: the number of ``grid``'s filled cells a box touches (the same cells as
+    :func:`core.high_res.box_cells`), or that two boxes both touch, from a table of
+    running sums."""
+    table = np.zeros(tuple(n + 1 for n in grid.shape), dtype=np.int64)
+    table[1:, 1:, 1:] = np.asarray(grid.filled, dtype=np.int64).cumsum(0).cumsum(1).cumsum(2)
+    shape = np.array(grid.shape)
+
+    def count(box, other=None) -> int:
+        first, stop = high_res.box_range(grid.origin, grid.cell, box)
+        if other is not None:
+            first2, stop2 = high_res.box_range(grid.origin, grid.cell, other)
+            first, stop = np.maximum(first, first2), np.minimum(stop, stop2)
+        (i0, j0, k0), (i1, j1, k1) = np.clip(first, 0, shape), np.clip(stop, 0, shape)
+        if i1 <= i0 or j1 <= j0 or k1 <= k0:
+            return 0
+        t = table
+        return int(t[i1, j1, k1] - t[i0, j1, k1] - t[i1, j0, k1] - t[i1, j1, k0]
+                   + t[i0, j0, k1] + t[i0, j1, k0] + t[i1, j0, k0] - t[i0, j0, k0])
+
+    return count
 
 
 def _point(p) -> str:
@@ -302,12 +341,10 @@ def _round_face(face) -> dict | None:
     """A cylindrical, conical or toroidal face's measures (None for another kind): the
     ``key`` of its surface, ``diameter`` (widest), ``turn`` round the axis (radians), the
     unit ``axis`` (sign normalised), ``line`` (the axis's point nearest the origin),
-    ``concave``, sampled surface ``points`` and its box ``lo``-``hi``."""
+    ``concave``, sampled surface ``points`` and their box ``lo``-``hi``."""
     from OCP.BRepAdaptor import BRepAdaptor_Surface
-    from OCP.BRepBndLib import BRepBndLib
     from OCP.BRepGProp import BRepGProp_Face
     from OCP.BRepTools import BRepTools
-    from OCP.Bnd import Bnd_Box
     from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Torus
     from OCP.gp import gp_Pnt, gp_Vec
 
@@ -332,35 +369,133 @@ def _round_face(face) -> dict | None:
     a = a if a[np.argmax(np.abs(a))] > 0 else -a
     origin = np.array(place.Location().Coord())
     line = origin - np.dot(origin, a) * a
-    uv = np.stack(np.meshgrid(np.linspace(umin, umax, 5), np.linspace(vmin, vmax, 5)), -1).reshape(-1, 2)
+    # the face's box from its surface sampled every 5 degrees round (within 0.1 % of its
+    # radius), along the axis at both ends and the middle (a torus at 9 heights)
+    u_count = max(2, int(math.ceil((umax - umin) / math.radians(5.0))) + 1)
+    uv = np.stack(np.meshgrid(np.linspace(umin, umax, u_count),
+                              np.linspace(vmin, vmax, 9 if kind == GeomAbs_Torus else 3)),
+                  -1).reshape(-1, 2)
     points = np.array([surface.Value(float(u), float(v)).Coord() for u, v in uv])
     point, normal = gp_Pnt(), gp_Vec()
     BRepGProp_Face(face).Normal((umin + umax) / 2, (vmin + vmax) / 2, point, normal)
     p = np.array(point.Coord())
     radial = (p - origin) - np.dot(p - origin, a) * a
     concave = float(np.dot(np.array(normal.Coord()), radial)) < 0
-    box = Bnd_Box()
-    BRepBndLib.AddOptimal_s(face, box, False, False)
     key = (int(kind), concave, tuple(np.round(a, 3)), tuple(np.round(line, 2)),
            tuple(round(v, 3) for v in size))
     return {"key": key, "diameter": float(diameter), "turn": float(umax - umin), "axis": a,
             "line": line, "concave": concave, "points": points,
-            "lo": np.minimum(box.CornerMin().Coord(), points.min(axis=0)),
-            "hi": np.maximum(box.CornerMax().Coord(), points.max(axis=0))}
+            "lo": points.min(axis=0), "hi": points.max(axis=0)}
 
 
 # --- meshes -------------------------------------------------------------------------------
 
 def mesh_features(mesh: trimesh.Trimesh, tolerance_mm: float = TOLERANCE_MM,
                   limit_mm: float = LIMIT_MM) -> list:
-    """Round holes and pins of a triangle mesh (:func:`_round_features`) and its walls
-    thinner than a cell (:func:`_thin_walls`)."""
-    return _round_features(mesh, tolerance_mm, limit_mm) + _thin_walls(mesh, tolerance_mm)
+    """Round holes and pins of a triangle mesh (:func:`round_features`) and its walls
+    thinner than a cell (:func:`thin_walls`)."""
+    return round_features(mesh, tolerance_mm, limit_mm) + thin_walls(mesh, tolerance_mm)
 
 
-def _round_features(mesh, tolerance_mm, limit_mm) -> list:
-    return []
+def patches(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Per face, the label of its *patch*: faces joined across edges where the surface
+    bends by less than :data:`SMOOTH_RAD` (a cylinder's facets, not a box's sides)."""
+    pairs = mesh.face_adjacency[mesh.face_adjacency_angles < SMOOTH_RAD]
+    n = len(mesh.faces)
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
 
 
-def _thin_walls(mesh, tolerance_mm) -> list:
-    return []
+def round_features(mesh: trimesh.Trimesh, tolerance_mm: float = TOLERANCE_MM,
+                   limit_mm: float = LIMIT_MM) -> list:
+    """Holes and pins of a mesh: the patches (:func:`patches`) whose normals stay
+    perpendicular to one axis and whose faces lie on a circle round it (a least-squares
+    circle fit across the axis, within :data:`FIT_RESIDUAL` of its radius), going at least
+    half way round it (holes) or more (pins), under ``limit_mm`` across."""
+    label = patches(mesh)
+    count = np.bincount(label)
+    normals = np.asarray(mesh.face_normals)
+    centres = np.asarray(mesh.triangles_center)
+    area = np.asarray(mesh.area_faces)
+    order = np.argsort(label, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(count)])
+    out = []
+    for patch in np.flatnonzero(count >= MIN_PATCH_FACES):
+        faces = order[starts[patch]:starts[patch + 1]]
+        feature = _fit_round(normals[faces], centres[faces], area[faces],
+                             mesh.vertices[mesh.faces[faces].ravel()])
+        if feature is not None and tolerance_mm < feature.size_mm / 2 and feature.size_mm < limit_mm:
+            out.append(feature)
+    return out
+
+
+def _fit_round(normals, centres, area, vertices) -> Feature | None:
+    """The hole or pin a patch of faces (their normals, centres, areas, and the corners)
+    is, or None when it is not round enough."""
+    weighted = normals * area[:, None]
+    _, vectors = np.linalg.eigh(weighted.T @ normals)
+    axis = vectors[:, 0]
+    axis = axis if axis[np.argmax(np.abs(axis))] > 0 else -axis
+    if np.max(np.abs(normals @ axis)) > MAX_AXIS_COS:
+        return None
+    u = vectors[:, 1]
+    v = np.cross(axis, u)
+    x, y = centres @ u, centres @ v
+    design = np.stack([x, y, np.ones_like(x)], axis=1)
+    (a, b, c), *_ = np.linalg.lstsq(design, x * x + y * y, rcond=None)
+    cx, cy = a / 2, b / 2
+    radius2 = c + cx * cx + cy * cy
+    if radius2 <= 0:
+        return None
+    radius = math.sqrt(radius2)
+    off = np.hypot(x - cx, y - cy)
+    # facet centres of a polygon of n sides lie cos(pi / n) of the radius out
+    if np.max(np.abs(off - np.median(off))) > FIT_RESIDUAL * radius:
+        return None
+    radius = float(np.max(np.hypot(vertices @ u - cx, vertices @ v - cy)))
+    angles = np.arctan2(normals @ v, normals @ u)
+    bins = np.unique(np.floor((angles + math.pi) / (2 * math.pi) * TURN_BINS).astype(int))
+    turn = 2 * math.pi * len(bins) / TURN_BINS
+    concave = float(np.sum(((x - cx) * (normals @ u) + (y - cy) * (normals @ v)) * area)) < 0
+    if turn < (MIN_TURN if concave else MIN_PIN_TURN) - 2 * math.pi / TURN_BINS:
+        return None
+    along = vertices @ axis
+    centre = cx * u + cy * v + (along.min() + along.max()) / 2 * axis
+    return _feature("hole" if concave else "pin", 2 * radius, float(along.max() - along.min()),
+                    centre, axis, vertices.min(axis=0), vertices.max(axis=0))
+
+
+def thin_walls(mesh: trimesh.Trimesh, tolerance_mm: float = TOLERANCE_MM,
+               samples: int = 20000) -> list:
+    """Walls thinner than a cell across them: the samples of the thickness map
+    (:func:`core.thickness.thickness_map`) thinner than the cell along their normal
+    (3.2 mm across a horizontal wall, 8 mm across an upright one) and thicker than
+    ``tolerance_mm``, in spots of at least :data:`MIN_WALL_MM2`, each a feature."""
+    points, inward, depth = thickness.thickness_map(mesh, samples)
+    if len(points) == 0:
+        return []
+    across = np.abs(inward) @ np.asarray(CELL_MM)
+    thin = np.isfinite(depth) & (depth < across - 1e-6) & (depth > tolerance_mm)
+    if not thin.any():
+        return []
+    spacing = math.sqrt(mesh.area / len(points))
+    pts, nrm, dep = points[thin], inward[thin], depth[thin]
+    far = pts + dep[:, None] * nrm                  # the wall's other side
+    # samples on both sides of one wall share their midpoints
+    pairs = cKDTree((pts + far) / 2).query_pairs(3 * spacing, output_type="ndarray")
+    n = len(pts)
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    out = []
+    for group in np.flatnonzero(np.bincount(label) * spacing ** 2 >= MIN_WALL_MM2):
+        member = label == group
+        normal = np.mean(nrm[member] * np.sign(nrm[member] @ nrm[member][0])[:, None], axis=0)
+        normal /= max(np.linalg.norm(normal), 1e-12)
+        t = float(np.median(dep[member]))
+        both = np.concatenate([pts[member], far[member]])
+        lo, hi = both.min(axis=0), both.max(axis=0)
+        box = np.stack([lo - WALL_MM, hi + WALL_MM])
+        out.append(Feature("wall", f"wall {t:.1f} mm thin", box,
+                           tuple(float(v) for v in (lo + hi) / 2),
+                           tuple(float(v) for v in np.round(normal, 4)), t))
+    return out
