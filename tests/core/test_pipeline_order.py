@@ -13,7 +13,7 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: program (lower_bound) comes before the layout, which reads brick layers off its relaxation.
 ORDER = [
     "errors", "output_dir", "colours", "model", "interfaces", "request", "catalog", "connectivity", "brick_solids",
-    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
+    "thickness", "mesh_io", "voxelize", "hollow", "high_res", "suggest", "grid_fit", "lower_bound", "layout", "improve", "align", "diff",
     "connectors", "printed", "stability", "forces", "reinforce", "result", "build_order", "slicer_profile", "slice_cache", "print_time", "export", "render", "picture",
     "ldraw", "bom", "instructions", "changes_page", "picking", "face_region",
     "iterate", "pipeline", "live_estimate", "watch", "calibration", "layout_file", "cli", "__main__", "__init__",
