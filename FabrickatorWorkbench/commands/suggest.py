@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tempfile
 
+from core.request import DEFAULTS
 from FabrickatorWorkbench import bridge, log, make
 from FabrickatorWorkbench.commands.base import (Command, no_task_dialog, recompute_or_fail,
                                                 selected_fabrication, transaction)
@@ -37,7 +38,6 @@ def suggestions(fab):
     """The core's suggestions for ``fab``'s Source and the Source-mm boxes of their regions:
     ``(Suggestions, [(x0, y0, z0, x1, y1, z1), ...])``."""
     from core import mesh_io, suggest
-    from core.request import DEFAULTS
 
     scale = float(fab.Scale)
     with tempfile.TemporaryDirectory(prefix="fabrickator-suggest-") as work:
