@@ -3,31 +3,35 @@
 A 1x1 plate cell is 8 x 8 x 3.2 mm; a bore, a screw hole or a pin narrower
 than a few cells comes out of legofication as a lump or a gap.  This stage
 finds such features in the model and proposes a region box (model mm) for
-each, with a reason in words and where the feature is:
+each, with a reason in words and where the feature is (its axis and centre):
 
-* **B-rep** (STEP, BREP, FCStd): every cylindrical, conical and toroidal face
-  of OpenCascade (``BRepAdaptor_Surface.GetType``) that goes at least half way
-  round its axis and is less than :data:`LIMIT_MM` across is a feature; the
-  face's normal against its axis tells a hole (concave) from a pin or boss
-  (convex).  Partial faces (fillets, rounded edges) and planes are not.
-* **Meshes**: round holes and pins from cylinder fits on the patches of
-  triangles whose normals stay perpendicular to one axis (:func:`_mesh_features`),
-  and walls thinner than a cell from :func:`core.thickness.thin_features`.
+* **B-rep** (STEP, BREP, FCStd): the cylindrical, conical and toroidal faces of
+  OpenCascade (``BRepAdaptor_Surface.GetType``), those of one surface that touch
+  taken together (:func:`brep_features`).  Concave ones that go at least half way
+  round their axis are a hole (a bore, a screw hole, a slot's end), convex ones
+  that go more than half way a pin or boss; those less than :data:`LIMIT_MM`
+  across are features.  Fillets, rounded edges and planes are not.
+* **Meshes**: the same holes and pins from circle fits on the smooth patches
+  of faces (:func:`round_features`), and walls thinner than the cell across
+  them from the wall-thickness map (:func:`thin_walls`,
+  :func:`core.thickness.thickness_map`).  Plane walls as thick as the cells
+  across them give nothing.
 
-A feature's region is the box of its faces grown by :data:`WALL_MM` of
-material around it (:data:`END_MM` along its axis) (what carries it in the printed part; the driver marks
-every cell the box touches, so the part is whole cells and gets its studs and
-sockets there).  Regions closer than a cell on every axis are merged when
-their union box costs little more than the two.  When the regions would mark
-more than :data:`MAX_SHARE` of the model's cells, the regions that mark the
-most cells are dropped with a warning: a model that is all fine detail prints
-whole faster than as a LEGO build (the paper's limit for decorative shapes).
+A feature's region is the box of its faces grown by :data:`WALL_MM` of material
+(:data:`END_MM` along its axis): what carries it in the printed part.  The driver
+marks every cell a box touches, so a printed part is whole cells and gets its
+studs and sockets there (and anchor tabs, :func:`core.high_res.anchor`).  The
+regions may mark at most :data:`MAX_SHARE` of the part's cells (:func:`capped`):
+holes and pins are kept before walls, cheapest first, and the rest are dropped
+with a warning, as a part that is all fine detail prints faster whole (the
+paper's limit for artistic or decorative shapes).  Kept regions closer than a
+cell are then merged (:func:`merged`) when that marks few more cells.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
