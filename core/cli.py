@@ -582,11 +582,7 @@ def _suggest(args) -> int:
 
     _check_paths(args)
     job = request.from_options(args, args.model)
-    out = None
-    if args.out:
-        out = Path(args.out)
-        if out.is_dir() or not out.parent.is_dir():
-            raise InputError(f"--out {out}: name a file in an existing folder")
+    out = None if not args.out else _regions_target(Path(args.out))
     model = mesh_io.load_model(job.model, units=job.units, scale=job.scale, up=job.up)
     for warning in model.warnings:
         sys.stderr.write(f"warning: {warning}\n")
@@ -601,6 +597,24 @@ def _suggest(args) -> int:
         _write_report(out, json.dumps(found.to_json(model.offset_mm), indent=1,
                                        ensure_ascii=False) + "\n")
     return 0
+
+
+def _regions_target(out):
+    """The file ``suggest --out`` names, checked before any work: InputError unless it is a
+    new file in an existing folder or an earlier regions file of this command."""
+    import json
+
+    if out.is_dir() or not out.parent.is_dir():
+        raise InputError(f"--out {out}: name a file in an existing folder")
+    if os.path.lexists(out):
+        try:
+            ours = set(json.loads(_read_small_file(out, "--out"))) >= {"source", "regions", "dropped"}
+        except (InputError, ValueError, TypeError):
+            ours = False
+        if not ours:
+            raise InputError(f"--out {out}: exists and is not a regions file written by this "
+                             f"command; not overwriting it: remove it or choose another name")
+    return out
 
 
 def _calibration_strip(args) -> int:

@@ -219,8 +219,13 @@ def test_the_suggest_command_refuses_bad_input_in_one_line(tmp_path, capsys):
     assert cli.main(["suggest", str(path), "--tolerance", "-1"]) == 2
     assert cli.main(["suggest", str(tmp_path / "none.step")]) == 2
     assert cli.main(["suggest", str(path), "--out", str(tmp_path / "no" / "r.json")]) == 2
+    assert cli.main(["suggest", str(path), "--out", str(path)]) == 2      # the model itself
     err = capsys.readouterr().err.splitlines()
-    assert len(err) == 3 and all(line.startswith("error: ") for line in err)
+    assert len(err) == 4 and all(line.startswith("error: ") for line in err)
+    assert "not a regions file" in err[3] and path.stat().st_size > 1000
+    out = tmp_path / "regions.json"
+    assert cli.main(["suggest", str(path), "--out", str(out)]) == 0
+    assert cli.main(["suggest", str(path), "--out", str(out)]) == 0     # its own file again
 
 
 @pytest.mark.slow
