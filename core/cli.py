@@ -683,10 +683,13 @@ def _summary(doc: dict, out) -> None:
         print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
     suggested = doc.get("high_res", {}).get("suggested")
     if suggested is not None:
+        kinds: dict = {}
+        for region in suggested["regions"]:
+            for feature in region["features"]:
+                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
         print(f"{len(suggested['regions'])} suggested region(s) marked ({suggested['share_of_cells']:.0%} "
               f"of the cells; report.json high_res.suggested): "
-              + ("; ".join(r["reason"] for r in suggested["regions"][:3]) or "nothing found")
-              + (" ..." if len(suggested["regions"]) > 3 else ""))
+              + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]
