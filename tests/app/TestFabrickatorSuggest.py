@@ -4,6 +4,8 @@ with its reason, in one undo step, the same boxes as ``python -m core suggest``.
 A 48 x 48 x 9.6 mm plate with a Ø6.5 mm hole through it (Part API): the command's
 region is the hole's, its boxes those the command line prints for the same solid
 exported as STEP; Undo removes it in one step; the recompute prints the hole.
+
+    freecadcmd -u TMPDIR/user.cfg -t TestFabrickatorApp.TestSuggest --module-path=REPO
 """
 
 from __future__ import annotations
