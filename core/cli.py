@@ -589,8 +589,8 @@ def _suggest(args) -> int:
     found = suggest.suggest(model, job.suggest_tolerance)
     for region in found.regions:
         print(region.line(model.offset_mm))
-    print(f"{len(found.regions)} region(s) suggested from the {found.source}, marking "
-          f"{found.share:.0%} of the part's cells")
+    print(f"{len(found.regions)} region(s) suggested from the {found.source}, marking cells "
+          f"that hold {found.share:.0%} of the part ({found.cells_share:.0%} of its cells)")
     for warning in found.warnings:
         sys.stderr.write(f"warning: {warning}\n")
     if out is not None:
@@ -687,7 +687,8 @@ def _summary(doc: dict, out) -> None:
         for region in suggested["regions"]:
             for feature in region["features"]:
                 kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
-        print(f"{len(suggested['regions'])} suggested region(s) marked ({suggested['share_of_cells']:.0%} "
+        print(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
+              f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
               f"of the cells; report.json high_res.suggested): "
               + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
     fit = doc["grid"].get("fit")

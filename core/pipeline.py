@@ -363,8 +363,8 @@ def _slicer_settings(req: Request) -> dict[str, str]:
 
 def _suggested_marks(suggested, grid: Grid, model) -> dict:
     """The report's ``high_res.suggested`` with ``--suggest`` (nothing without): the regions
-    (boxes in the frame of --high-res), those dropped, and the share of ``grid``'s cells
-    they mark."""
+    (boxes in the frame of --high-res), those dropped, the share of the model's volume in
+    the cells they mark on the grid centred on it, and the share of ``grid``'s cells."""
     if suggested is None:
         return {}
     doc = suggested.to_json(model.offset_mm)

@@ -21,11 +21,11 @@ A feature's region is the box of its faces grown by :data:`WALL_MM` of material
 (:data:`END_MM` along its axis): what carries it in the printed part.  The driver
 marks every cell a box touches, so a printed part is whole cells and gets its
 studs and sockets there (and anchor tabs, :func:`core.high_res.anchor`).  The
-regions may mark at most :data:`MAX_SHARE` of the part's cells (:func:`capped`):
-holes and pins are kept before walls, cheapest first, and the rest are dropped
-with a warning, as a part that is all fine detail prints faster whole (the
-paper's limit for artistic or decorative shapes).  Kept regions closer than a
-cell are then merged (:func:`merged`) when that marks few more cells.
+cells the regions mark may hold at most :data:`MAX_SHARE` of the part's volume
+(:func:`capped`): holes and pins are kept before walls, cheapest first, and the
+rest are dropped with a warning, as a part that is all fine detail prints faster
+whole (the paper's limit for artistic or decorative shapes).  Kept regions
+closer than a cell are then merged (:func:`merged`) when that marks little more.
 """
 
 from __future__ import annotations
@@ -52,8 +52,6 @@ END_MM = 0.5
 #: legofication (a hole's or pin's radius, a wall's thickness) is not more than this is
 #: not suggested.
 TOLERANCE_MM = DEFAULTS["suggest_tolerance"]
-#: Most share of the model's filled cells the suggestions may mark.
-MAX_SHARE = 0.35
 #: Concave faces of one surface that go at least this far round their axis (radians)
 #: are a hole (half way: the end of a slot), convex ones a pin when they go more than
 #: :data:`MIN_PIN_TURN` round (two fillets rounding off a wall's top go exactly half way).
@@ -73,8 +71,13 @@ FIT_RESIDUAL = 0.08
 TURN_BINS = 36
 #: A thin wall is a spot of at least this much thin surface (mm²).
 MIN_WALL_MM2 = 16.0
-#: Two regions are merged when their union box marks at most this many times their cells.
+#: Two regions are merged when their union box holds at most this many times their volume.
 MERGE_GROWTH = 1.1
+#: The model's volume per cell is counted in cells this many times finer along x, y, z.
+FINE_SPLIT = (8, 8, 4)
+#: Most share of the model's volume the suggestions may mark: what is left must be
+#: worth building from LEGO.
+MAX_SHARE = 0.35
 
 
 @dataclass(frozen=True)
@@ -143,14 +146,16 @@ class Region:
 @dataclass(frozen=True)
 class Suggestions:
     """What :func:`suggest` found: the ``regions`` to mark, the ``dropped`` ones (too
-    costly), the ``share`` of the model's filled cells the regions mark (on the grid
-    centred on the part), and ``warnings`` in words."""
+    costly), the ``share`` of the model's volume in the cells the regions mark and
+    ``cells_share``, that of its filled cells (on the grid centred on the part), and
+    ``warnings`` in words."""
 
     regions: tuple
     dropped: tuple = ()
     share: float = 0.0
     warnings: tuple = ()
     source: str = "mesh"
+    cells_share: float = 0.0
 
     @property
     def boxes(self) -> list:
@@ -158,7 +163,8 @@ class Suggestions:
         return [r.box for r in self.regions]
 
     def to_json(self, offset=(0.0, 0.0, 0.0)) -> dict:
-        return {"source": self.source, "share_of_cells": round(self.share, 4),
+        return {"source": self.source, "share_of_volume": round(self.share, 4),
+                "share_of_cells": round(self.cells_share, 4),
                 "regions": [r.to_json(offset) for r in self.regions],
                 "dropped": [r.to_json(offset) for r in self.dropped],
                 "warnings": list(self.warnings)}
@@ -168,18 +174,18 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
             max_share: float = MAX_SHARE) -> Suggestions:
     """The suggested regions of a loaded model (:class:`core.mesh_io.LoadedModel`), in its
     frame: from its B-rep faces when it has one, else from its mesh; capped at
-    ``max_share`` of its cells (:func:`capped`: the costliest dropped with a warning) and
+    ``max_share`` of its volume (:func:`capped`: the costliest dropped with a warning) and
     merged (:func:`merged`) as long as that stays under the cap."""
     if model.brep is not None:
         features, source = brep_features(model.brep, tolerance_mm, limit_mm), "brep"
     else:
         features, source = mesh_features(model.mesh, tolerance_mm, limit_mm), "mesh"
-    grid = _grid(model)
-    kept, dropped, wanted = capped(grid, [Region(f.box, (f,)) for f in features], max_share)
-    joined = merged(kept, grid)
-    share = share_of(grid, [r.box for r in joined])
+    grid, weight = _grid(model)
+    kept, dropped, wanted = capped(grid, weight, [Region(f.box, (f,)) for f in features], max_share)
+    joined = merged(kept, grid, weight)
+    share = share_of(grid, [r.box for r in joined], weight)
     if share > max_share:
-        joined, share = kept, share_of(grid, [r.box for r in kept])
+        joined, share = kept, share_of(grid, [r.box for r in kept], weight)
     warnings = ()
     if dropped:
         warnings = (f"the suggestions would mark {wanted:.0%} of the part; {len(dropped)} "
@@ -187,52 +193,68 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
                     f"({'; '.join(r.reason for r in dropped[:3])}{' ...' if len(dropped) > 3 else ''}): "
                     f"a part that is mostly fine detail prints faster whole (the limit for "
                     f"artistic or decorative shapes)",)
-    return Suggestions(tuple(joined), tuple(dropped), share, warnings, source)
+    return Suggestions(tuple(joined), tuple(dropped), share, warnings, source,
+                       share_of(grid, [r.box for r in joined]))
 
 
-def share_of(grid, boxes) -> float:
-    """The share of ``grid``'s filled cells that the ``boxes`` touch."""
-    if not boxes or grid.count == 0:
+def share_of(grid, boxes, weight=None) -> float:
+    """The share of ``grid``'s filled cells that the ``boxes`` touch, or with ``weight``
+    (grid-shaped, the model's volume per cell) the share of the model's volume in them."""
+    weight = np.asarray(grid.filled, dtype=np.int64) if weight is None else weight
+    total = weight.sum()
+    if not boxes or total == 0:
         return 0.0
-    return float(np.count_nonzero(high_res.Regions.of(boxes).cells(grid))) / grid.count
+    return float(weight[high_res.Regions.of(boxes).cells(grid)].sum()) / float(total)
 
 
 def _grid(model):
+    """The grid centred on the model, and per cell the model's volume in it (in cells of
+    an eighth of a stud and a quarter of a plate: the part legofied on that finer grid)."""
     origin, shape = voxelize.grid_frame(model.mesh.bounds)
-    return voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, np.asarray(CELL_MM)),
+    cell = np.asarray(CELL_MM)
+    grid = voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, cell),
                            origin=origin, shape=shape, closed=model.watertight)
+    split = np.array(FINE_SPLIT)
+    fine = voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, cell / split),
+                           cell=cell / split, origin=origin,
+                           shape=tuple(int(v) for v in np.array(shape) * split), closed=model.watertight)
+    (a, b, c), (x, y, z) = shape, FINE_SPLIT
+    weight = fine.filled.reshape(a, x, b, y, c, z).sum(axis=(1, 3, 5)).astype(np.int64)
+    return grid, weight * grid.filled
 
 
-def capped(grid, regions: list, max_share: float):
-    """``regions`` kept while together they mark at most ``max_share`` of ``grid``'s cells,
-    holes and pins before walls, each kind cheapest (fewest cells) first:
-    ``(kept, dropped costliest first, share all of them would mark)``."""
+def capped(grid, weight, regions: list, max_share: float):
+    """``regions`` kept while together they mark at most ``max_share`` of the model's volume
+    (``weight``: per cell of ``grid``), holes and pins before walls, each kind cheapest
+    first: ``(kept, dropped costliest first, share all of them would mark)``."""
     if not regions:
         return [], [], 0.0
     masks = [high_res.box_cells(grid, r.box) & grid.filled for r in regions]
-    total = max(grid.count, 1)
-    wanted = float(np.count_nonzero(np.logical_or.reduce(masks))) / total
-    order = sorted(range(len(regions)), key=lambda n: (any(f.kind == "wall" for f in regions[n].features),
-                                                        int(np.count_nonzero(masks[n]))))
+    total = max(int(weight.sum()), 1)
+    cost = [int(weight[m].sum()) for m in masks]
+    wanted = float(weight[np.logical_or.reduce(masks)].sum()) / total
+    order = sorted(range(len(regions)),
+                   key=lambda n: (any(f.kind == "wall" for f in regions[n].features), cost[n]))
     union = np.zeros(grid.shape, dtype=bool)
     kept, dropped = [], []
     for n in order:
         more = union | masks[n]
-        if np.count_nonzero(more) <= max_share * total:
+        if weight[more].sum() <= max_share * total:
             union = more
             kept.append(n)
         else:
             dropped.append(n)
-    dropped.sort(key=lambda n: -np.count_nonzero(masks[n]))
+    dropped.sort(key=lambda n: -cost[n])
     return [regions[n] for n in sorted(kept)], [regions[n] for n in dropped], wanted
 
 
-def merged(regions: list, grid) -> list:
+def merged(regions: list, grid, weight) -> list:
     """``regions`` with those closer than a cell on every axis merged into their union
-    box, when that box marks at most :data:`MERGE_GROWTH` times the cells of ``grid``
-    the two mark (so that no sliver of LEGO is left between two printed parts)."""
+    box, when that box holds at most :data:`MERGE_GROWTH` times the model volume
+    (``weight``, per cell of ``grid``) the two mark: no sliver of LEGO is left between two
+    printed parts."""
     out = list(regions)
-    count = _cell_counter(grid)
+    count = _counter(grid, weight)
     cell = np.asarray(grid.cell)
     changed = True
     while changed:
@@ -253,12 +275,12 @@ def merged(regions: list, grid) -> list:
     return out
 
 
-def _cell_counter(grid):
-    """A function: the number of ``grid``'s filled cells a box touches (the same cells as
-    :func:`core.high_res.box_cells`), or that two boxes both touch, from a table of
-    running sums."""
+def _counter(grid, weight):
+    """A function: the sum of ``weight`` (grid-shaped) over the cells a box touches (the
+    cells of :func:`core.high_res.box_cells`), or that two boxes both touch, from a table
+    of running sums."""
     table = np.zeros(tuple(n + 1 for n in grid.shape), dtype=np.int64)
-    table[1:, 1:, 1:] = np.asarray(grid.filled, dtype=np.int64).cumsum(0).cumsum(1).cumsum(2)
+    table[1:, 1:, 1:] = np.asarray(weight, dtype=np.int64).cumsum(0).cumsum(1).cumsum(2)
     shape = np.array(grid.shape)
 
     def count(box, other=None) -> int:

@@ -63,8 +63,8 @@ def suggest_regions(fab, recompute: bool = True) -> list:
             made.append(obj)
         for warning in found.warnings:
             log.warning(warning)
-        log.message(f"{len(made)} high-res region(s) suggested, marking {found.share:.0%} of "
-                    f"the part's cells")
+        log.message(f"{len(made)} high-res region(s) suggested, marking cells that hold "
+                    f"{found.share:.0%} of the part")
         if made and recompute:
             recompute_or_fail(fab)
         done = True

@@ -203,13 +203,19 @@ def test_the_suggest_command_prints_a_line_per_region_and_writes_them(tmp_path, 
     # by hand: the hole's box (x -15.25..-8.75, y 0.75..7.25, z 0..9.6) grown by the wall
     by_hand = [-16.25, -0.25, -0.5, -7.75, 8.25, 10.1]
     assert np.allclose([float(v) for v in box.split(",")], by_hand, atol=0.01)
-    assert lines[1].startswith("1 region(s) suggested from the brep, marking ")
+    # by hand: 27 of the 144 cells; they hold 27 * 8 * 8 * 3.2 mm³ less the hole's
+    # 3.25² * pi * 9.6 mm³ of the plate's 64 * 48 * 9.6 - 3.25² * pi * 9.6 mm³
+    hole = 3.25 ** 2 * np.pi * 9.6
+    share = (27 * 8 * 8 * 3.2 - hole) / (64 * 48 * 9.6 - hole)
+    assert lines[1] == (f"1 region(s) suggested from the brep, marking cells that hold "
+                        f"{share:.0%} of the part (19% of its cells)")
     doc = json.loads(out.read_text())
     assert doc["regions"][0]["high_res"] == box
     assert doc["regions"][0]["features"][0]["centre_mm"] == [-12.0, 4.0, 4.8]
     # by hand: the box spans x -16.25..-7.75 and y -0.25..8.25 on the 8 x 6 cell grid from
     # x -32, y -24: it reaches into 3 columns in x, 3 in y, in all 3 layers: 27 of 144 cells
     assert doc["share_of_cells"] == round(27 / 144, 4)
+    assert abs(doc["share_of_volume"] - share) < 0.01
 
 
 def test_the_suggest_command_refuses_bad_input_in_one_line(tmp_path, capsys):
