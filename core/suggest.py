@@ -174,8 +174,8 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
             max_share: float = MAX_SHARE) -> Suggestions:
     """The suggested regions of a loaded model (:class:`core.mesh_io.LoadedModel`), in its
     frame: from its B-rep faces when it has one, else from its mesh; capped at
-    ``max_share`` of its volume (:func:`capped`: the costliest dropped with a warning) and
-    merged (:func:`merged`) as long as that stays under the cap."""
+    ``max_share`` of its volume (:func:`capped`: walls, then the costliest, dropped with a
+    warning) and merged (:func:`merged`) as long as that stays under the cap."""
     if model.brep is not None:
         features, source = brep_features(model.brep, tolerance_mm, limit_mm), "brep"
     else:
@@ -188,8 +188,9 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
         joined, share = kept, share_of(grid, [r.box for r in kept], weight)
     warnings = ()
     if dropped:
-        warnings = (f"the suggestions would mark {wanted:.0%} of the part; {len(dropped)} "
-                    f"marking the most were dropped to stay under {max_share:.0%} "
+        warnings = (f"the cells the suggestions mark would hold {wanted:.0%} of the part; "
+                    f"{len(dropped)} of them were dropped to stay under {max_share:.0%}, holes "
+                    f"and pins kept before walls, cheapest first "
                     f"({'; '.join(r.reason for r in dropped[:3])}{' ...' if len(dropped) > 3 else ''}): "
                     f"a part that is mostly fine detail prints faster whole (the limit for "
                     f"artistic or decorative shapes)",)
@@ -226,7 +227,7 @@ def _grid(model):
 def capped(grid, weight, regions: list, max_share: float):
     """``regions`` kept while together they mark at most ``max_share`` of the model's volume
     (``weight``: per cell of ``grid``), holes and pins before walls, each kind cheapest
-    first: ``(kept, dropped costliest first, share all of them would mark)``."""
+    first: ``(kept, dropped costliest first, share of the volume all of them would mark)``."""
     if not regions:
         return [], [], 0.0
     masks = [high_res.box_cells(grid, r.box) & grid.filled for r in regions]

@@ -64,7 +64,7 @@ def suggest_regions(fab, recompute: bool = True) -> list:
         for warning in found.warnings:
             log.warning(warning)
         log.message(f"{len(made)} high-res region(s) suggested, marking cells that hold "
-                    f"{found.share:.0%} of the part")
+                    f"{found.share:.0%} of the part ({found.cells_share:.0%} of its cells)")
         if made and recompute:
             recompute_or_fail(fab)
         done = True
