@@ -198,10 +198,11 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         loaded = [dataclasses.replace(r, mesh=r.mesh.copy().apply_translation(shift)) for r in loaded]
         regions = (high_res_stage.Regions.of(req.high_res).moved(_translation(shift))
                    + high_res_stage.Regions.of((), loaded))
-    suggested = None
+    suggested = suggested_regions = None
     if req.suggest:
         suggested = timed("suggest", 0.02, suggest_stage.suggest, model, req.suggest_tolerance)
-        regions = regions + high_res_stage.Regions.of(suggested.boxes)
+        suggested_regions = high_res_stage.Regions.of(suggested.boxes)
+        regions = regions + suggested_regions
     notes: list[str] = []
     before = alignment = None
     if req.previous is not None:
@@ -213,6 +214,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                 why = "the new version is moved or turned against the previous one"
             else:
                 model, regions = aligned, regions.moved(alignment.transform)
+                if suggested_regions is not None:
+                    suggested_regions = suggested_regions.moved(alignment.transform)
         if why is not None:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
@@ -342,7 +345,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
                              "anchor_cells": int(np.count_nonzero(cells & ~marked)),
-                             **_suggested_marks(suggested, grid, model)},
+                             **_suggested_marks(suggested, suggested_regions, grid, model)},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
                       forces=force, reinforced=reinforced, hollowing=hollowing,
                       layout_quality=quality)
@@ -361,14 +364,17 @@ def _slicer_settings(req: Request) -> dict[str, str]:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
 
 
-def _suggested_marks(suggested, grid: Grid, model) -> dict:
+def _suggested_marks(suggested, marks, grid: Grid, model) -> dict:
     """The report's ``high_res.suggested`` with ``--suggest`` (nothing without): the regions
-    (boxes in the frame of --high-res), those dropped, the share of the model's volume in
-    the cells they mark on the grid centred on it, and the share of ``grid``'s cells."""
+    (boxes in the frame of --high-res), those dropped, and on ``grid`` (the one laid out)
+    the share of the model's volume in the cells the regions (``marks``, in ``grid``'s
+    frame) touch and the share of ``grid``'s cells."""
     if suggested is None:
         return {}
     doc = suggested.to_json(model.offset_mm)
-    doc["share_of_cells"] = round(suggest_stage.share_of(grid, suggested.boxes), 4)
+    weight = suggest_stage.volume_per_cell(model.mesh, grid.origin, grid.shape, model.watertight)
+    volume, cells = suggest_stage.shares(grid, marks, weight)
+    doc["share_of_volume"], doc["share_of_cells"] = round(volume, 4), round(cells, 4)
     return {"suggested": doc}
 
 

@@ -40,7 +40,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from core import high_res, thickness, voxelize
-from core.model import CELL_MM
+from core.model import CELL_MM, Grid
 from core.request import DEFAULTS
 
 #: Features less than this across (mm) are suggested: holes, pins and bosses.
@@ -208,20 +208,37 @@ def share_of(grid, boxes, weight=None) -> float:
     return float(weight[high_res.Regions.of(boxes).cells(grid)].sum()) / float(total)
 
 
-def _grid(model):
-    """The grid centred on the model, and per cell the model's volume in it (in cells of
-    an eighth of a stud and a quarter of a plate: the part legofied on that finer grid)."""
-    origin, shape = voxelize.grid_frame(model.mesh.bounds)
-    cell = np.asarray(CELL_MM)
-    grid = voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, cell),
-                           origin=origin, shape=shape, closed=model.watertight)
-    split = np.array(FINE_SPLIT)
-    fine = voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, cell / split),
-                           cell=cell / split, origin=origin,
-                           shape=tuple(int(v) for v in np.array(shape) * split), closed=model.watertight)
+def volume_per_cell(mesh, origin, shape, closed=None) -> np.ndarray:
+    """Per cell of the grid of plate cells from ``origin`` of ``shape``, the part's volume
+    in it, in cells of that grid split :data:`FINE_SPLIT` times along x, y, z (an eighth
+    of a stud and a quarter of a plate: the part legofied on that finer grid)."""
+    cell, split = np.asarray(CELL_MM), np.array(FINE_SPLIT)
+    fine = voxelize.legofy(voxelize.snap_to_lattice(mesh, origin, cell / split), cell=cell / split,
+                           origin=origin, shape=tuple(int(v) for v in np.array(shape) * split),
+                           closed=closed)
     (a, b, c), (x, y, z) = shape, FINE_SPLIT
-    weight = fine.filled.reshape(a, x, b, y, c, z).sum(axis=(1, 3, 5)).astype(np.int64)
-    return grid, weight * grid.filled
+    return fine.filled.reshape(a, x, b, y, c, z).sum(axis=(1, 3, 5)).astype(np.int64)
+
+
+def shares(grid, regions, weight) -> tuple:
+    """``(share of the volume, share of the cells)``: the share of the part's volume
+    (``weight``, :func:`volume_per_cell` on ``grid``'s frame) in the cells the
+    :class:`core.high_res.Regions` ``regions`` touch, and the share of ``grid``'s filled
+    cells they touch (a hollowed grid's cells: its volume is still the whole part's)."""
+    whole = Grid(np.asarray(grid.origin), np.asarray(grid.cell), weight > 0)
+    total = int(weight.sum())
+    volume = float(weight[regions.cells(whole)].sum()) / total if regions and total else 0.0
+    cells = float(np.count_nonzero(regions.cells(grid))) / grid.count if regions and grid.count else 0.0
+    return volume, cells
+
+
+def _grid(model):
+    """The grid centred on the model, and per cell the model's volume in it
+    (:func:`volume_per_cell`)."""
+    origin, shape = voxelize.grid_frame(model.mesh.bounds)
+    grid = voxelize.legofy(voxelize.snap_to_lattice(model.mesh, origin, np.asarray(CELL_MM)),
+                           origin=origin, shape=shape, closed=model.watertight)
+    return grid, volume_per_cell(model.mesh, origin, shape, model.watertight) * grid.filled
 
 
 def capped(grid, weight, regions: list, max_share: float):

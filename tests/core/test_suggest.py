@@ -251,6 +251,19 @@ def test_fabricate_suggest_prints_the_hole_and_adds_the_users_marks(tmp_path):
     cells = np.floor((wall - grid.origin) / grid.cell).astype(int)
     kinds = {fab.layout.bricks[labels[tuple(c)]].kind for c in cells}
     assert kinds == {"printed"}
+    # the shares are on the grid laid out (moved by the grid fit): by hand, the cells the
+    # region box touches, their part of the plate less the hole, of the plate less the hole
+    box = np.array(doc["regions"][0]["box_mm"])
+    first = np.floor((box[0] - grid.origin) / grid.cell + 1e-6)
+    stop = np.ceil((box[1] - grid.origin) / grid.cell - 1e-6)
+    lo, hi = grid.origin + first * grid.cell, grid.origin + stop * grid.cell
+    plate = np.array([[-32, -24, 0], [32, 24, 9.6]])
+    hole = 3.25 ** 2 * np.pi * 9.6
+    inside = np.prod(np.clip(np.minimum(hi, plate[1]) - np.maximum(lo, plate[0]), 0, None))
+    assert abs(doc["share_of_volume"] - (inside - hole) / (64 * 48 * 9.6 - hole)) < 0.01
+    touched = np.zeros(grid.shape, dtype=bool)
+    touched[tuple(slice(max(int(a), 0), int(b)) for a, b in zip(first, stop))] = True
+    assert doc["share_of_cells"] == round(np.count_nonzero(touched & grid.filled) / grid.count, 4)
     plain = pipeline.run(str(path), slice_parts=False, picture=False)
     assert "suggested" not in pipeline.report(plain)["high_res"] and not plain.printed
 
