@@ -102,7 +102,24 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("printers", help="list the printers --printer can name",
                    description="List the printer presets of PrusaSlicer's installed vendor "
                                "bundles, by vendor, with each build volume (x, y, z mm).")
+    _suggest_parser(sub)
     return parser
+
+
+def _suggest_parser(sub) -> None:
+    """The ``suggest`` command: the regions a model's features ask to be printed."""
+    sug = sub.add_parser("suggest", help="list the regions that must be printed: holes, pins, "
+                                         "thin walls",
+                         description="Find the features of MODEL that the 8 x 8 x 3.2 mm grid "
+                                     "cannot hold (holes and pins under 20 mm from a STEP or "
+                                     "FCStd's round faces; round holes and walls thinner than a "
+                                     "cell in a mesh) and print one line per suggested region: "
+                                     "why, where, and its box as a --high-res option. "
+                                     "fabricate --suggest marks the same regions.")
+    sug.add_argument("model", metavar="MODEL")
+    sug.add_argument("--out", metavar="FILE", default=None,
+                     help="also write the regions as JSON (boxes in the frame of --high-res)")
+    request.add_options(sug, ("units", "scale", "up", "suggest_tolerance"), units=request.UNITS)
 
 
 def _stability_parser(sub) -> None:
@@ -164,7 +181,8 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
                             "clutch_n", "hollow", "inventory", "inventory_only", "colour",
-                            "printer", "print_preset", "filament", "slicer_config"),
+                            "printer", "print_preset", "filament", "slicer_config", "suggest",
+                            "suggest_tolerance"),
                         units=request.UNITS)
 
 
@@ -243,7 +261,8 @@ def _command(argv: list[str] | None) -> int:
     quietly with status 0."""
     args = _parser().parse_args(argv)
     command = {"watch": _watch, "calibration-strip": _calibration_strip,
-               "stability": _stability, "printers": _printers, "save-fit": _save_fit}.get(args.command, _fabricate)
+               "stability": _stability, "printers": _printers, "save-fit": _save_fit,
+               "suggest": _suggest}.get(args.command, _fabricate)
     given = sys.stdout
     out = sys.stdout = _Guarded(given, pipe_raises=True)
     try:
@@ -635,6 +654,52 @@ def _printers(args) -> int:
     return 0
 
 
+def _suggest(args) -> int:
+    """The ``suggest`` command: one line per suggested region on stdout, warnings on
+    stderr, and with --out the regions as JSON."""
+    import json
+    from pathlib import Path
+
+    from core import suggest
+    from core.io import meshes as mesh_io
+
+    _check_paths(args)
+    job = request.from_options(args, args.model)
+    out = None if not args.out else _regions_target(Path(args.out))
+    model = mesh_io.load_model(job.model, units=job.units, scale=job.scale, up=job.up)
+    for warning in model.warnings:
+        sys.stderr.write(f"warning: {warning}\n")
+    found = suggest.suggest(model, job.suggest_tolerance)
+    for region in found.regions:
+        print(region.line(model.offset_mm))
+    print(f"{len(found.regions)} region(s) suggested from the {found.source}, marking cells "
+          f"that hold {found.share:.0%} of the part ({found.cells_share:.0%} of its cells)")
+    for warning in found.warnings:
+        sys.stderr.write(f"warning: {warning}\n")
+    if out is not None:
+        _write_report(out, json.dumps(found.to_json(model.offset_mm), indent=1,
+                                       ensure_ascii=False) + "\n")
+    return 0
+
+
+def _regions_target(out):
+    """The file ``suggest --out`` names, checked before any work: InputError unless it is a
+    new file in an existing folder or an earlier regions file of this command."""
+    import json
+
+    if out.is_dir() or not out.parent.is_dir():
+        raise InputError(f"--out {out}: name a file in an existing folder")
+    if os.path.lexists(out):
+        try:
+            ours = set(json.loads(_read_small_file(out, "--out"))) >= {"source", "regions", "dropped"}
+        except (InputError, ValueError, TypeError):
+            ours = False
+        if not ours:
+            raise InputError(f"--out {out}: exists and is not a regions file written by this "
+                             f"command; not overwriting it: remove it or choose another name")
+    return out
+
+
 def _calibration_strip(args) -> int:
     """The ``calibration-strip`` command: one line per file written, or one error line
     and exit status 2."""
@@ -707,6 +772,16 @@ def _summary(doc: dict, out) -> None:
     hollow = doc.get("hollow")
     if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
         print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
+    suggested = doc.get("high_res", {}).get("suggested")
+    if suggested is not None:
+        kinds: dict = {}
+        for region in suggested["regions"]:
+            for feature in region["features"]:
+                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
+        print(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
+              f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
+              f"of the cells; report.json high_res.suggested): "
+              + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
     fit = doc["grid"].get("fit")
     if fit and any(fit["shift_mm"]):
         vol = fit["marked_model_mm3"]

@@ -26,7 +26,7 @@ import numpy as np
 from core import catalog, colours, forces as forces_stage, grid_fit
 from core import high_res as high_res_stage, hollow as hollow_stage
 from core import inventory as inventory_stage, iterate as iterate_stage
-from core import result, stability as stability_stage, voxelize
+from core import result, stability as stability_stage, suggest as suggest_stage, voxelize
 from core.errors import InputError
 from core.instructions import build_order, changes_page
 from core.io import meshes as mesh_io, output_dir
@@ -215,6 +215,11 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
         loaded = [dataclasses.replace(r, mesh=r.mesh.copy().apply_translation(shift)) for r in loaded]
         regions = (high_res_stage.Regions.of(req.high_res).moved(_translation(shift))
                    + high_res_stage.Regions.of((), loaded))
+    suggested = suggested_regions = None
+    if req.suggest:
+        suggested = timed("suggest", 0.02, suggest_stage.suggest, model, req.suggest_tolerance)
+        suggested_regions = high_res_stage.Regions.of(suggested.boxes)
+        regions = regions + suggested_regions
     notes: list[str] = []
     before = alignment = None
     if req.previous is not None:
@@ -226,6 +231,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                 why = "the new version is moved or turned against the previous one"
             else:
                 model, regions = aligned, regions.moved(alignment.transform)
+                if suggested_regions is not None:
+                    suggested_regions = suggested_regions.moved(alignment.transform)
         if why is not None:
             notes.append(f"laid out anew where it stands: {why}")
             before = alignment = None
@@ -303,7 +310,7 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                    stock=stock)
     quality = improve_stage.layout_quality(greedy, layout, laying, timings, req.lower_bound,
                                            bound=bound)
-    warnings = _unmarked(given, grid, req, marked.any())
+    warnings = _unmarked(given, grid, req, marked.any()) + list(suggested.warnings if suggested else ())
     reinforced = None
     if before is None:
         reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, laying, req.ground,
@@ -371,7 +378,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     fab = Fabrication(req, model, chosen, grid, layout, stab, order, timings, made,
                       connectors=links, regions=regions,
                       marks={"marked_cells": int(np.count_nonzero(marked)),
-                             "anchor_cells": int(np.count_nonzero(cells & ~marked))},
+                             "anchor_cells": int(np.count_nonzero(cells & ~marked)),
+                             **_suggested_marks(suggested, suggested_regions, grid, model)},
                       fit=fit, iteration=iteration, notes=notes, warnings=warnings,
                       forces=force, reinforced=reinforced, hollowing=hollowing,
                       layout_quality=quality, inventory=owned, colouring=colouring)
@@ -402,6 +410,20 @@ def _slicer_settings(req: Request) -> dict[str, str]:
         return print_time_stage.load_profile(printers.profile(req))
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
+
+
+def _suggested_marks(suggested, marks, grid: Grid, model) -> dict:
+    """The report's ``high_res.suggested`` with ``--suggest`` (nothing without): the regions
+    (boxes in the frame of --high-res), those dropped, and on ``grid`` (the one laid out)
+    the share of the model's volume in the cells the regions (``marks``, in ``grid``'s
+    frame) touch and the share of ``grid``'s cells."""
+    if suggested is None:
+        return {}
+    doc = suggested.to_json(model.offset_mm)
+    weight = suggest_stage.volume_per_cell(model.mesh, grid.origin, grid.shape, model.watertight)
+    volume, cells = suggest_stage.shares(grid, marks, weight)
+    doc["share_of_volume"], doc["share_of_cells"] = round(volume, 4), round(cells, 4)
+    return {"suggested": doc}
 
 
 def _translation(shift) -> np.ndarray:

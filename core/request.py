@@ -75,6 +75,13 @@ class Request:
     high_res_solids: tuple = _setting((), "region solid (STL/STEP/...) whose bricks become printed "
                                           "(repeatable)", "--high-res-solid", "FILE")
     high_res_bricks: tuple = _setting((), "brick ids of the layout that become printed")
+    suggest: bool = _setting(False, "also mark the regions the suggest command finds (holes and "
+                                    "pins under 20 mm, walls thinner than a cell), on top of "
+                                    "--high-res", "--suggest")
+    suggest_tolerance: float = _setting(0.5, "with --suggest: a feature whose loss under "
+                                             "legofication (a hole's or pin's radius, a wall's "
+                                             "thickness) is at most MM is not suggested",
+                                        "--tolerance", "MM")
     part_edits: tuple = _setting((), "merge/split edits of the printed parts")
     stud_fit: float = _setting(Fit.stud_fit, "printed studs are 4.8 + MM across (signed); find "
                                              "your printer's value with calibration-strip",
@@ -211,6 +218,9 @@ class Request:
             raise InputError(f"--clutch {self.clutch_n!r} must be a force in N above 0")
         for load in self.loads:
             parse_load(load)
+        if not _number(self.suggest_tolerance) or not 0 <= self.suggest_tolerance < 1e3:
+            raise InputError(f"--tolerance {self.suggest_tolerance!r} must be a number of mm "
+                             f"from 0 to 1000")
         if isinstance(self.hollow, bool) or not isinstance(self.hollow, int) or not -1 <= self.hollow <= 64:
             raise InputError(f"--hollow {self.hollow!r} must be a whole number of studs from 0 "
                              "(solid) to 64, or -1 (automatic)")
@@ -225,6 +235,7 @@ class Request:
             high_res_bricks=tuple(self.high_res_bricks), part_edits=tuple(self.part_edits),
             stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit),
             loads=tuple(str(x) for x in self.loads), clutch_n=float(self.clutch_n),
+            suggest_tolerance=float(self.suggest_tolerance),
             inventory=tuple(map(os.fspath, self.inventory)),
             seconds_per_brick=float(self.seconds_per_brick),
             seconds_per_part=float(self.seconds_per_part),

@@ -12,12 +12,13 @@ from __future__ import annotations
 import FreeCADGui as Gui
 
 from FabrickatorWorkbench.commands import (assembly, brushes, calibration, export, layout, legofy,
-                                           load, report, watch)
+                                           load, report, suggest, watch)
 
 
 def register() -> list[str]:
     """Add every command to FreeCADGui; the names in toolbar order."""
-    commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), brushes.MergeBrush(),
+    commands = [legofy.Legofy(), layout.Layout(), brushes.HighResBrush(), suggest.SuggestRegions(),
+                brushes.MergeBrush(),
                 brushes.SplitBrush(), load.AddLoad(), export.Export(), assembly.Assembly(),
                 report.Report(), watch.WatchFolder(), calibration.CalibrationStrip()]
     for command in commands:

@@ -95,18 +95,10 @@ def thin_features(mesh: trimesh.Trimesh, limit_mm: float = NOZZLE_MM, samples: i
     if total_area <= 0.0 or samples <= 0:
         return empty
 
-    points, face_index = _sample(mesh, int(samples), seed)
+    points, inward, thickness = thickness_map(mesh, samples, seed)
     n = len(points)
     if n == 0:
         return empty
-    triangles = np.asarray(mesh.triangles, dtype=np.float64)
-    planes = _planes(triangles)
-    # Normals from the winding (trimesh may cache face_normals that disagree).
-    inward = -planes[0][face_index]
-    if mesh.is_watertight and _signed_volume(triangles) < 0:
-        inward = -inward
-    diagonal = float(np.linalg.norm(mesh.extents))
-    thickness = _first_hits(triangles, planes, points, inward, t_min=SELF_HIT * diagonal)
 
     measured = np.isfinite(thickness)
     per_sample = total_area / n
@@ -124,6 +116,23 @@ def thin_features(mesh: trimesh.Trimesh, limit_mm: float = NOZZLE_MM, samples: i
                         max(CLUSTER_MM, 3.0 * spacing)),
     }
     return report
+
+
+def thickness_map(mesh: trimesh.Trimesh, samples: int = 20000, seed: int = 0) -> tuple:
+    """The local wall thickness of ``mesh`` (mm) at evenly spread surface samples, as
+    :func:`thin_features` measures it: ``(points, inward normals, thickness)``, arrays of
+    n x 3, n x 3 and n (inf where the ray met nothing).  Deterministic for a ``seed``."""
+    points, face_index = _sample(mesh, int(samples), seed)
+    if len(points) == 0:
+        return points, np.zeros((0, 3)), np.zeros(0)
+    triangles = np.asarray(mesh.triangles, dtype=np.float64)
+    planes = _planes(triangles)
+    # Normals from the winding (trimesh may cache face_normals that disagree).
+    inward = -planes[0][face_index]
+    if mesh.is_watertight and _signed_volume(triangles) < 0:
+        inward = -inward
+    diagonal = float(np.linalg.norm(mesh.extents))
+    return points, inward, _first_hits(triangles, planes, points, inward, t_min=SELF_HIT * diagonal)
 
 
 def _sample(mesh: trimesh.Trimesh, count: int, seed: int) -> tuple:

@@ -1035,3 +1035,5 @@ from TestFabrickatorLookApp import TestLookApp  # noqa: E402,F401
 from TestFabrickatorInstall import TestAddonManagerInstall, TestInstallWithoutNetwork  # noqa: E402,F401
 # The force check's Loads, Ground and Clutch (issue 14), and its parity with the command line.
 from TestFabrickatorForces import TestForceParity, TestLoads  # noqa: E402,F401
+# Suggest high-res regions (issue 48): one region per suggestion, as the command line finds them.
+from TestFabrickatorSuggest import TestSuggest  # noqa: E402,F401

@@ -20,7 +20,7 @@ ORDER = [
     "io", "parts", "layout", "printing", "instructions",
     "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog", "inventory",
     "connectivity", "parts.brick_solids", "parts.thickness", "io.brep", "io.repair", "io.meshes", "voxelize", "hollow",
-    "high_res", "grid_fit",
+    "high_res", "suggest", "grid_fit",
     "forces.limits", "forces.joints", "forces.solver", "forces.verdict", "forces.bodies",
     "forces.program", "forces.decompose", "forces.analyse", "forces.build_steps", "forces",
     "layout.bounds", "layout.greedy", "layout.search", "align", "diff", "parts.connectors",

@@ -29,6 +29,7 @@ from PySide import QtCore, QtGui
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "tests" / "gui" / "artifacts"
 COMMANDS = ["Fabrickator_Legofy", "Fabrickator_Layout", "Fabrickator_HighResBrush",
+            "Fabrickator_SuggestRegions",
             "Fabrickator_MergeBrush", "Fabrickator_SplitBrush", "Fabrickator_AddLoad",
             "Fabrickator_Export",
             "Fabrickator_Assembly", "Fabrickator_Report", "Fabrickator_WatchFolder",
