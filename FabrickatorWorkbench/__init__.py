@@ -35,7 +35,7 @@ from FabrickatorWorkbench import deps
 _API = ("make_fabrication", "fabrications", "fabrication_of", "mark_high_res", "unmark",
         "merge_bricks", "split_bricks", "brick_boxes", "bricks", "printed_parts", "regions",
         "make_load", "loads",
-        "report", "steps", "step_notes", "layout", "export", "remove_owned",
+        "report", "bom", "steps", "step_notes", "layout", "export", "remove_owned",
         "import_model", "reload_model", "legofy_file", "recompute", "clear_changes", "ghosts",
         "feed_file", "model_name", "make_calibration_strip")
 

@@ -331,6 +331,18 @@ def step_notes(fab) -> tuple[dict[str, str], list[dict]]:
     return dict(doc.get("warnings", {})), list(doc.get("props", []))
 
 
+def bom(fab) -> list:
+    """The LEGO rows of the bill of materials of ``fab``'s stored layout, as ``bom.csv``
+    gives them (:func:`core.instructions.bom.lines`): per design and colour the count and,
+    with an inventory, how many are owned (``owned``; to buy: ``count - owned``)."""
+    from core.inventory import colouring_of  # loads scipy
+    from core.instructions import bom as core_bom
+
+    _require("layout")
+    colouring = colouring_of(json.loads(fab.LayoutJson))
+    return core_bom.lines(tree.stored_layout(fab), colouring=colouring)
+
+
 def layout(fab):
     """The stored layout as a :class:`core.model.Layout` (steps included); ValueError when
     ``fab`` has none yet."""

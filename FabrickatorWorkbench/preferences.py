@@ -143,6 +143,7 @@ class PreferencePage:
         return self.form.findChild(QtGui.QWidget, WIDGETS[name])
 
     def loadSettings(self):
+        _fill_printers(self.widget("Printer"), get("SlicerPath") or None)
         for name in WIDGETS:
             value = get(name)
             self.shown[name] = value
@@ -156,12 +157,37 @@ class PreferencePage:
                 self.shown[name] = value
 
 
+def _fill_printers(combo, slicer: str | None) -> None:
+    """List in ``combo`` (editable) every printer of the vendor bundles installed with
+    ``slicer``, after an empty entry (the default printer), each with its build volume as
+    tooltip; typing part of a name offers the names that contain it."""
+    from PySide import QtCore
+
+    from core.printing import printers  # loads numpy and trimesh
+
+    combo.clear()
+    combo.addItem("")
+    combo.setItemData(0, "Original Prusa i3 MK3S (the default)", QtCore.Qt.ToolTipRole)
+    for vendor, entries in printers.listing(printers.bundle_folder(slicer)).items():
+        for name, size in entries:
+            combo.addItem(name)
+            combo.setItemData(combo.count() - 1, f"{vendor}: {' x '.join(f'{round(v, 1):g}' for v in size)} mm",
+                              QtCore.Qt.ToolTipRole)
+    combo.lineEdit().setPlaceholderText("Original Prusa i3 MK3S (the default); type to search")
+    completer = combo.completer()
+    completer.setCaseSensitivity(QtCore.Qt.CaseInsensitive)
+    completer.setFilterMode(QtCore.Qt.MatchContains)
+    completer.setCompletionMode(completer.PopupCompletion)
+
+
 def _set_widget(widget, value) -> None:
-    """Show ``value`` in a QLineEdit, QDoubleSpinBox, QCheckBox, QComboBox (the item whose
-    data is ``value``) or Gui::FileChooser."""
+    """Show ``value`` in a QLineEdit, QDoubleSpinBox, QCheckBox, QComboBox (an editable one's
+    text, else the item whose data is ``value``) or Gui::FileChooser."""
     from PySide import QtGui
 
-    if isinstance(widget, QtGui.QComboBox):
+    if isinstance(widget, QtGui.QComboBox) and widget.isEditable():
+        widget.setEditText(str(value))
+    elif isinstance(widget, QtGui.QComboBox):
         widget.setCurrentIndex(max(0, widget.findData(value)))
     elif isinstance(widget, QtGui.QCheckBox):
         widget.setChecked(bool(value))
@@ -177,6 +203,8 @@ def _widget_value(widget, kind: str):
     """The value ``widget`` shows, as a preference of FreeCAD parameter kind ``kind``."""
     from PySide import QtGui
 
+    if isinstance(widget, QtGui.QComboBox) and widget.isEditable():
+        return widget.currentText().strip()
     if isinstance(widget, QtGui.QComboBox):
         return str(widget.currentData())
     if isinstance(widget, QtGui.QCheckBox):

@@ -1,5 +1,5 @@
-"""Report: brick counts, printed parts, print times, assembly time and speed-up, the force
-check, in words; its failing bricks, weak points and incomplete studs are listed and a click
+"""Report: brick counts, the bill of materials (with an inventory: owned and to buy), printed
+parts, print times, assembly time and speed-up, the force check, in words; its failing bricks, weak points and incomplete studs are listed and a click
 selects them in the 3D view."""
 
 from __future__ import annotations
@@ -51,6 +51,9 @@ def summary(fab) -> list[str]:
               "of the build)" if weak else "no weak points"),
              (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
               "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
+    if doc.get("inventory"):
+        from core.inventory import summary_words  # loads scipy
+        lines.append(summary_words(doc["inventory"]))
     quality = doc.get("layout_quality") or {}
     if "one_piece" in (quality.get("lower_bound") or {}):
         from core.layout import search as improve
@@ -134,8 +137,14 @@ def report_html(fab) -> str:
     esc = html.escape
     st = doc["stability"]
     explain = st.get("explain", {})
-    rows = "".join(f"<tr><td>{esc(part)}</td><td align='right'>{n}</td></tr>"
-                   for part, n in doc["bricks"]["by_part"].items())
+    lego = make.bom(fab)
+    counted = any(r.owned is not None for r in lego)
+    rows = "".join(f"<tr><td>{esc(r.part)}</td><td>{esc(r.name)}</td><td>{esc(r.color)}</td>"
+                   f"<td align='right'>{r.count}</td>"
+                   + (f"<td align='right'>{r.owned}</td><td align='right'>{r.count - r.owned}</td>"
+                      if counted else "") + "</tr>" for r in lego)
+    columns = "<th>part</th><th>name</th><th>colour</th><th>count</th>" + (
+        "<th>owned</th><th>to buy</th>" if counted else "")
     parts = "".join(
         f"<tr><td><b>{esc(p.PartId)}</b></td><td align='right'>{p.Cells}</td>"
         f"<td align='right'>{p.VolumeMm3 / 1000:.1f}</td><td align='right'>{_time(p.PrintTime)}</td>"
@@ -157,8 +166,8 @@ def report_html(fab) -> str:
     how = times.get("method_words")
     timing = f"<p><b>Print times.</b> {esc(how)}</p>" if how else ""
     return (f"<h2>{esc(fab.Label)}</h2><ul>{lines}</ul>{meaning}{timing}"
-            f"<h3>Bricks by LEGO design number</h3><table border='1' cellpadding='3'>"
-            f"<tr><th>part</th><th>count</th></tr>{rows}</table>"
+            f"<h3>LEGO bricks by design and colour</h3><table border='1' cellpadding='3'>"
+            f"<tr>{columns}</tr>{rows}</table>"
             f"<h3>Printed parts</h3><table border='1' cellpadding='3'><tr><th>ID</th><th>cells</th>"
             f"<th>cm&sup3;</th><th>print time</th><th>complete studs</th><th>incomplete studs</th>"
             f"<th>step</th></tr>{parts}</table>")

@@ -14,6 +14,7 @@ columns, not the new layers), and the highlighted bricks are the added ones.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import subprocess
@@ -227,6 +228,12 @@ class TestParity(unittest.TestCase):
         self.assertEqual(coloured(f.LayoutJson), coloured(cli["layout"]))
         self.assertTrue(any(b[3] for b in coloured(f.LayoutJson)))
         self.assertEqual(fab().report(f)["inventory"]["to_buy"], cli["report"]["inventory"]["to_buy"])
+        with open(Path(self.path("cli-inv"), "bom.csv"), newline="", encoding="utf-8") as rows:
+            written = [(r["part"], r["color"], int(r["count"]), int(r["owned"]), int(r["to_buy"]))
+                       for r in csv.DictReader(rows) if r["kind"] == "lego"]
+        shown = [(r.part, r.color, r.count, r.owned, r.count - r.owned) for r in fab().bom(f)]
+        self.assertEqual(shown, written)
+        self.assertEqual(sum(r[4] for r in shown), cli["report"]["inventory"]["to_buy"])
 
     def test_properties_and_preferences_default_to_the_one_table(self):
         from core.request import DEFAULTS
@@ -248,8 +255,9 @@ class TestParity(unittest.TestCase):
         path = self.source_file(body, "defaults")
         job = fabricate.request(f, path, (), ())
         self.assertEqual(job.parts, "all")
-        self.assertEqual(job.replace(parts=None), type(job)(model=path, previous_regions=False,
-                                                            iterate_moved=False).checked())
+        self.assertEqual(job.replace(parts=None), type(job)(
+            model=path, previous_regions=False, iterate_moved=False,
+            fit_source="the Fabrication's StudFit and SocketFit").checked())
 
 
 class TestLikeFreeCAD(unittest.TestCase):

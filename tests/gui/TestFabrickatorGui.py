@@ -306,6 +306,43 @@ class TestExampleAndPreferences(GuiTestCase):
         self.assertAlmostEqual(f.StudFit.Value, 0.15)
         self.assertAlmostEqual(f.SocketFit.Value, Fit.socket_fit)
 
+    def test_preferences_page_searches_the_printers_and_saves_one(self):
+        """The Printer preference lists the installed bundles' printers; typing part of a
+        name offers those that contain it; the one chosen reaches a new Fabrication's
+        request."""
+        from FabrickatorWorkbench import preferences
+        from FabrickatorWorkbench.objects import fabricate
+
+        shown = {}
+
+        def handler(dialog):
+            combo = dialog.findChild(QtGui.QComboBox, "printer")
+            names = [combo.itemText(i) for i in range(combo.count())]
+            completer = combo.completer()
+            completer.setCompletionPrefix("ender-3")
+            found = [completer.completionModel().index(i, 0).data()
+                     for i in range(completer.completionCount())]
+            shown.update(editable=combo.isEditable(), names=names, found=found)
+            combo.setEditText("Original Prusa MINI & MINI+")
+            dialog.accept()
+
+        answer_modal(handler, "Gui__Dialog__DlgPreferences")
+        Gui.showPreferences("Fabrickator", 0)
+        settle()
+        try:
+            self.assertTrue(shown["editable"])
+            self.assertEqual(shown["names"][0], "")          # the default printer
+            self.assertIn("Original Prusa MINI & MINI+", shown["names"])
+            self.assertTrue(shown["found"])
+            self.assertTrue(all("ender-3" in name.lower() for name in shown["found"]))
+            self.assertEqual(preferences.get("Printer"), "Original Prusa MINI & MINI+")
+            body, _, _ = padded_body(self.doc)
+            f = fab().make_fabrication(body)
+            self.assertEqual(fabricate.request(f, "part.stl", (), ()).printer,
+                             "Original Prusa MINI & MINI+")
+        finally:
+            preferences.reset("Printer")
+
 
 class TestCommands(GuiTestCase):
     def test_legofy_selection_is_one_undo_step(self):

@@ -83,6 +83,9 @@ class TestReport(GuiTestCase):
         self.assertIn("An incomplete stud is a place where a printed part meets a LEGO brick", text)
         self.assertIn("Print times.", text)
         self.assertNotIn("FABRICKATOR_", text)
+        self.assertIn("LEGO bricks by design and colour", text)
+        self.assertEqual(sum(r.count for r in fab().bom(f)), doc["bricks"]["lego"])
+        self.assertNotIn("to buy", text)                      # no inventory: nothing to buy
         first = st["weak_point_details"][0]
         weak_rows = [r for r in seen["rows"] if r[0].startswith("Weak point")]
         self.assertEqual(len(weak_rows), st["weak_points"])
