@@ -42,10 +42,11 @@ read from :mod:`core.forces.limits` at each call.
 
 from core.forces.analyse import analyse
 from core.forces.build_steps import BuildChecker
-from core.forces.joints import CLUTCH_N, GROUNDS, G, bending_capacity_nmm, printed_mass_g
+from core.forces.joints import (CLUTCH_N, FAIL_ABOVE, GROUNDS, G, bending_capacity_nmm,
+                               printed_mass_g)
 from core.forces.verdict import (FORCE_MEANS, Forces, build_unchecked, graph_only_why,
                                  verdict_words, worst_words)
 
-__all__ = ["BuildChecker", "CLUTCH_N", "FORCE_MEANS", "Forces", "G", "GROUNDS", "analyse",
-           "bending_capacity_nmm", "build_unchecked", "graph_only_why", "printed_mass_g",
+__all__ = ["BuildChecker", "CLUTCH_N", "FAIL_ABOVE", "FORCE_MEANS", "Forces", "G", "GROUNDS",
+           "analyse", "bending_capacity_nmm", "build_unchecked", "graph_only_why", "printed_mass_g",
            "verdict_words", "worst_words"]
