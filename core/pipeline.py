@@ -821,7 +821,7 @@ def report(fab: Fabrication) -> dict:
         "timings_s": dict(fab.timings_s),
         "hollow": hollow_report(fab),
         "notes": list(fab.notes),
-        "warnings": list(fab.warnings),
+        "warnings": list(fab.warnings) + _slower_words(fab, gains, making),
         **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
         **({} if fab.inventory is None else {"inventory": {
             **inventory_stage.summary(fab.colouring), "inventory_only": fab.request.inventory_only,
@@ -896,6 +896,18 @@ def steps_record(order: build_order.BuildOrder, layout: Layout) -> dict:
             "early_parts": list(order.early_parts),
             "warnings": {str(n): text for n, text in instructions.step_warnings(order, layout).items()},
             "props": list(order.props)}
+
+
+def _slower_words(fab: Fabrication, gains: dict | None, making: float | None) -> list[str]:
+    """A warning when printing the whole model is faster than the printed parts with the
+    LEGO built meanwhile (a speed-up under 1), saying what to mark less of."""
+    if gains is None or making is None or gains["fabrication"] >= 1.0:
+        return []
+    what = ("the suggested regions mark too much of this model for a speed-up: drop some "
+            "(python -m core suggest --out lists them) or print it whole"
+            if fab.marks.get("suggested") else "mark less to be printed, or print it whole")
+    return [f"printing the whole model ({duration_words(fab.print_full.seconds)}) is faster than "
+            f"the printed parts with the LEGO built meanwhile ({duration_words(making)}): {what}"]
 
 
 def duration_words(seconds: float) -> str:

@@ -52,3 +52,23 @@ def test_iteration_counts_the_rework_only():
     fab = _fab(lego=300, parts=2, full_s=20000.0, parts_s=900.0, iteration=iteration)
     assert pipeline.assembly_split(fab) == (40.0, 30.0)
     assert pipeline.fabrication_seconds(fab) == 930.0
+
+
+def test_a_run_slower_than_printing_whole_says_so():
+    """Under a speed-up of 1 the report warns, by hand: 10 LEGO bricks (100 s) while parts
+    print 9,000 s, plus 30 s inserting the part, against 8,000 s printed whole."""
+    fab = _fab(lego=10, parts=1, full_s=8000.0, parts_s=9000.0)
+    fab.marks = {}
+    gains = pipeline.speedups(fab)
+    making = pipeline.fabrication_seconds(fab)
+    assert making == 9030.0 and gains["fabrication"] < 1
+    words = pipeline._slower_words(fab, gains, making)
+    assert words == ["printing the whole model (2 h 13 min) is faster than the printed parts with "
+                     "the LEGO built meanwhile (2 h 30 min): mark less to be printed, or print it "
+                     "whole"]
+    fab.marks = {"suggested": {"regions": []}}
+    assert "the suggested regions mark too much" in pipeline._slower_words(fab, gains, making)[0]
+    faster = _fab(lego=10, parts=1, full_s=8000.0, parts_s=3000.0)
+    faster.marks = {}
+    assert pipeline._slower_words(faster, pipeline.speedups(faster),
+                                  pipeline.fabrication_seconds(faster)) == []
