@@ -31,6 +31,7 @@ import Mesh
 import Part
 
 from core.errors import InputError
+from core.instructions import bom as core_bom
 from core.parts import calibration
 from core.watch import model_name, same_model
 from FabrickatorWorkbench import bridge, deps, log, preferences
@@ -336,7 +337,6 @@ def bom(fab) -> list:
     gives them (:func:`core.instructions.bom.lines`): per design and colour the count and,
     with an inventory, how many are owned (``owned``; to buy: ``count - owned``)."""
     from core.inventory import colouring_of  # loads scipy
-    from core.instructions import bom as core_bom
 
     _require("layout")
     colouring = colouring_of(json.loads(fab.LayoutJson))

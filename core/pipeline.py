@@ -803,7 +803,7 @@ def report(fab: Fabrication) -> dict:
             "method_words": print_method_words(full.method, plate.method),
             "print_plates": len(fab.plates or ()), "full_model_on_enlarged_bed": full.enlarged_bed,
         },
-        **({} if fab.printer is None else {"printer": fab.printer.to_json()}),
+        "printer": {**printers.described(fab.request).to_json(), "chosen": fab.printer is not None},
         "fit": {"stud_fit": fab.interface.stud_fit, "socket_fit": fab.interface.socket_fit,
                 "source": fab.request.fit_source},
         "assembly_s": round(assembly_seconds(fab), 1),
@@ -1003,7 +1003,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
         fab.layout, fab.printed, tmp, title=title, seconds_per_brick=fab.seconds_per_brick,
         seconds_per_part=fab.seconds_per_part, order=fab.order, colouring=fab.colouring,
         inventory=fab.inventory, bought=colours.by_name(fab.request.colour),
-        printed_on=None if fab.printer is None else fab.printer.label)
+        printed_on=printers.described(fab.request).label)
     (tmp / "layout.json").write_text(json.dumps(
         inventory_stage.with_colours(fab.layout.to_json(), fab.colouring)))
     if fab.request.picture:

@@ -467,6 +467,33 @@ def chosen(req) -> Printer | None:
     return None
 
 
+def described(req) -> Printer:
+    """The printer a run of ``req`` slices on: the chosen one (:func:`chosen`), else the
+    default profile's (:func:`core.printing.print_time.load_profile`): a ``profile`` file
+    given, the presets :data:`core.printing.slicer_profile.PRESETS` of the vendor bundle
+    installed with the slicer, or the committed fallback profile where there is none."""
+    printer = chosen(req)
+    if printer is not None:
+        return printer
+    config = print_time.load_profile(req.profile)
+    names = [plain(config.get(k, "")) for k in ("printer_settings_id", "print_settings_id",
+                                                 "filament_settings_id")]
+    if req.profile:
+        vendor, version, source = "user profile", None, os.fspath(Path(req.profile).resolve())
+    else:
+        bundle, version = slicer_profile.find_bundle(print_time.slicer_path()), None
+        if bundle is not None:
+            try:
+                slicer_profile.bundle_profile(bundle)   # where this fails, the fallback is used
+                version = slicer_profile.config_version(bundle.read_text(encoding="utf-8"))
+            except (OSError, UnicodeError, slicer_profile.BundleError):
+                bundle = None
+        vendor = "Prusa Research" if bundle is not None else "fallback profile"
+        source = os.fspath(bundle if bundle is not None else slicer_profile.FALLBACK_PROFILE)
+    return Printer(names[0], names[1], names[2].split(";")[0].strip('"'), vendor, version, source,
+                   config)
+
+
 @functools.lru_cache(maxsize=16)
 def _from_file(path: str, _stamp) -> Printer:
     return from_file(path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import html
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -347,3 +348,22 @@ def test_a_round_bed_packs_into_its_inscribed_square():
     assert print_time.bed_rectangle({"bed_shape": "0x0,250x0,250x210,0x210"}).tolist() == [[0, 0], [250, 210]]
     with pytest.raises(InputError, match="bed_shape"):
         print_time.bed_rectangle({"bed_shape": ""})
+
+
+def test_the_default_printer_is_named_too(tmp_path, monkeypatch):
+    """Without --printer the report still names what it slices on: the MK3S presets of the
+    installed bundle (its version read from the file), or the fallback profile without a
+    slicer, or the profile file given."""
+    req = Request(model="x.stl")
+    bundle = slicer_profile.find_bundle(shutil.which("prusa-slicer"))
+    if bundle is not None:
+        found = printers.described(req)
+        assert (found.printer, found.print_preset, found.filament) == tuple(
+            slicer_profile.PRESETS[k] for k in ("printer", "print", "filament"))
+        assert found.source == str(bundle) and found.bundle_version in bundle.read_text()
+    monkeypatch.setenv("FABRICKATOR_SLICER", "none")
+    fallback = printers.described(req)
+    assert fallback.vendor == "fallback profile" and fallback.printer == slicer_profile.PRESETS["printer"]
+    own = printers.described(Request(model="x.stl", profile=str(_flat(tmp_path))))
+    assert (own.printer, own.print_preset, own.filament, own.vendor) == (
+        "My printer", "My print", "My PLA", "user profile")
