@@ -6,7 +6,7 @@ greedy layout (``--effort fast``) and the improved one (``normal``, and
 :func:`core.layout.greedy.relaxed_layout`, as the pipeline's does): bricks, the ratio to the exact-cover lower bound
 (integer program, ``--time-limit`` seconds, "yes" when proven) and to the
 bound of layouts in one piece per region without leaf bricks
-(:func:`core.layout.search.leaf_free_bound` with ``connected``, its lazy cuts: what a layout
+(:func:`core.layout.connected_bound.leaf_free_bound` with ``connected``, its lazy cuts: what a layout
 the targets accept needs at least; the larger of the two) and to the bound of the layout's
 own kind (:func:`core.layout.search.one_piece_bound`: one piece per region with no weak point,
 or with at most as many as it has where they all hold a leaf brick on a one-cell-thin
@@ -43,6 +43,8 @@ from core.errors import InputError  # noqa: E402
 from core.layout import greedy as layout  # noqa: E402
 from core.layout import search as improve  # noqa: E402
 from core.layout.bounds import brick_lower_bound  # noqa: E402
+from core.layout.connected_bound import leaf_free_bound  # noqa: E402
+from core.layout.quality import quality, thin_weak_points  # noqa: E402
 from core.stability import analyse  # noqa: E402
 
 #: The issue's targets.
@@ -55,7 +57,7 @@ def measure(lay, start_s: float, bound, parts, time_limit: float, kinds: dict) -
     bound of its kind (:func:`core.layout.search.one_piece_bound`; ``kinds`` keeps those found
     for the model's other layouts, by whether they are joined and their weak points)."""
     st = analyse(lay)
-    forced = len(improve.thin_weak_points(lay))
+    forced = len(thin_weak_points(lay))
     n, weak = len(lay.bricks), len(st.weak_points)
     joined = st.components == st.regions
     if (joined, weak, forced) not in kinds:
@@ -90,7 +92,7 @@ def bench_model(path: Path, time_limit: float, efforts: list[str]) -> dict:
     bound = lb["bound"]
     row.update(cells=fab.grid.count, bound=bound, proven="yes" if lb["optimal"] else lb["status"],
                lb_s=lb["seconds"])
-    leafless = improve.leaf_free_bound(fab.grid, fab.parts, time_limit_s=time_limit,
+    leafless = leaf_free_bound(fab.grid, fab.parts, time_limit_s=time_limit,
                                        connected=True)
     row.update(leaf_free=_stronger(leafless, bound), leaf_free_proven=_proven(leafless))
     kinds: dict = {}
@@ -108,7 +110,7 @@ def bench_model(path: Path, time_limit: float, efforts: list[str]) -> dict:
 
 
 def _stronger(found: dict, weaker: int | None) -> int | None:
-    """A bound of :func:`core.layout.search.leaf_free_bound`, or the ``weaker`` one where it is less;
+    """A bound of :func:`core.layout.connected_bound.leaf_free_bound`, or the ``weaker`` one where it is less;
     None where the program proved that no such layout exists."""
     if found["status"] == "infeasible":
         return None
@@ -165,7 +167,7 @@ def scaling(efforts: list[str]) -> list[dict]:
             better = improve.improve(lay, catalog.CATALOG, effort, 0)
             seconds = greedy_s + time.perf_counter() - start
             target = SECONDS_TARGET[cells] if effort == "normal" else 60.0
-            k0, k1 = improve.quality(lay), improve.quality(better)
+            k0, k1 = quality(lay), quality(better)
             rows.append({"case": f"sphere r={radius:g} mm", "cells": grid.count, "effort": effort,
                          "greedy key": str(k0), "improved key": str(k1),
                          "greedy s": greedy_s, "total s": seconds, "target s": target,

@@ -1,5 +1,5 @@
-"""The improvement stage (core/layout/search.py): same cells, allowed parts, never worse, deterministic,
-and the hand-computed optimum on small shapes."""
+"""The improvement stage (core/layout/search.py and the modules it drives): same cells,
+allowed parts, never worse, deterministic, and the hand-computed optimum on small shapes."""
 
 from __future__ import annotations
 
@@ -11,7 +11,12 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from core import catalog
 from core.errors import InputError
-from core.layout import greedy as layout_stage, search as improve
+from core.layout import connected_bound, greedy as layout_stage, neighbourhood, search as improve, \
+    window_program
+from core.layout.connected_bound import leaf_free_bound, separating
+from core.layout.neighbourhood import Search
+from core.layout.quality import quality, thin_weak_points
+from core.layout.window_program import free_placements, numbered_shapes
 from core.model import CELL_MM, Brick, Grid, Layout
 
 
@@ -66,7 +71,7 @@ def test_same_cells_allowed_parts_never_worse(filled, which, seed):
     better = improve.improve(start, parts, "normal", seed)
     assert covers_once(better)
     assert allowed(better, parts)
-    assert improve.quality(better) <= improve.quality(start)
+    assert quality(better) <= quality(start)
     assert [b.to_json() for b in start.bricks] == before, "the input layout was changed"
     assert [b.id for b in better.bricks] == list(range(len(better.bricks)))
 
@@ -98,10 +103,10 @@ def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
     start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
     best = improve.improve(start, catalog.CATALOG, "best", 3)
     assert covers_once(best)
-    normal = [improve.quality(improve.improve(start, catalog.CATALOG, "normal", 3 + k))
+    normal = [quality(improve.improve(start, catalog.CATALOG, "normal", 3 + k))
               for k in range(improve.best_starts(grid.count))]
     assert min(normal) < normal[0]
-    assert improve.quality(best) <= min(normal)
+    assert quality(best) <= min(normal)
 
 
 @pytest.mark.slow
@@ -117,7 +122,7 @@ def test_best_spends_its_seeds_within_its_work(monkeypatch):
     grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
     start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
     stages, windows = [], []
-    stage, run = improve._stage, improve._Search.run
+    stage, run = improve._stage, Search.run
 
     def counted_stage(layout, parts, level, seed, *rest):
         stages.append((level.windows_per_cell, seed))
@@ -130,7 +135,7 @@ def test_best_spends_its_seeds_within_its_work(monkeypatch):
             windows.append(search.windows - before)
 
     monkeypatch.setattr(improve, "_stage", counted_stage)
-    monkeypatch.setattr(improve._Search, "run", counted_run)
+    monkeypatch.setattr(Search, "run", counted_run)
     improve.improve(start, catalog.CATALOG, "best", 3)
     normal, best = (improve.EFFORT_LEVELS[name].windows_per_cell for name in ("normal", "best"))
     assert stages == [(normal, 3), (normal, 4), (normal, 5), (best, 3)]
@@ -144,7 +149,7 @@ def test_best_spends_its_seeds_within_its_work(monkeypatch):
                             progress=lambda fraction, message: seen.append(fraction))
     assert stages == [(normal, 3), (best, 3)] and sum(windows) == 0
     assert seen == sorted(seen) and seen[-1] == 1.0
-    assert improve.quality(tight) <= improve.quality(improve.improve(start, catalog.CATALOG,
+    assert quality(tight) <= quality(improve.improve(start, catalog.CATALOG,
                                                                      "normal", 3))
 
 
@@ -153,7 +158,7 @@ def test_windows_stop_once_they_have_spent_their_work():
     one iteration, from 1x1 plates on a 6 x 6 x 3 block, one window (which takes more);
     without, more."""
     grid = grid_of(np.ones((6, 6, 3), dtype=bool))
-    search = improve._Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
+    search = Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
     search.run(improve.EFFORT_LEVELS["normal"], 50, lambda fraction, message: None, 50, work=1)
     assert search.windows == 1 and search.iterations >= 1
     search.run(improve.EFFORT_LEVELS["normal"], 50, lambda fraction, message: None, 50)
@@ -169,11 +174,11 @@ def test_the_weak_point_windows_at_last_start_at_weak_bricks_only():
     heights = rng.integers(1, 9, size=(6, 5))
     grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
     start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
-    search = improve._Search(start, catalog.CATALOG, 0, set(), None, None)
+    search = Search(start, catalog.CATALOG, 0, set(), None, None)
     graph = _graph_by_networkx(start)
     weak = set(nx.articulation_points(graph)) | {n for n in graph if graph.degree(n) <= 1}
     order = search.sites()
-    chosen = improve._Search(start, catalog.CATALOG, 0, set(), None, None).sites(weak_only=True)
+    chosen = Search(start, catalog.CATALOG, 0, set(), None, None).sites(weak_only=True)
     assert weak and len(weak) < len(order)
     assert chosen == [i for i in order if i in weak]
 
@@ -183,7 +188,7 @@ def test_the_first_window_follows_a_thin_wall():
     at a site in its middle frees the whole wall 16 studs along it (48 cells), and with a
     limit of 30 cells the 30 nearest the site.  A 6x6x3 box there frees 18."""
     grid = grid_of(np.ones((40, 1, 3), dtype=bool))
-    search = improve._Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
+    search = Search(unit_plates(grid), catalog.CATALOG, 0, set(), None, None)
     site = int(search.lab[20, 0, 1])
     ids = search.window(site, improve.NEAREST, 0, 200)
     xs = sorted({search.rec[i][0] for i in ids})
@@ -205,11 +210,11 @@ def test_layer_sweep_re_covers_a_whole_layer_across_the_plates():
     grid = grid_of(np.ones((8, 8, 4), bool))
     plates = [Brick(n, "3034", (8, 2, 1), (0, 2 * n, 3)) for n in range(4)]
     bricks = [Brick(4 + n, "3005", (1, 1, 3), (n // 8, n % 8, 0)) for n in range(64)]
-    search = improve._Search(Layout(grid, plates + bricks), catalog.CATALOG, 0, set(), None,
+    search = Search(Layout(grid, plates + bricks), catalog.CATALOG, 0, set(), None,
                              None)
     search.sweep_layers(improve.EFFORT_LEVELS["normal"], lambda fraction, message: None)
     swept = search.layout(None, renumber=True)
-    assert covers_once(swept) and improve.quality(swept) == (1, 0, 0, 0, 8)
+    assert covers_once(swept) and quality(swept) == (1, 0, 0, 0, 8)
     assert sorted((b.part, tuple(b.size)) for b in swept.bricks) == \
         [("3007", (2, 8, 3))] * 4 + [("3034", (8, 2, 1))] * 4
 
@@ -218,11 +223,11 @@ def test_layer_groups_are_the_nearest_bricks_from_a_corner():
     """Ten 2x2 bricks in a row along x, groups of at most 12 studs: three bricks a group
     from the corner asked for, the last one alone; from the other corner the other way."""
     rec = np.array([(2 * n, 0, 0, 2, 2, 3) for n in range(10)])
-    assert improve._nearest_groups(rec, np.array([1, 1]), 12) == [[0, 1, 2], [3, 4, 5],
+    assert neighbourhood._nearest_groups(rec, np.array([1, 1]), 12) == [[0, 1, 2], [3, 4, 5],
                                                                    [6, 7, 8], [9]]
-    assert improve._nearest_groups(rec, np.array([-1, -1]), 12) == [[9, 8, 7], [6, 5, 4],
+    assert neighbourhood._nearest_groups(rec, np.array([-1, -1]), 12) == [[9, 8, 7], [6, 5, 4],
                                                                     [3, 2, 1], [0]]
-    assert improve._nearest_groups(rec, np.array([1, 1]), 3) == [[n] for n in range(10)]
+    assert neighbourhood._nearest_groups(rec, np.array([1, 1]), 3) == [[n] for n in range(10)]
 
 
 @pytest.mark.slow
@@ -240,8 +245,8 @@ def test_best_from_another_start_is_no_worse_and_deterministic(monkeypatch):
     assert [b.cell for b in other.bricks] != [b.cell for b in start.bricks]
     best = improve.improve(start, catalog.CATALOG, "best", 3, others=(other,))
     assert covers_once(best) and allowed(best, catalog.CATALOG)
-    normal = [improve.quality(improve.improve(s, catalog.CATALOG, "normal", 3)) for s in (start, other)]
-    assert improve.quality(best) <= min(normal)
+    normal = [quality(improve.improve(s, catalog.CATALOG, "normal", 3)) for s in (start, other)]
+    assert quality(best) <= min(normal)
     again = improve.improve(start, catalog.CATALOG, "best", 3, others=(other,))
     assert [(b.part, b.cell) for b in again.bricks] == [(b.part, b.cell) for b in best.bricks]
     alone = improve.improve(start, catalog.CATALOG, "normal", 3)
@@ -270,10 +275,10 @@ def test_merge_takes_each_regions_fewest_bricks_from_either_layout():
         return Layout(grid, [Brick(n, part, size, cell) for n, (part, size, cell)
                              in enumerate(bricks)])
     first, second = laid(fewest(0) + four(3)), laid(four(0) + fewest(3))
-    assert improve.quality(first) == improve.quality(second) == (2, 0, 0, 0, 6)
+    assert quality(first) == quality(second) == (2, 0, 0, 0, 6)
     assert _weak_points_by_networkx(first) == 0
     merged = improve._merged([first, second], first, first, catalog.CATALOG, None, None)
-    assert covers_once(merged) and improve.quality(merged) == (2, 0, 0, 0, 4)
+    assert covers_once(merged) and quality(merged) == (2, 0, 0, 0, 4)
     assert sorted((b.id, b.part, b.cell) for b in merged.bricks) == [
         (0, "3007", (0, 0, 0)), (1, "3007", (0, 0, 3)), (6, "3007", (3, 0, 0)),
         (7, "3007", (3, 0, 3))]
@@ -288,7 +293,7 @@ def test_block_2x8_two_bricks_high_reaches_two_bricks():
     grid = grid_of(np.ones((2, 8, 6), bool))
     best = improve.improve(unit_plates(grid), catalog.CATALOG, "best", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (1, 0, 0, 0, 2)
+    assert quality(best) == (1, 0, 0, 0, 2)
     assert sorted(b.part for b in best.bricks) == ["3007", "3007"]
 
 
@@ -301,7 +306,7 @@ def test_l_sheet_reaches_two_plates():
     filled[0:2, :, 0] = True
     best = improve.improve(unit_plates(grid_of(filled)), catalog.CATALOG, "normal", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (2, 0, 0, 0, 2)
+    assert quality(best) == (2, 0, 0, 0, 2)
     assert sorted(b.part for b in best.bricks) == ["3034", "3795"]
 
 
@@ -319,9 +324,9 @@ def test_l_wall_reaches_fewest_bricks():
     start = layout_stage.lay_out(grid_of(filled), catalog.CATALOG, seed=0)
     best = improve.improve(start, catalog.CATALOG, "best", 0)
     assert covers_once(best)
-    assert improve.quality(best)[0] == 1
-    assert improve.quality(best) <= improve.quality(start)
-    assert improve.quality(best)[4] >= 4
+    assert quality(best)[0] == 1
+    assert quality(best) <= quality(start)
+    assert quality(best)[4] >= 4
 
 
 def test_ring_reaches_eight_bricks():
@@ -335,7 +340,7 @@ def test_ring_reaches_eight_bricks():
     start = layout_stage.lay_out(grid_of(filled), catalog.CATALOG, seed=0)
     best = improve.improve(start, catalog.CATALOG, "normal", 0)
     assert covers_once(best)
-    assert improve.quality(best) == (1, 0, 0, 0, 8)
+    assert quality(best) == (1, 0, 0, 0, 8)
 
 
 @pytest.mark.parametrize("effort", ["normal", "best"])
@@ -403,8 +408,8 @@ def test_progress_only_rises_and_says_what_it_counts():
 def test_failing_joints_counted_before_weak_points():
     grid = grid_of(np.ones((2, 8, 6), bool))
     lay = unit_plates(grid)
-    assert improve.quality(lay, lambda l: 7)[1] == 7
-    assert improve.quality(lay)[1] == 0
+    assert quality(lay, lambda l: 7)[1] == 7
+    assert quality(lay)[1] == 0
     seen = []
 
     def one_by_ones(candidate):
@@ -415,7 +420,7 @@ def test_failing_joints_counted_before_weak_points():
     start = layout_stage.lay_out(grid_of(np.ones((3, 5, 6), bool)), catalog.CATALOG, seed=0)
     better = improve.improve(start, catalog.CATALOG, "normal", 0, failing_joints=one_by_ones)
     assert seen and all(seen)
-    assert improve.quality(better, one_by_ones) <= improve.quality(start, one_by_ones)
+    assert quality(better, one_by_ones) <= quality(start, one_by_ones)
 
 
 def _crossing_spike() -> Layout:
@@ -438,14 +443,14 @@ def test_search_goes_back_from_a_trade_of_a_thin_weak_point():
     the search goes back to the crossing bricks, which :func:`quality` ranks first."""
     lay = _crossing_spike()
     towers = [(0, 0, 0, 2, 2, 3), (0, 0, 3, 2, 2, 3)]
-    search = improve._Search(lay, catalog.CATALOG, 0, set(), None, None)
+    search = Search(lay, catalog.CATALOG, 0, set(), None, None)
     assert search.key == (1, 0, 1, 0, 5) and not search._try([0, 1, 2, 3], towers, (0, 0, 0))[0]
     search.count_weak(False)
     kept, _ = search._try([0, 1, 2, 3], towers, (0, 0, 0))
     assert kept and search.key == (1, 0, 0, 0, 3) and search.strict == (1, 0, 1, 1, 3)
     search.restore_best()
     back = search.layout(None, renumber=False)
-    assert search.strict == improve.quality(lay) == (1, 0, 0, 1, 5) and covers_once(back)
+    assert search.strict == quality(lay) == (1, 0, 0, 1, 5) and covers_once(back)
     assert sorted((b.cell, b.size) for b in back.bricks) == \
         sorted((b.cell, b.size) for b in lay.bricks)
 
@@ -460,10 +465,10 @@ def test_compaction_keeps_another_cover_of_as_many_bricks():
                                     Brick(1, "3004", (1, 2, 3), (0, 0, 3)),
                                     Brick(2, "3004", (1, 2, 3), (0, 2, 3))])
     flipped = [(0, 0, 0, 1, 2, 3), (0, 2, 0, 1, 2, 3), (0, 0, 3, 1, 4, 3)]
-    counting = improve._Search(wall, catalog.CATALOG, 0, set(), None, None)
+    counting = Search(wall, catalog.CATALOG, 0, set(), None, None)
     assert counting.key == (1, 0, 1, 1, 3)
     assert not counting._try([0, 1, 2], flipped, (0, 0, 0))[0]
-    compacting = improve._Search(wall, catalog.CATALOG, 0, set(), None, None)
+    compacting = Search(wall, catalog.CATALOG, 0, set(), None, None)
     compacting.count_weak(False)
     before = compacting.key
     assert compacting._try([0, 1, 2], flipped, (0, 0, 0))[0] and compacting.key == before
@@ -481,14 +486,14 @@ def test_thin_weak_point_on_a_one_cell_spike():
     weak point is the layout's doing, not thin."""
     lay = _crossing_spike()
     filled = np.asarray(lay.grid.filled)
-    assert improve.thin_weak_points(lay) == [2]
+    assert thin_weak_points(lay) == [2]
     # the same cells as two 2x2 bricks and the plate: two bricks fewer, but a weak point
     # that is the layout's doing, so the key ranks it below the thin one
     bricks = Layout(lay.grid, [Brick(0, "3003", (2, 2, 3), (0, 0, 0)),
                                Brick(1, "3003", (2, 2, 3), (0, 0, 3)),
                                Brick(2, "3024", (1, 1, 1), (0, 0, 6))])
-    assert improve.quality(lay) == (1, 0, 0, 1, 5) and improve.quality(bricks) == (1, 0, 1, 1, 3)
-    assert improve.quality(lay) < improve.quality(bricks)
+    assert quality(lay) == (1, 0, 0, 1, 5) and quality(bricks) == (1, 0, 1, 1, 3)
+    assert quality(lay) < quality(bricks)
     block = improve.layout_quality(lay, lay, catalog.CATALOG, {"layout": 0.1, "improve": 0.0})
     assert block["weak_points"] == 1 and block["weak_points_thin"] == 1
     assert block["lower_bound"]["bound"] == 3 and block["lower_bound"]["proven"]
@@ -504,13 +509,13 @@ def test_thin_weak_point_on_a_one_cell_spike():
     stack = Layout(grid_of(filled), [Brick(0, "3003", (2, 2, 3), (0, 0, 0)),
                                      Brick(1, "3003", (2, 2, 3), (0, 0, 3)),
                                      Brick(2, "3024", (1, 1, 1), (0, 0, 6))])
-    assert improve.quality(stack)[2:] == (1, 1, 3) and improve.thin_weak_points(stack) == []
+    assert quality(stack)[2:] == (1, 1, 3) and thin_weak_points(stack) == []
     assert improve.layout_quality(stack, stack, catalog.CATALOG,
                                   lower_bound=True)["lower_bound"]["one_piece"]["bound"] is None
     # a layout with a weak point that is not thin: no such bound holds for it
     apart = Layout(grid_of(filled[:, :, :6]), stack.bricks[:1] + [
         Brick(1, "3004", (1, 2, 3), (0, 0, 3)), Brick(2, "3004", (1, 2, 3), (1, 0, 3))])
-    assert improve.quality(apart)[2:4] == (1, 1) and not improve.thin_weak_points(apart)
+    assert quality(apart)[2:4] == (1, 1) and not thin_weak_points(apart)
     other = improve.layout_quality(apart, apart, catalog.CATALOG, lower_bound=True)
     assert other["lower_bound"]["one_piece"]["bound"] is None
     assert "no bound of such layouts holds" in other["lower_bound"]["one_piece"]["why"]
@@ -548,15 +553,15 @@ def test_leaf_free_bound_of_a_column_is_the_hand_count():
     grid = grid_of(np.ones((2, 4, 15), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3001", "3003"))
     assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 5
-    found = improve.leaf_free_bound(grid, parts, time_limit_s=10)
+    found = leaf_free_bound(grid, parts, time_limit_s=10)
     assert found["bound"] == 7 and found["optimal"] and found["objective"] == 7
     by_hand = [Brick(0, "3001", (2, 4, 3), (0, 0, 0)), Brick(7, "3001", (2, 4, 3), (0, 0, 12))]
     by_hand += [Brick(1 + 2 * k + side, "3003", (2, 2, 3), (0, 2 * side, 3 + 3 * k))
                 for k in range(3) for side in range(2)]
     assert covers_once(Layout(grid, by_hand))
-    assert improve.quality(Layout(grid, by_hand)) == (1, 0, 0, 0, 8)
+    assert quality(Layout(grid, by_hand)) == (1, 0, 0, 0, 8)
     # a 2x4 that fills a middle layer splits the column: without weak points, 8 exactly
-    strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, no_weak_points=True)
+    strict = leaf_free_bound(grid, parts, time_limit_s=10, no_weak_points=True)
     assert strict["bound"] == 8 and strict["optimal"]
 
 
@@ -573,7 +578,7 @@ def test_bound_of_a_strip_finds_no_layout_of_its_kind():
     assert brick_lower_bound(grid, parts, time_limit_s=10)["bound"] == 4
     for options in ({}, {"connected": True}, {"connected": True, "no_weak_points": True},
                     {"connected": True, "most_weak": 3}):
-        found = improve.leaf_free_bound(grid, parts, time_limit_s=10, **options)
+        found = leaf_free_bound(grid, parts, time_limit_s=10, **options)
         assert found["bound"] is None and found["status"] == "infeasible", options
 
 
@@ -582,10 +587,10 @@ def test_connected_bound_without_weak_points_of_a_column_is_the_hand_count():
     weak point, and 7 without weak points asked for."""
     grid = grid_of(np.ones((2, 4, 15), bool))
     parts = tuple(p for p in catalog.CATALOG if p.number in ("3001", "3003"))
-    strict = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
+    strict = leaf_free_bound(grid, parts, time_limit_s=10, connected=True,
                                      no_weak_points=True)
     assert strict["bound"] == 8 and strict["optimal"] and strict["objective"] == 8
-    joined = improve.leaf_free_bound(grid, parts, time_limit_s=10, connected=True)
+    joined = leaf_free_bound(grid, parts, time_limit_s=10, connected=True)
     assert joined["bound"] == 7 and joined["optimal"]
 
 
@@ -640,7 +645,7 @@ def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, 
     points (networkx); where no cover is, the bound finds none (7 of these 12 shapes).  The
     same with the degree cuts in the relaxation first, as large programs get them."""
     if relaxed_cuts:
-        monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
+        monkeypatch.setattr(connected_bound, "LP_CUT_VARIABLES", 0)
     import networkx as nx
     filled, parts = _small_shape(size, seed)
     fewest = None
@@ -649,7 +654,7 @@ def test_connected_bound_without_weak_points_is_the_fewest_of_every_cover(size, 
         graph = _graph_by_networkx(lay)
         if nx.is_connected(graph) and not list(nx.articulation_points(graph)):
             fewest = len(boxes) if fewest is None else min(fewest, len(boxes))
-    found = improve.leaf_free_bound(grid_of(filled), parts, time_limit_s=20, connected=True,
+    found = leaf_free_bound(grid_of(filled), parts, time_limit_s=20, connected=True,
                                     no_weak_points=True)
     if fewest is None:
         assert found["bound"] is None and found["status"] == "infeasible"
@@ -688,7 +693,7 @@ def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, see
     (:func:`_thin_weak_points_here`); where such covers exist the program finds some.  The
     same with the degree cuts in the relaxation first, as large programs get them."""
     if relaxed_cuts:
-        monkeypatch.setattr(improve, "LP_CUT_VARIABLES", 0)
+        monkeypatch.setattr(connected_bound, "LP_CUT_VARIABLES", 0)
     import networkx as nx
     filled, parts = _small_shape(size, seed)
     fewest = {1: None, 2: None, 3: None}
@@ -702,7 +707,7 @@ def test_bound_with_thin_weak_points_never_exceeds_a_cover_of_its_kind(size, see
             if weak == thin <= most:
                 fewest[most] = len(boxes) if fewest[most] is None else min(fewest[most], len(boxes))
     for most, count in fewest.items():
-        found = improve.leaf_free_bound(grid_of(filled), parts, time_limit_s=20, connected=True,
+        found = leaf_free_bound(grid_of(filled), parts, time_limit_s=20, connected=True,
                                         most_weak=most)
         if count is not None:
             assert found["bound"] is not None and found["bound"] <= count, (most, count, found)
@@ -720,7 +725,7 @@ def test_separating_bricks_are_those_that_split_their_region():
     boxes = np.array([(2, 0, 0, 1, 1, 1), (1, 0, 0, 1, 1, 1), (0, 0, 0, 1, 1, 1),
                       (0, 0, 0, 2, 1, 1), (0, 2, 1, 1, 1, 1), (0, 2, 2, 1, 1, 1),
                       (0, 2, 0, 1, 1, 3)])
-    assert improve.separating(boxes, labels).tolist() == [True, True, False, False, True,
+    assert separating(boxes, labels).tolist() == [True, True, False, False, True,
                                                           False, False]
 
 
@@ -736,10 +741,10 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     grid = grid_of(filled)
     lay = improve.improve(layout_stage.lay_out(grid, catalog.CATALOG, seed=0), catalog.CATALOG,
                           "normal", 0)
-    found = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10)
-    comps, _, _, weak, bricks = improve.quality(lay)
+    found = leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10)
+    comps, _, _, weak, bricks = quality(lay)
     regions = improve.layout_quality(lay, lay, catalog.CATALOG)["regions"]
-    accepted = comps == regions and weak == len(improve.thin_weak_points(lay))
+    accepted = comps == regions and weak == len(thin_weak_points(lay))
     if found["bound"] is None:
         # no accepted layout exists (e.g. an L of three cells in one layer: two bricks side
         # by side never join), so the improved one is not accepted either
@@ -748,7 +753,7 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
     assert found["bound"] >= brick_lower_bound(grid, catalog.CATALOG, time_limit_s=10)["bound"]
     if accepted:
         assert found["bound"] <= bricks
-    strict = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, no_weak_points=True)
+    strict = leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, no_weak_points=True)
     if strict["bound"] is None:
         assert strict["status"] == "infeasible" and not (comps == regions and weak == 0)
         return
@@ -761,7 +766,7 @@ def test_leaf_free_bound_never_exceeds_a_connected_layout_without_weak_points(fi
             (False, None, found["bound"], accepted),
             (True, None, strict["bound"], comps == regions and weak == 0),
             (False, weak, found["bound"], accepted)):
-        joined = improve.leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, connected=True,
+        joined = leaf_free_bound(grid, catalog.CATALOG, time_limit_s=10, connected=True,
                                          no_weak_points=no_weak, most_weak=most)
         if joined["bound"] is None:
             assert joined["status"] == "infeasible" and not counts
@@ -817,9 +822,9 @@ def test_normal_removes_the_hw_boxs_weak_point_that_no_thin_feature_forces(monke
     networkx on a brick graph built here.  (With HiGHS 1.8 seed 0 left them so; with 1.15
     its windows leave the thin one alone there.)"""
     after, before = _mended(monkeypatch, "relativty_hw_box_nonmanifold.stl", seed=2)
-    assert _weak_points_by_networkx(before) == 2 and len(improve.thin_weak_points(before)) == 1
-    assert _weak_points_by_networkx(after) == 1 and len(improve.thin_weak_points(after)) == 1
-    assert improve.quality(after)[0] == 1 and covers_once(after)
+    assert _weak_points_by_networkx(before) == 2 and len(thin_weak_points(before)) == 1
+    assert _weak_points_by_networkx(after) == 1 and len(thin_weak_points(after)) == 1
+    assert quality(after)[0] == 1 and covers_once(after)
     assert len(after.bricks) < len(before.bricks)
 
 
@@ -839,11 +844,11 @@ def test_normal_tries_a_weak_point_on_a_thin_feature_too(monkeypatch):
     monkeypatch.setattr(improve, "_repair_weak", counted)
     after, before = _mended(monkeypatch, "utah_teapot_open.stl")
     weak = _weak_points_by_networkx(before)
-    assert weak > 0 and len(improve.thin_weak_points(before)) == weak
+    assert weak > 0 and len(thin_weak_points(before)) == weak
     assert any(entry[2] == 0 and entry[3] > 0 and windows > 0
                for entry, windows in tried)
-    assert improve.quality(after) <= improve.quality(before)
-    assert improve.quality(after)[0] == 1 and covers_once(after)
+    assert quality(after) <= quality(before)
+    assert quality(after)[0] == 1 and covers_once(after)
 
 
 @settings(max_examples=30, deadline=None)
@@ -856,9 +861,9 @@ def test_window_placements_are_every_box_of_filled_cells(data):
                                        max_size=int(np.prod(size))))).reshape(size)
     apart = np.array(data.draw(st.lists(st.booleans(), min_size=free.size,
                                         max_size=free.size))).reshape(size)
-    shapes = improve._shapes(catalog.CATALOG)
+    shapes = numbered_shapes(catalog.CATALOG)
     for mask in (None, apart):
-        found = improve._placements(free, mask, shapes)
+        found = free_placements(free, mask, shapes)
         expected = set()
         for (sx, sy, sz), _ in shapes:
             for x, y, z in np.ndindex(size):
@@ -888,14 +893,14 @@ def test_fixed_leaf_targets_of_a_hand_made_window():
     lab[3, 0, 0] = 10                      # 1x1 under the fourth freed cell
     lab[1:3, 0, 0] = 12                    # 1x2 under the second and third
     filled = free | (lab >= 0)
-    targets = improve._fixed_leaf_targets(free, filled, lab)
+    targets = window_program._fixed_leaf_targets(free, filled, lab)
     assert targets.tolist() == [[0, 0, 0, 0, 1], [3, 0, 3, 0, 1], [1, 0, 2, 0, 1]]
 
 
 def test_rows_of_finds_each_current_brick_among_the_placements_or_none():
     """Against a dictionary of the placements: the row of every current brick that is one,
     None for one that is not (a brick of another shape, or outside the window)."""
-    from core.layout.search import _rows_of
+    from core.layout.window_program import _rows_of
     rng = np.random.default_rng(0)
     for _ in range(200):
         boxes = np.unique(rng.integers(0, 6, (int(rng.integers(0, 50)), 6)), axis=0).reshape(-1, 6)

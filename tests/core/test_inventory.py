@@ -124,6 +124,7 @@ from core import catalog  # noqa: E402
 from core.inventory import Stock, used  # noqa: E402
 from core.layout import greedy as layout_stage  # noqa: E402
 from core.layout import search as improve  # noqa: E402
+from core.layout.quality import quality  # noqa: E402
 from core.model import Brick, Grid, Layout  # noqa: E402
 
 
@@ -174,7 +175,7 @@ def test_the_window_program_trades_bought_bricks_for_owned_ones():
     assert stock.bought(used(start)) > 0
     better = improve.improve(start, catalog.CATALOG, "normal", stock=stock)
     assert _covers_once(better)
-    assert improve.quality(better)[:3] <= improve.quality(start)[:3]
+    assert quality(better)[:3] <= quality(start)[:3]
     assert stock.bought(used(start)) == 2 and stock.cost(used(start)) == 2 * 2.5 + 4
     assert stock.bought(used(better)) == 0 and stock.cost(used(better)) == 6
     # where none may be bought, none is
