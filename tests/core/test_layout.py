@@ -13,6 +13,7 @@ from hypothesis.extra.numpy import arrays
 from core.catalog import BY_NUMBER, CATALOG, select
 from core.errors import InputError
 from core.layout import greedy as layout_stage
+from core.layout.brick_cells import brick_group_candidates
 from core.layout.greedy import lay_out
 from core.model import CELL_MM, Grid
 from core.stability import analyse
@@ -150,7 +151,7 @@ def test_staircase_of_short_runs_is_connected():
 
 def test_brick_cells_are_three_filled_layers_of_one_column():
     filled = np.random.default_rng(7).random((9, 9, 10)) < 0.8
-    for base in layout_stage.brick_group_candidates(filled):
+    for base in brick_group_candidates(filled):
         assert ((base == -2) == ~filled).all()
         i, j, k = np.nonzero(base >= 0)
         k0 = base[i, j, k]
