@@ -15,9 +15,9 @@ and the painted bricks:
   with its studs, sockets and LEGO's play but without the engraved id; its volume, area and
   height along the direction its pose printed up (the largest part's pose for a group that
   took parts in; upright for a new part) make one plate of
-  :func:`core.printing.print_time.plate_features`.  A stroke cuts only the parts it changed.
+  :func:`core.printing.estimate.plate_features`.  A stroke cuts only the parts it changed.
 * **Time.**  The last result's print time (each part's ``print_s``, sliced or estimated)
-  plus the calibrated estimate's change (:data:`core.printing.print_time.ESTIMATE_COEFFS`) from the
+  plus the calibrated estimate's change (:data:`core.printing.estimate.ESTIMATE_COEFFS`) from the
   parts as they are to the parts as changed: with nothing changed, the last result's time.
   The speed-up is the report's (:func:`core.pipeline.speedups`, ``fabrication``) for a fresh
   build of the changed layout, against the last whole-model print time.
@@ -49,7 +49,7 @@ from core.io.meshes import LoadedModel
 from core.model import Layout
 from core.parts import connectors as connectors_stage, printed
 from core.parts.interfaces import Fit
-from core.printing import print_time
+from core.printing.estimate import ESTIMATE_COEFFS, PrintEstimate, estimate_seconds, plate_features
 
 #: The brush modes an estimate is made for.
 MODES = ("high-res", "unmark", "merge", "split")
@@ -138,7 +138,7 @@ class Estimator:
         self.layout = layout
         self.parts = {p.id: p for p in parts}
         self.whole_estimated = full_s is None
-        self.full_s = print_time.estimate_seconds([mesh]) if full_s is None else float(full_s)
+        self.full_s = estimate_seconds([mesh]) if full_s is None else float(full_s)
         self.seconds_per_brick = float(seconds_per_brick)
         self.seconds_per_part = float(seconds_per_part)
         model = LoadedModel(mesh, "the stored model", "ply", len(mesh.faces), bool(mesh.is_watertight))
@@ -250,10 +250,10 @@ class Estimator:
         if not groups:
             return 0.0
         meshes = [(up, self._mesh(bricks)) for up, bricks in groups]
-        features = print_time.plate_features([abs(float(m.volume)) for _, m in meshes],
+        features = plate_features([abs(float(m.volume)) for _, m in meshes],
                                              [float(m.area) for _, m in meshes],
                                              [float(np.ptp(m.vertices @ np.asarray(up))) for up, m in meshes])
-        return float(features @ np.asarray(print_time.ESTIMATE_COEFFS, dtype=float))
+        return float(features @ np.asarray(ESTIMATE_COEFFS, dtype=float))
 
     def _figures(self, print_s: float, groups: list) -> Figures:
         """The figures of ``groups`` printed in ``print_s``: the report's speed-up of a
@@ -263,8 +263,8 @@ class Estimator:
             dataclasses.replace(b, kind="printed", printed_part=owner[b.id]) if b.id in owner
             else dataclasses.replace(b, kind="lego", printed_part=None) for b in self.layout.bricks])
         build = SimpleNamespace(
-            print_full=print_time.PrintEstimate(self.full_s, "last", None),
-            print_parts=print_time.PrintEstimate(print_s, "live estimate", None), iteration=None,
+            print_full=PrintEstimate(self.full_s, "last", None),
+            print_parts=PrintEstimate(print_s, "live estimate", None), iteration=None,
             layout=layout, seconds_per_brick=self.seconds_per_brick,
             seconds_per_part=self.seconds_per_part)
         gains = pipeline.speedups(build)

@@ -8,7 +8,7 @@ standing at once, :func:`prop_counts`) and one row per printed part (kind
 ``printed``: its ID, bricks replaced, volume, print time and STL file).
 A printed part's print time is the slicer's share when the pipeline sliced
 (``PrintedPart.print_s``), else the calibrated estimate of
-:func:`core.printing.print_time.estimate_seconds` for that part alone, and the
+:func:`core.printing.estimate.estimate_seconds` for that part alone, and the
 ``print_method`` column says which.
 
 ``bricklink.xml`` is a BrickLink wanted list (Wanted > Upload, BrickLink
@@ -151,7 +151,7 @@ def lines(layout: Layout, printed_parts=(), props=(), colouring: dict | None = N
     row per printed part.  With ``colouring`` (see the module's text) LEGO rows are per
     design and each brick's colour, with the owned count.
     """
-    from core.printing.print_time import ESTIMATE_METHOD, estimate_seconds
+    from core.printing.estimate import ESTIMATE_METHOD, estimate_seconds
 
     counts = lego_colour_counts(layout, colouring)
     mine = None if colouring is None else owned_colour_counts(layout, colouring)

@@ -31,12 +31,13 @@ import trimesh
 
 from core.parts.printed import PrintedPart
 from core.printing import print_time
-from core.printing.print_time import Pose
+from core.printing.plate import ARRANGE_GAP_MM, bed_rectangle, plate_3mf
+from core.printing.poses import Pose, posed
 
 #: Gap (mm) between parts on a plate, and between the parts and the bed's edge:
 #: the slicer's least gap (supports spread beyond their part; PrusaSlicer 2.9
 #: refuses supported parts 6 mm apart).
-SPACING_MM = print_time.ARRANGE_GAP_MM
+SPACING_MM = ARRANGE_GAP_MM
 
 #: Extra cost (fraction of the pose's print time) of printing a part with
 #: studs or sockets in any pose but upright: its clamping features then print
@@ -87,7 +88,7 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
     clamping penalty when it has studs or sockets (they clamp the bricks
     above and below) and the engraving rule when its id is engraved; a
     bare mesh is treated as a part with studs and no engraving.  The copy is marked posed
-    (:func:`core.printing.print_time.posed`), so :func:`core.printing.print_time.print_time`
+    (:func:`core.printing.poses.posed`), so :func:`core.printing.print_time.print_time`
     slices it as it stands, with the supports its pose needs.  The poses are sliced
     under ``workdir`` (a temporary folder when None).
     """
@@ -98,7 +99,7 @@ def lay_flat(part: PrintedPart | trimesh.Trimesh, profile: str | os.PathLike | N
     else:
         mesh, studs, clamping, normal = part, True, True, None
     pose = print_pose(mesh, studs, clamping, normal, profile=profile, slicer=slicer, workdir=workdir)
-    return print_time.posed(mesh, pose), pose
+    return posed(mesh, pose), pose
 
 
 def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
@@ -109,7 +110,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     rule gives.
 
     ``bed`` is the printable (x, y) in mm from the origin (default: the profile's bed,
-    :func:`core.printing.print_time.bed_rectangle`, where it lies).  Shelf packing: each part is
+    :func:`core.printing.plate.bed_rectangle`, where it lies).  Shelf packing: each part is
     turned about z so its longer side runs along the bed's longer side
     when that fits, the parts are taken tallest footprint (y) first and
     set left to right in rows, SPACING_MM apart and from the bed's edges; a
@@ -121,7 +122,7 @@ def plates(parts: list, bed=None, profile: str | os.PathLike | None = None,
     overlap.
     """
     rectangle = (np.array([[0.0, 0.0], bed], dtype=float) if bed is not None else
-                 print_time.bed_rectangle(print_time.load_profile(profile, slicer)))
+                 bed_rectangle(print_time.load_profile(profile, slicer)))
     size, origin = rectangle[1] - rectangle[0], rectangle[0]
     laid = []
     flat = print_time.in_parallel(lambda part: lay_flat(part, profile, slicer, workdir), parts, 2)
@@ -270,7 +271,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
     returned for these ``parts``, so that the poses are not searched again):
     ``plate-1.3mf``, then ``plate-2.3mf`` ... when the parts need more beds.  Each plate carries the settings it is to be
     printed with as PrusaSlicer's project config
-    (:func:`core.printing.print_time.plate_3mf`): the
+    (:func:`core.printing.plate.plate_3mf`): the
     profile's, with :data:`core.printing.print_time.SUPPORT_SETTINGS` when a part on
     it is posed with supports, so PrusaSlicer opening it prints what
     :func:`core.printing.print_time.print_time` timed.
@@ -296,7 +297,7 @@ def export_parts(parts: list[PrintedPart], folder: str | os.PathLike, bed=None,
             files[parts[index].id]["pose"] = {**pose.to_json(), "plate": f"{folder.name}/{name}"}
         config = print_time.plate_config(profile, supports=any(pose.supports for _, _, pose in items),
                                          slicer=slicer)
-        (folder / name).write_bytes(print_time.plate_3mf([mesh for _, mesh, _ in items], config,
+        (folder / name).write_bytes(plate_3mf([mesh for _, mesh, _ in items], config,
                                                          names=[parts[index].id for index, _, _ in items]))
         written.append(name)
     return written, [dataclasses.replace(p, **files[p.id]) for p in parts]

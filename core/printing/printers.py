@@ -32,6 +32,9 @@ import trimesh
 
 from core.errors import InputError
 from core.printing import print_time, slicer_profile
+from core.printing.estimate import PrintEstimate
+from core.printing.plate import ARRANGE_GAP_MM, build_volume
+from core.printing.poses import candidate_poses
 
 #: Where the vendor bundles lie when no slicer binary points to them (Debian's package).
 DEFAULT_BUNDLES = Path("/usr/share/PrusaSlicer/profiles")
@@ -80,7 +83,7 @@ class Printer:
         return {"printer": self.printer, "print_preset": self.print_preset, "filament": self.filament,
                 "vendor": self.vendor, "bundle_version": self.bundle_version, "source": self.source,
                 "layer_height_mm": _float(self.config.get("layer_height")),
-                "build_volume_mm": [round(float(v), 3) for v in print_time.build_volume(self.config)]}
+                "build_volume_mm": [round(float(v), 3) for v in build_volume(self.config)]}
 
 
 # ----------------------------------------------------------------- conditions
@@ -331,7 +334,7 @@ def listing(folder: str | os.PathLike | None) -> dict[str, list[tuple[str, list[
         for name in fff_printers(bundle):
             config = slicer_profile.resolve(bundle.sections, "printer", name)
             try:
-                size = [float(v) for v in print_time.build_volume(config)]
+                size = [float(v) for v in build_volume(config)]
             except InputError:
                 continue
             out.setdefault(bundle.vendor, []).append((name, size))
@@ -438,7 +441,7 @@ def from_file(path: str | os.PathLike) -> Printer:
         raise InputError(f"--slicer-config {path}: not a PrusaSlicer config, it lacks "
                          f"{', '.join(missing)} (export one with File > Export > Export Config)")
     try:
-        print_time.build_volume(config)
+        build_volume(config)
     except InputError:
         raise InputError(f"--slicer-config {path}: its bed_shape / max_print_height "
                          f"cannot be read") from None
@@ -517,7 +520,7 @@ def check_plates(printer: Printer | None, beds, ids) -> None:
     of the chosen ``printer`` in no way; nothing for the default printer (None)."""
     if printer is None:
         return
-    volume = print_time.build_volume(printer.config)
+    volume = build_volume(printer.config)
     for items in beds:
         for index, mesh, _ in items:
             if not fits(mesh.extents, volume):
@@ -537,30 +540,30 @@ def fits(extents, volume) -> bool:
 
 
 def fits_some_pose(mesh: trimesh.Trimesh, volume) -> bool:
-    """Whether ``mesh`` fits the build ``volume`` in one of its :func:`core.printing.print_time.candidate_poses`."""
+    """Whether ``mesh`` fits the build ``volume`` in one of its :func:`core.printing.poses.candidate_poses`."""
     return any(fits(np.ptp(trimesh.transform_points(mesh.convex_hull.vertices, rotation), axis=0), volume)
-               for _, rotation in print_time.candidate_poses(mesh))
+               for _, rotation in candidate_poses(mesh))
 
 
 def enlarged(config: dict[str, str], extents) -> dict[str, str]:
     """``config`` with a rectangular bed and a height large enough for a part of
     ``extents`` in any pose (its longest side, ARRANGE_GAP_MM spare on each side)."""
-    volume = print_time.build_volume(config)
-    side = float(np.max(extents)) + 2 * print_time.ARRANGE_GAP_MM
+    volume = build_volume(config)
+    side = float(np.max(extents)) + 2 * ARRANGE_GAP_MM
     x, y = max(volume[0], side), max(volume[1], side)
     return {**config, "bed_shape": f"0x0,{x:g}x0,{x:g}x{y:g},0x{y:g}",
             "max_print_height": f"{max(volume[2], side):g}"}
 
 
 def reference_time(mesh: trimesh.Trimesh, workdir: str | os.PathLike, profile=None,
-                   slicer: str | None = "auto") -> print_time.PrintEstimate:
+                   slicer: str | None = "auto") -> PrintEstimate:
     """The whole model's print time on the printer of ``profile``
     (:func:`core.printing.print_time.print_time`, its fastest pose); when it fits that printer's build volume in no candidate pose, the
     time as if the bed were large enough (:func:`enlarged`), marked ``enlarged_bed`` and
     so named in ``method``."""
     binary, _ = print_time.resolve_slicer(slicer)
     config = print_time.load_profile(profile, binary)
-    volume = print_time.build_volume(config)
+    volume = build_volume(config)
     if fits_some_pose(mesh, volume):
         return print_time.print_time([mesh], workdir, profile=profile, slicer=slicer)
     result = print_time.print_time([mesh], workdir, profile=enlarged(config, mesh.extents), slicer=slicer)

@@ -16,6 +16,8 @@ from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
 from core.parts import printed
 from core.printing import export, print_time
+from core.printing.plate import SLIC3R_CONFIG, build_volume
+from core.printing.poses import POSE_KEY, support_need, support_seconds
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "examples" / "build" / "hmd.step"
@@ -120,7 +122,7 @@ def _overlap(a, b):
 @pytest.mark.slow
 def test_plate_lays_parts_on_the_bed_inside_it_without_overlap():
     parts = _parts([[("3001", (2, 4, 3), (0, 0, 0))], ARM, CAP, [("3003", (2, 2, 3), (6, 2, 0))]])
-    bed = print_time.build_volume(print_time.load_profile())[:2]
+    bed = build_volume(print_time.load_profile())[:2]
     (plate,) = export.plates(parts)
     assert sorted(i for i, _, _ in plate) == [0, 1, 2, 3]
     boxes = [mesh.bounds for _, mesh, _ in plate]
@@ -156,13 +158,13 @@ needs_slicer = pytest.mark.skipif(print_time.slicer_path() is None,
 def test_overhanging_part_gets_a_flatter_pose_than_upright():
     (arm,) = _parts([ARM])
     mesh, pose = export.lay_flat(arm)
-    area, height, volume = print_time.support_need(arm.mesh)
+    area, height, volume = support_need(arm.mesh)
     assert area > 100 and height > 18
     assert pose.name != "upright" and pose.support_mm3 < volume
     assert mesh.extents[2] < arm.mesh.extents[2]
     assert pose.studs_up == pytest.approx(0.0, abs=1e-9)
     assert mesh.bounds[0] == pytest.approx([0, 0, 0], abs=1e-9)
-    assert mesh.metadata[print_time.POSE_KEY] == {"name": pose.name, "supports": pose.supports}
+    assert mesh.metadata[POSE_KEY] == {"name": pose.name, "supports": pose.supports}
 
 
 @pytest.mark.slow
@@ -225,7 +227,7 @@ def test_plate_config_switches_supports_on_when_a_part_needs_them(tmp_path):
     configs = {}
     for name in ("plain", "mixed"):
         with zipfile.ZipFile(tmp_path / name / "plate-1.3mf") as archive:
-            text = archive.read(print_time.SLIC3R_CONFIG).decode()
+            text = archive.read(SLIC3R_CONFIG).decode()
         configs[name] = dict(line[2:].split(" = ", 1) for line in text.splitlines() if " = " in line)
     assert configs["plain"]["support_material"] == "0"
     assert configs["mixed"]["support_material"] == "1" and configs["mixed"]["support_material_auto"] == "1"
@@ -258,11 +260,11 @@ def test_support_need_agrees_with_the_slicer(tmp_path):
     stem = trimesh.creation.box((10, 10, 20)).apply_translation((0, 0, 10))
     bar = trimesh.creation.box((30, 10, 4)).apply_translation((0, 0, 22))
     tee = trimesh.boolean.union([stem, bar], engine="manifold")
-    area, height, _ = print_time.support_need(tee)
+    area, height, _ = support_need(tee)
     assert area == pytest.approx(200, rel=1e-6) and height == pytest.approx(20, abs=1e-6)
     plain = print_time.slice_plate([tee], tmp_path, supports=False)
     supported = print_time.slice_plate([tee], tmp_path, supports=True)
     assert supported.supports and not plain.supports
     # the support model (714 s here) is fitted to PrusaSlicer 2.5, which takes 757 s for these
     # supports; 2.9 prints them in 558 s
-    assert print_time.support_seconds(area, height) == pytest.approx(supported.seconds - plain.seconds, rel=0.3)
+    assert support_seconds(area, height) == pytest.approx(supported.seconds - plain.seconds, rel=0.3)

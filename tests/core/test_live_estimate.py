@@ -5,7 +5,7 @@ measuring: the pipeline's own grouping of the printed bricks
 (:func:`core.high_res.groups`), the parts :func:`core.parts.printed.build_parts` cuts for
 it (studs, sockets, play and engraving included: the estimate cuts each part the
 same way, without the id), and
-:func:`core.printing.print_time.estimate_seconds` of those parts on one plate as they were
+:func:`core.printing.estimate.estimate_seconds` of those parts on one plate as they were
 cut (upright).  The last result's print time is that same reference for the parts
 as they are, so the estimate's change is checked, not its anchor.
 """
@@ -22,6 +22,7 @@ from core import high_res, live_estimate, pipeline
 from core.errors import InputError
 from core.parts import printed
 from core.printing import print_time
+from core.printing.estimate import estimate_seconds
 from core.request import Request
 
 #: How far (relative) the estimate may be from the reference: the estimate does not
@@ -55,7 +56,7 @@ def reference_s(fab, ids) -> tuple[float, int]:
     groups = high_res.groups(layout, sorted(ids))
     parts = printed.build_parts(layout, groups, printed.model_solid(fab.model), fab.interface,
                                 engrave=True)
-    return print_time.estimate_seconds([p.mesh for p in parts]), len(parts)
+    return estimate_seconds([p.mesh for p in parts]), len(parts)
 
 
 def printed_ids(fab) -> set[int]:
@@ -178,7 +179,7 @@ def test_without_a_whole_model_time_the_speed_up_is_against_the_models_estimate(
     then against print_time's calibrated estimate of the model itself, and says so."""
     est = live_estimate.Estimator(fab.layout, fab.model.mesh, [], None, 10.0, 30.0)
     got = est.estimate(lego_neighbours(fab, printed_ids(fab))[:1])
-    whole = print_time.estimate_seconds([fab.model.mesh])
+    whole = estimate_seconds([fab.model.mesh])
     assert got.print_s > 0 and got.parts == 1 and got.whole_estimated
     assert got.speedup == pytest.approx(whole / got.fabrication_s, rel=1e-9)
     assert "against the whole model's estimate" in live_estimate.words(got, est.last(), sliced=False)

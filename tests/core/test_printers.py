@@ -16,6 +16,7 @@ import trimesh
 from core import pipeline
 from core.errors import InputError
 from core.printing import print_time, printers, slicer_profile
+from core.printing.plate import SLIC3R_CONFIG, bed_rectangle, build_volume, config_text
 from core.request import Request
 
 from conftest import HMD_HIGH_RES
@@ -213,7 +214,7 @@ def test_demo_is_timed_on_the_printer(name, hmd_step, tmp_path, mk3s_demo):
     total = 0.0
     for plate in plates:
         with zipfile.ZipFile(plate) as archive:
-            settings = archive.read(print_time.SLIC3R_CONFIG).decode()
+            settings = archive.read(SLIC3R_CONFIG).decode()
         assert f"; printer_settings_id = {name}\n" in settings
         assert f"; print_settings_id = {chosen.print_preset}\n" in settings
         total += _resliced(plate, tmp_path)
@@ -240,7 +241,7 @@ def test_fits_by_hand():
 def test_enlarged_bed_takes_the_longest_side():
     config = {"bed_shape": "0x0,180x0,180x180,0x180", "max_print_height": "180", "x": "1"}
     big = printers.enlarged(config, (20.0, 30.0, 200.0))
-    assert list(print_time.build_volume(big)) == [220.0, 220.0, 220.0] and big["x"] == "1"
+    assert list(build_volume(big)) == [220.0, 220.0, 220.0] and big["x"] == "1"
     assert config["bed_shape"] == "0x0,180x0,180x180,0x180"
 
 
@@ -315,7 +316,7 @@ def test_a_config_prusaslicer_saved_is_sliced_as_it_is(tmp_path):
     report and the plate's settings say 0.3, and re-slicing the plate by hand gives the
     report's printed-parts time."""
     start = tmp_path / "mini.ini"
-    start.write_text(print_time.config_text(printers.choose(MINI, folder=FOLDER).config))
+    start.write_text(config_text(printers.choose(MINI, folder=FOLDER).config))
     user = tmp_path / "user.ini"
     saved = subprocess.run([print_time.slicer_path(), "--loglevel", "1", "--load", str(start),
                             "--layer-height", "0.3", "--first-layer-height", "0.3", "--save", str(user)],
@@ -332,7 +333,7 @@ def test_a_config_prusaslicer_saved_is_sliced_as_it_is(tmp_path):
     assert doc["printer"]["vendor"] == "user config" and doc["printer"]["source"] == str(user.resolve())
     plate = out / "parts" / "plate-1.3mf"
     with zipfile.ZipFile(plate) as archive:
-        assert "; layer_height = 0.3\n" in archive.read(print_time.SLIC3R_CONFIG).decode()
+        assert "; layer_height = 0.3\n" in archive.read(SLIC3R_CONFIG).decode()
     assert _resliced(plate, tmp_path) == pytest.approx(doc["print_time_s"]["printed_parts"], rel=0.02)
 
 
@@ -343,11 +344,11 @@ def test_a_round_bed_packs_into_its_inscribed_square():
 
     circle = ",".join(f"{100 * math.cos(a):.4f}x{100 * math.sin(a):.4f}"
                       for a in [2 * math.pi * n / 72 for n in range(72)])
-    bed = print_time.bed_rectangle({"bed_shape": circle})
+    bed = bed_rectangle({"bed_shape": circle})
     assert bed.ravel().tolist() == pytest.approx([-70.7107, -70.7107, 70.7107, 70.7107], abs=1e-3)
-    assert print_time.bed_rectangle({"bed_shape": "0x0,250x0,250x210,0x210"}).tolist() == [[0, 0], [250, 210]]
+    assert bed_rectangle({"bed_shape": "0x0,250x0,250x210,0x210"}).tolist() == [[0, 0], [250, 210]]
     with pytest.raises(InputError, match="bed_shape"):
-        print_time.bed_rectangle({"bed_shape": ""})
+        bed_rectangle({"bed_shape": ""})
 
 
 def test_the_default_printer_is_named_too(tmp_path, monkeypatch):

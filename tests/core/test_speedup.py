@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import pytest
 
 from core import pipeline
-from core.printing.print_time import PrintEstimate
+from core.printing.estimate import PrintEstimate
 
 
 def _fab(lego: int, parts: int, full_s: float, parts_s: float | None, iteration=None):
