@@ -47,6 +47,7 @@ from core.layout import greedy as layout_stage
 from core.model import Brick, Grid, Layout
 from core.parts import connectors as connectors_stage, printed as printed_stage
 from core.parts.interfaces import Fit
+from core.parts.printed_part import PrintedPart
 from core.result import Previous
 
 #: Rings of LEGO bricks the re-laid-out neighbourhood may grow by.
@@ -58,7 +59,7 @@ PART_MARGIN_MM = 0.5
 SAME_SURFACE_MM = diff_stage.SAME_SURFACE_MM
 
 
-def _shifted_part(part: printed_stage.PrintedPart, shift) -> printed_stage.PrintedPart:
+def _shifted_part(part: PrintedPart, shift) -> PrintedPart:
     """A copy of ``part`` with its clamp cells moved by ``shift`` cells."""
     s = tuple(int(v) for v in shift)
 
@@ -350,7 +351,7 @@ def printed_parts(previous: Previous, layout: Layout, plan: _Plan, groups: list[
         changed = diff_stage.changed_boxes(previous.mesh, model.mesh, previous.brep, model.brep, tol)
     links = connectors_stage.find(layout, all_groups if connectors else [])
     rebuild: list[tuple[str, list[int], str | None]] = []
-    made: dict[str, printed_stage.PrintedPart] = {}
+    made: dict[str, PrintedPart] = {}
     shift = -plan.offset
     for pid, group in kept_groups.items():
         old = previous.parts.get(pid)
@@ -430,7 +431,7 @@ def _id_key(pid: str) -> tuple[int, str]:
     return (int(digits), pid) if digits.isdigit() else (-1, pid)
 
 
-def _compare(old: printed_stage.PrintedPart | None, new: printed_stage.PrintedPart,
+def _compare(old: PrintedPart | None, new: PrintedPart,
              why: str | None) -> dict:
     """Reprint record of a part cut again: new, or compared with its previous print."""
     if old is None:
@@ -456,7 +457,7 @@ def _brick_entry(b: Brick, offset: np.ndarray) -> dict:
 
 
 def changes(previous: Previous, alignment: align_stage.Alignment, cells: diff_stage.CellDiff,
-             layout: Layout, plan: _Plan, made: list[printed_stage.PrintedPart],
+             layout: Layout, plan: _Plan, made: list[PrintedPart],
              reprint: list[dict], rings: int) -> dict:
     """Step 6: the report's ``changes`` document with the instructions diff.
 

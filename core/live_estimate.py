@@ -49,6 +49,7 @@ from core.io.meshes import LoadedModel
 from core.model import Layout
 from core.parts import connectors as connectors_stage, printed
 from core.parts.interfaces import Fit
+from core.parts.printed_part import ModelSolid
 from core.printing.estimate import ESTIMATE_COEFFS, PrintEstimate, estimate_seconds, plate_features
 
 #: The brush modes an estimate is made for.
@@ -142,7 +143,7 @@ class Estimator:
         self.seconds_per_brick = float(seconds_per_brick)
         self.seconds_per_part = float(seconds_per_part)
         model = LoadedModel(mesh, "the stored model", "ply", len(mesh.faces), bool(mesh.is_watertight))
-        self.model = printed.ModelSolid(manifold=printed.model_solid(model).manifold)
+        self.model = ModelSolid(manifold=printed.model_solid(model).manifold)
         self.fit = fit.check()
         self.index = {b.id: n for n, b in enumerate(layout.bricks)}
         self.graph = sparse.csr_matrix(high_res.adjacency(layout))

@@ -24,7 +24,7 @@ from core import high_res
 from core.errors import InputError, check_path, shown_path
 from core.inventory import with_colours
 from core.model import Grid, Layout
-from core.parts import printed as printed_stage
+from core.parts.printed_part import PrintedPart
 
 #: Folder inside an output folder that holds the iteration snapshot.
 SNAPSHOT_DIR = "iteration"
@@ -102,7 +102,7 @@ def _read_brep(path: Path):
 _CELL_MAPS = ("top_ok", "bottom_ok")
 
 
-def _part_record(p: printed_stage.PrintedPart) -> dict:
+def _part_record(p: PrintedPart) -> dict:
     """A printed part as JSON: every field but its geometry (``solid``, ``mesh``)."""
     out = {}
     for f in dataclasses.fields(p):
@@ -132,7 +132,7 @@ class Previous:
     mesh: trimesh.Trimesh
     brep: object | None
     watertight: bool
-    parts: dict[str, printed_stage.PrintedPart]
+    parts: dict[str, PrintedPart]
     state: dict
     regions: high_res.Regions | None = None
 
@@ -224,13 +224,13 @@ def _read_regions(record: dict | None, snap: Path) -> high_res.Regions | None:
     return high_res.Regions(boxes, solids)
 
 
-def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> printed_stage.PrintedPart:
-    """The :class:`~core.parts.printed.PrintedPart` of a record and its geometry (fields
+def _part_from_record(rec: dict, mesh: trimesh.Trimesh, solid) -> PrintedPart:
+    """The :class:`~core.parts.printed_part.PrintedPart` of a record and its geometry (fields
     the record lacks keep their defaults; fields it has that the class lacks are dropped)."""
-    names = {f.name for f in dataclasses.fields(printed_stage.PrintedPart)} - {"solid", "mesh"}
+    names = {f.name for f in dataclasses.fields(PrintedPart)} - {"solid", "mesh"}
     values = {k: v for k, v in rec.items() if k in names}
     for key in _CELL_MAPS:
         if key in values:
             values[key] = {tuple(int(v) for v in c[:3]): bool(c[3]) for c in values[key]}
     values["bricks"] = [int(i) for i in values.get("bricks", [])]
-    return printed_stage.PrintedPart(solid=solid, mesh=mesh, **values)
+    return PrintedPart(solid=solid, mesh=mesh, **values)

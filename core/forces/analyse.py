@@ -30,7 +30,7 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     """The force verdict of ``layout`` standing on ``ground`` ("table" or "baseplate").
 
     ``loads`` are :class:`Load` (or "X0,Y0,Z0,X1,Y1,Z1:GRAMS" strings),
-    ``printed`` the :class:`core.parts.printed.PrintedPart` list (their masses;
+    ``printed`` the :class:`core.parts.printed_part.PrintedPart` list (their masses;
     without it a printed part weighs as if solid PLA), ``clamp`` the
     (studs_ok, bottom_ok) masks of :func:`core.parts.printed.clamp_masks` (None:
     every stud and socket whole), ``clutch_n`` the tension of one contact

@@ -147,7 +147,7 @@ def write(layout: Layout, printed_parts, steps, path: str | os.PathLike, title: 
 
     ``steps`` is a list of brick-id lists (or :class:`core.instructions.build_order.Step`
     objects), one per assembly step, covering every brick once;
-    ``printed_parts`` are :class:`core.parts.printed.PrintedPart` s (their ``mesh``
+    ``printed_parts`` are :class:`core.parts.printed_part.PrintedPart` s (their ``mesh``
     in model mm).  Each step's LEGO bricks become type-1 references to
     ``<design number>.dat`` in :data:`LEGO_COLOR`; a printed part becomes one
     reference to its embedded subfile, in the step of its first brick.

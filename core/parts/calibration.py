@@ -322,10 +322,10 @@ def _box(x0, y0, z0, x1, y1, z1) -> "cq.Solid":
 
 def _text_solid(text: str, height: float) -> cq.Shape:
     """``text`` at LABEL_FONT_MM, bold, centred on the origin, extruded ``height`` up
-    (the font and set-up of the printed parts' engraved ids, :func:`core.parts.printed.text_shape`)."""
+    (the font and set-up of the printed parts' engraved ids, :func:`core.parts.engraving.text_shape`)."""
     import cadquery as cq
 
-    from core.parts.printed import text_shape
+    from core.parts.engraving import text_shape
 
     return text_shape(text, LABEL_FONT_MM, cq.Plane.XY(), height)
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from core.parts.printed import PrintedPart
+from core.parts.printed_part import PrintedPart
 from core.printing import print_time
 from core.printing.plate import ARRANGE_GAP_MM, bed_rectangle, plate_3mf
 from core.printing.poses import Pose, posed

@@ -26,7 +26,7 @@ ORDER = [
     "layout.bounds", "layout.brick_cells", "layout.merge_kernels", "layout.repair",
     "layout.greedy", "layout.quality", "layout.window_program",
     "layout.connected_bound", "layout.neighbourhood", "layout.search", "align", "diff", "parts.connectors",
-    "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
+    "parts.printed_part", "parts.booleans", "parts.engraving", "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
     "printing.slicer_profile", "printing.slice_cache", "printing.plate", "printing.estimate",
     "printing.poses", "printing.print_time", "printing.printers", "printing.export",
     "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom", "instructions.drawing_order",

@@ -18,7 +18,9 @@ from core.errors import InputError
 from core.io.meshes import LoadedModel
 from core.model import Brick, Grid, Layout
 from core.parts import printed
+from core.parts.engraving import ENGRAVE_DEPTH_MM, text_shape
 from core.parts.interfaces import Fit
+from core.parts.printed_part import ModelSolid
 
 CELL = np.array([8.0, 8.0, 3.2])
 
@@ -35,7 +37,7 @@ def _source(kind, mesh):
     src = printed.model_solid(loaded)
     if kind == "brep":
         lo, hi = mesh.bounds
-        return printed.ModelSolid(manifold=src.manifold,
+        return ModelSolid(manifold=src.manifold,
                                   brep=BRepPrimAPI_MakeBox(gp_Pnt(*lo), gp_Pnt(*hi)).Shape())
     return src
 
@@ -193,7 +195,7 @@ def test_merge_split_and_bad_groups():
 
 
 def _text_area(part_id, font):
-    return printed.text_shape(part_id, font, cq.Plane.XY(), 1.0).Volume()
+    return text_shape(part_id, font, cq.Plane.XY(), 1.0).Volume()
 
 
 @pytest.mark.parametrize("kind", ["brep", "mesh"])
@@ -205,14 +207,14 @@ def test_engraved_id_is_a_shallow_cut_on_a_side(kind):
     assert part.engraved and part.mesh.is_watertight and part.mesh.body_count == 1
     where = part.engraving
     assert where["side"] in ("side-x", "side+x") and where["normal"][2] == 0.0
-    expected = _text_area("P1", where["font_size_mm"]) * printed.ENGRAVE_DEPTH_MM
+    expected = _text_area("P1", where["font_size_mm"]) * ENGRAVE_DEPTH_MM
     assert plain.volume_mm3 - part.volume_mm3 == pytest.approx(expected, rel=0.03)
     removed = _manifold(plain.mesh) - _manifold(part.mesh)
     lo, hi = np.array(removed.bounding_box()[:3]), np.array(removed.bounding_box()[3:])
     normal, centre = np.array(where["normal"]), np.array(where["centre_mm"])
     depth_lo, depth_hi = sorted(float(np.dot(c - centre, normal)) for c in (lo, hi))
     assert depth_hi == pytest.approx(0.0, abs=1e-6)
-    assert depth_lo == pytest.approx(-printed.ENGRAVE_DEPTH_MM, abs=1e-6)
+    assert depth_lo == pytest.approx(-ENGRAVE_DEPTH_MM, abs=1e-6)
 
 
 def test_no_engraving_without_a_flat_side_says_why():
