@@ -35,7 +35,10 @@ from core.layout import search as improve_stage
 from core.model import CELL_MM, Grid, Layout
 from core.parts import connectors as connectors_stage, printed as printed_stage
 from core.parts.interfaces import Fit
+from core.parts.printed_part import PrintedPart
 from core.printing import print_time as print_time_stage, printers
+from core.printing.estimate import PrintEstimate, estimate_seconds
+from core.printing.plate import build_volume
 from core.request import UNITS, Request, request as request_of
 
 Progress = Callable[[float, str], None]
@@ -60,15 +63,15 @@ class Fabrication:
     stability: stability_stage.Stability
     order: build_order.BuildOrder
     timings_s: dict[str, float] = field(default_factory=dict)
-    printed: list[printed_stage.PrintedPart] = field(default_factory=list)
+    printed: list[PrintedPart] = field(default_factory=list)
     connectors: connectors_stage.Connectors | None = None
     regions: high_res_stage.Regions = field(default_factory=high_res_stage.Regions)
     marks: dict = field(default_factory=dict)
     fit: grid_fit.GridFit | None = None
     iteration: iterate_stage.Iteration | None = None
     notes: list[str] = field(default_factory=list)
-    print_full: print_time_stage.PrintEstimate | None = None
-    print_parts: print_time_stage.PrintEstimate | None = None
+    print_full: PrintEstimate | None = None
+    print_parts: PrintEstimate | None = None
     plates: list | None = None
     forces: forces_stage.Forces | None = None
     reinforced: reinforce_stage.Reinforced | None = None
@@ -106,7 +109,7 @@ class Fabrication:
         return printers.chosen(self.request)
 
     @property
-    def to_print(self) -> list[printed_stage.PrintedPart]:
+    def to_print(self) -> list[PrintedPart]:
         """The printed parts to print now: all of them, or after an iteration
         (``--previous``) only those it must reprint."""
         if self.iteration is None:
@@ -326,11 +329,11 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     printer = printers.chosen(req)
     if groups and before is None and printer is not None:
         groups, cut = printed_stage.fitting_groups(
-            layout, groups, print_time_stage.build_volume(printer.config), req.fit)
+            layout, groups, build_volume(printer.config), req.fit)
         notes += [f"a printed part of {' x '.join(f'{v:g}' for v in box)} mm fits the "
                   f"{printer.printer} in no pose: split along brick seams into {n} parts that "
                   f"each fit, joined by their own studs and sockets" for box, n in cut]
-    made: list[printed_stage.PrintedPart] = []
+    made: list[PrintedPart] = []
     clamp = links = reprint = None
     if groups and before is not None:
         made, reprint, links, layout = timed(
@@ -528,7 +531,7 @@ def _sliced_under(work: str | None):
 
 
 def _full_time(mesh, profile, slicer, work: str | None = None,
-               chosen: bool = False) -> print_time_stage.PrintEstimate:
+               chosen: bool = False) -> PrintEstimate:
     """The whole model's print time in its fastest pose (the speed-up's baseline),
     sliced under ``work`` (a scratch folder when None); on a ``chosen`` printer, as if
     its bed were large enough where the model does not fit it
@@ -575,12 +578,12 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
     printers.check_plates(fab.printer, beds, [p.id for p in printing])
     full = full.result()
     methods = sorted({r.method for r in results})
-    parts = print_time_stage.PrintEstimate(
+    parts = PrintEstimate(
         sum(r.seconds for r in results),
         "; ".join(methods) if methods else "nothing to print: no printed part changed", None)
     seconds: dict[str, float] = {}
     for items, sliced in zip(beds, results):
-        weights = [pose.slicer_s or print_time_stage.estimate_seconds([m]) for _, m, pose in items]
+        weights = [pose.slicer_s or estimate_seconds([m]) for _, m, pose in items]
         total = sum(weights) or 1.0
         for (index, _, _), w in zip(items, weights):
             seconds[printing[index].id] = sliced.seconds * w / total
