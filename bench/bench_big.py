@@ -6,7 +6,7 @@ setting, hollowed (``--hollow``, a 2-stud shell with pillars) and solid
 (``--hollow=0``); the 2 m cube only by default and solid, which the size limit
 refuses.
 ``solid bricks`` is what a hollowed run's report gives for the part built solid: its
-fast layout, or ``>=`` a lower bound (core.pipeline.hollow_report).
+fast layout, or ``>=`` a lower bound (core.report.hollow_report).
 The stages' seconds come from the run's report.json (``timings_s``; ``write``
 is everything written after the driver: instructions, LDraw, picture, ...;
 ``layout`` includes the solid layout made beside a shell, core.hollow.solid_layout_wanted),

@@ -8,7 +8,7 @@ bosses, their diameter and extent; CATALOG.md of the models lists the same
 "slice probe" holes).  For each model the table gives the whole model's
 print time, the printed parts' time (one plate), the LEGO bricks, the
 printed parts, the assembly estimate and the speed-ups as the paper
-defines them (:func:`core.pipeline.speedups`): over the fabrication time
+defines them (:func:`core.report.speedups`): over the fabrication time
 (the LEGO is built while the parts print, then the parts are pressed on:
 the paper's walkthrough), over the print time alone (the paper's
 Validation, 2.44x on average there), and, for comparison, over printing and

@@ -19,7 +19,7 @@ and the painted bricks:
 * **Time.**  The last result's print time (each part's ``print_s``, sliced or estimated)
   plus the calibrated estimate's change (:data:`core.printing.estimate.ESTIMATE_COEFFS`) from the
   parts as they are to the parts as changed: with nothing changed, the last result's time.
-  The speed-up is the report's (:func:`core.pipeline.speedups`, ``fabrication``) for a fresh
+  The speed-up is the report's (:func:`core.report.speedups`, ``fabrication``) for a fresh
   build of the changed layout, against the last whole-model print time.
 
 What it does not promise: the recompute lays out the marked cells again (bricks around them
@@ -43,7 +43,7 @@ import trimesh
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from core import high_res, pipeline, result
+from core import high_res, report as reporting, result
 from core.errors import InputError
 from core.io.meshes import LoadedModel
 from core.model import Layout
@@ -258,7 +258,7 @@ class Estimator:
 
     def _figures(self, print_s: float, groups: list) -> Figures:
         """The figures of ``groups`` printed in ``print_s``: the report's speed-up of a
-        fresh build of the layout with those parts (:func:`core.pipeline.speedups`)."""
+        fresh build of the layout with those parts (:func:`core.report.speedups`)."""
         owner = {i: f"G{n}" for n, (_, g) in enumerate(groups) for i in g}
         layout = Layout(self.layout.grid, [
             dataclasses.replace(b, kind="printed", printed_part=owner[b.id]) if b.id in owner
@@ -268,8 +268,8 @@ class Estimator:
             print_parts=PrintEstimate(print_s, "live estimate", None), iteration=None,
             layout=layout, seconds_per_brick=self.seconds_per_brick,
             seconds_per_part=self.seconds_per_part)
-        gains = pipeline.speedups(build)
-        return Figures(print_s, pipeline.assembly_seconds(build), pipeline.fabrication_seconds(build),
+        gains = reporting.speedups(build)
+        return Figures(print_s, reporting.assembly_seconds(build), reporting.fabrication_seconds(build),
                        None if gains is None else gains["fabrication"], len(groups),
                        self.whole_estimated)
 
@@ -281,7 +281,7 @@ def words(estimate: Figures | None, last: Figures, sliced: bool) -> str:
         gain = "unknown" if f.speedup is None else f"{f.speedup:.1f}x"
         if f.whole_estimated and f.speedup is not None:
             gain += " against the whole model's estimate"
-        return f"print {pipeline.duration_words(f.print_s)}, speed-up {gain}"
+        return f"print {reporting.duration_words(f.print_s)}, speed-up {gain}"
 
     then = f"last {'sliced' if sliced else 'run (estimated)'}: {figures(last)}"
     if estimate is None:

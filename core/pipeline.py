@@ -15,7 +15,6 @@ import contextlib
 import dataclasses
 import json
 import os
-import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +25,8 @@ import numpy as np
 from core import catalog, colours, forces as forces_stage, grid_fit
 from core import high_res as high_res_stage, hollow as hollow_stage
 from core import inventory as inventory_stage, iterate as iterate_stage
-from core import result, stability as stability_stage, suggest as suggest_stage, voxelize
+from core import report as reporting, result, stability as stability_stage
+from core import suggest as suggest_stage, voxelize
 from core.errors import InputError
 from core.instructions import build_order, changes_page
 from core.io import meshes as mesh_io, output_dir
@@ -593,330 +593,6 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
                                plates=beds, timings_s=dict(fab.timings_s))
 
 
-def assembly_split(fab: Fabrication) -> tuple[float, float]:
-    """The assembly estimate as (LEGO building, printed-part insertion) seconds.
-
-    LEGO building is ``seconds_per_brick`` per LEGO brick, insertion is
-    ``seconds_per_part`` per printed part.  After an iteration
-    (``--previous``) it is the rework only: each LEGO brick to take off or
-    add, each reprinted part to insert.
-    """
-    if fab.iteration is None:
-        return (build_order.assembly_seconds(fab.layout, fab.seconds_per_brick, 0.0),
-                build_order.assembly_seconds(fab.layout, 0.0, fab.seconds_per_part))
-    ch = fab.iteration.changes
-    moves = sum(1 for b in ch["take_off"] + ch["add"] if b.get("kind", "lego") == "lego")
-    return fab.seconds_per_brick * moves, fab.seconds_per_part * len(fab.iteration.reprinted)
-
-
-def assembly_seconds(fab: Fabrication) -> float:
-    """Assembly estimate: LEGO building plus printed-part insertion (:func:`assembly_split`)."""
-    return sum(assembly_split(fab))
-
-
-def fabrication_seconds(fab: Fabrication) -> float | None:
-    """Wall-clock time of the faBrickated object, or None before slicing.
-
-    As in the paper's walkthrough, the user builds the LEGO part while the
-    printer prints ("the overall fabrication time was thus still bound by
-    the 3D printer"), then presses the printed parts on:
-    max(parts print, LEGO building) + part insertion.
-    """
-    if fab.print_parts is None:
-        return None
-    lego, insert = assembly_split(fab)
-    return max(fab.print_parts.seconds, lego) + insert
-
-
-def speedups(fab: Fabrication) -> dict[str, float] | None:
-    """The speed-ups over printing the whole model, or None before slicing.
-
-    - ``fabrication``: full print / :func:`fabrication_seconds` (LEGO built
-      while the printer prints), the paper's headline figure;
-    - ``printing``: full print / parts print, the paper's "improvement for
-      3D printing time" of its Validation (2.44x on average there);
-    - ``sequential``: full print / (parts print + whole assembly), for one
-      who only starts building once the print is done.
-
-    After an iteration these compare printing the new version whole with
-    reprinting the changed parts and the rework (the paper's "faster
-    iteration").
-    """
-    if fab.print_full is None or fab.print_parts is None:
-        return None
-    full, parts = fab.print_full.seconds, fab.print_parts.seconds
-    return {"fabrication": full / max(fabrication_seconds(fab), 1e-9),
-            "printing": full / max(parts, 1e-9) if parts > 0 else float("inf"),
-            "sequential": full / max(parts + assembly_seconds(fab), 1e-9)}
-
-
-def _incomplete_studs(part) -> dict:
-    """A printed part's incomplete studs for the report: cells (0-based ``i,j,k``, as
-    layout.json), the layers they are in (counted from 1) and a sentence."""
-    cells = [[int(v) for v in c.split(",")] for c in part.incomplete_studs]
-    layers = sorted({k + 1 for _, _, k in cells})
-    n = len(cells)
-    return {"part": part.id, "count": n, "cells": cells, "layers": layers,
-            "why": f"printed part {part.id} has {n} incomplete stud{'s' if n != 1 else ''} on its "
-                   f"top in layer{'s' if len(layers) != 1 else ''} {', '.join(map(str, layers))}: "
-                   "the LEGO brick above does not clamp there, so the part is held less firmly "
-                   "(connectors are switched off, so the part is cut exactly)"}
-
-
-def print_method_words(full_method: str, parts_method: str) -> str:
-    """How the print times were found, in a maker's words (from the estimates' methods)."""
-    def one(method: str) -> str:
-        if method.startswith("estimate"):
-            why = ("slicing is switched off" if "FABRICKATOR_SLICER" in method or "disabled" in method
-                   else "PrusaSlicer is not installed" if "not found" in method
-                   else "the slicer failed on it")
-            return f"estimated from the volume, surface and layers printed ({why})"
-        if method.startswith("nothing"):
-            return "nothing to print"
-        slicer = re.match(r"[^(;]*(?:\([^)]*\))?", method).group(0).strip()
-        return "sliced with " + slicer.replace("prusa-slicer", "PrusaSlicer")
-    full, parts = one(full_method), one(parts_method)
-    text = (f"Whole part and printed parts: {full}." if full == parts
-            else f"Whole part: {full}. Printed parts: {parts}.")
-    if "estimated" in text:
-        text += (" For a slicer's times, have PrusaSlicer installed and slice them (in FreeCAD the "
-                 "Report's Slice print times button; on the command line, fabricate slices them).")
-    return text
-
-
-def stress_title(fab: Fabrication) -> str:
-    """The title of ``stress.png``: what the colours mean and the verdict."""
-    f = fab.forces
-    worst = "infinite" if not np.isfinite(f.max_utilisation) else f"{f.max_utilisation:.2f}"
-    verdict = "stands" if f.stable else f"{len(f.failing_bricks)} brick(s) fail"
-    return (f"{Path(fab.model.path).name} on a {f.ground}, {f.mass_g:.0f} g: {verdict}, worst "
-            f"utilisation {worst} (dark 0, red 1, white fails)")
-
-
-def build_stability(order: build_order.BuildOrder, bodies: int, layout: Layout | None = None) -> dict:
-    """The report's ``stability.build``: does the partial build (of ``bodies`` bricks and
-    printed parts) stand after every step; where steps were checked by the brick graph
-    only (a NaN utilisation), how many, from which step, and why; the props it needs
-    (with their words when ``layout`` is given)."""
-    values = np.asarray(order.utilisation, dtype=float)
-    graph_only = np.flatnonzero(np.isnan(values))
-    worst = float(np.max(values[~np.isnan(values)], initial=0.0))
-    extra = {} if not len(graph_only) else {
-        "graph_only_steps": int(len(graph_only)), "first_graph_only_step": int(graph_only[0]) + 1,
-        "graph_only_why": order.graph_only_why or forces_stage.graph_only_why(bodies)}
-    return {"stands_every_step": not order.unstable,
-            "worst_step_utilisation": None if not np.isfinite(worst) else round(worst, 4),
-            **extra,
-            "unstable_steps": list(order.unstable),
-            "fragile_steps": [n + 1 for n, u in enumerate(order.utilisation)
-                              if build_order.FRAGILE < u <= forces_stage.FAIL_ABOVE],
-            "steps_moved_earlier": order.moved,
-            "props": [dict(p, words=build_order.prop_words(layout, p)) if layout is not None
-                      else dict(p) for p in order.props],
-            **({} if order.finished is None else {"finished_with_props": dict(order.finished)}),
-            "explain": "Each step's partial build is checked with the same forces, without what "
-                       "the object carries. A step is put earlier than planned when that lets the "
-                       "build stand; where no order does, a prop (a stack of 1x1 bricks and "
-                       "plates on the table, cell i,j,k as layout.json) holds the step's brick up "
-                       "until the build stands without it; an unstable step needs a hand to hold "
-                       "it until the next steps are on; a fragile step stands with its hardest "
-                       f"joint above {build_order.FRAGILE:g} of its clutch."}
-
-
-def _build_block(fab: Fabrication) -> dict:
-    """``{"build": ...}`` for the report's stability: the step-by-step check, or why there
-    is none; empty when the forces were not asked for."""
-    if fab.order.utilisation:
-        return {"build": build_stability(fab.order, fab.forces.bodies, fab.layout)}
-    why = None if fab.forces is None else forces_stage.build_unchecked(fab.forces)
-    return {} if why is None else {"build": {"checked": False, "why": why}}
-
-
-def report(fab: Fabrication) -> dict:
-    """The ``report.json`` document for a fabrication (DESIGN.md contract)."""
-    by_part: dict[str, int] = {}
-    for b in fab.layout.bricks:
-        by_part[b.part] = by_part.get(b.part, 0) + 1
-    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
-    m, st = fab.model, fab.stability
-    incomplete = sum(len(p.incomplete_studs) for p in fab.printed)
-    full, plate = fab.print_full, fab.print_parts
-    gains = speedups(fab)
-    making = fabrication_seconds(fab)
-    lego_s, insert_s = assembly_split(fab)
-    bounds = m.mesh.bounds
-    return {
-        "model": {
-            "path": str(m.path),
-            "format": m.format,
-            "units": fab.request.units,
-            "scale": float(fab.request.scale),
-            "up": fab.request.up,
-            "triangles": int(m.triangles),
-            "watertight": bool(m.watertight),
-            "repaired": list(m.repaired),
-            "warnings": list(m.warnings),
-            "bbox_mm": [round(float(v), 4) for v in (bounds[1] - bounds[0])],
-            "bounds_mm": [[round(float(v), 4) for v in row] for row in bounds],
-        },
-        "grid": {
-            "origin_mm": [round(float(v), 6) for v in fab.grid.origin],
-            "shape": list(fab.grid.shape),
-            "cell_mm": [float(c) for c in fab.grid.cell],
-            "alignment": "z from the part's lowest point; x and y centred on the part's bounding box"
-            if fab.fit is None or fab.fit.shift_mm == (0.0, 0.0) else
-            "z from the part's lowest point; x and y shifted from centred on the part's bounding "
-            "box so that the high-res regions mark the least of the model",
-            **({} if fab.fit is None else {"fit": fab.fit.to_json()}),
-        },
-        "plates": fab.grid.count,
-        "bricks": {
-            "total": len(fab.layout.bricks),
-            "lego": lego,
-            "printed": len(fab.layout.bricks) - lego,
-            "by_part": dict(sorted(by_part.items())),
-            "per_cell": round(len(fab.layout.bricks) / max(fab.grid.count, 1), 4),
-        },
-        "brick_set": [p.number for p in fab.parts],
-        "seed": fab.seed,
-        "stability": {
-            "regions": st.regions,
-            "components": st.components,
-            "weak_points": len(st.weak_points),
-            "weak_point_bricks": list(st.weak_points),
-            "weak_points_holding_only_leaf_bricks": len(st.leaf_supports),
-            "unconnectable": list(st.unconnectable),
-            "incomplete_studs": incomplete,
-            "weak_point_details": list(st.weak_details),
-            "incomplete_stud_parts": [_incomplete_studs(p) for p in fab.printed if p.incomplete_studs],
-            "explain": {"weak_point": stability_stage.WEAK_POINT_MEANS,
-                        "incomplete_stud": stability_stage.INCOMPLETE_STUD_MEANS},
-            **({} if fab.forces is None else {"force": fab.forces.to_json()}),
-            **_build_block(fab),
-            **({} if fab.reinforced is None else {"reinforce": fab.reinforced.to_json()}),
-        },
-        "high_res": dict(fab.marks),
-        "printed_parts": [p.to_json() for p in fab.printed],
-        "print_time_s": None if full is None else {
-            "full_model": round(full.seconds, 1),
-            "printed_parts": round(plate.seconds, 1),
-            "full_model_pose": full.pose, "full_model_supports": bool(full.supports),
-            "method": full.method if full.method == plate.method
-            else f"full model: {full.method}; printed parts: {plate.method}",
-            "method_words": print_method_words(full.method, plate.method),
-            "print_plates": len(fab.plates or ()), "full_model_on_enlarged_bed": full.enlarged_bed,
-        },
-        "printer": {**printers.described(fab.request).to_json(), "chosen": fab.printer is not None},
-        "fit": {"stud_fit": fab.interface.stud_fit, "socket_fit": fab.interface.socket_fit,
-                "source": fab.request.fit_source},
-        "assembly_s": round(assembly_seconds(fab), 1),
-        "assembly_split_s": {"lego": round(lego_s, 1), "insert_printed_parts": round(insert_s, 1)},
-        "fabrication_s": None if making is None else round(making, 1),
-        "seconds_per_brick": fab.seconds_per_brick,
-        "seconds_per_part": fab.seconds_per_part,
-        "speedup": None if gains is None else round(gains["fabrication"], 3),
-        "speedups": None if gains is None else {
-            "definition": "fabrication: full print / (max(parts print, LEGO building) + inserting "
-                          "the printed parts); printing: full print / parts print; sequential: "
-                          "full print / (parts print + all assembly)",
-            **{k: (None if v == float("inf") else round(v, 3)) for k, v in gains.items()}},
-        "layout_quality": dict(fab.layout_quality),
-        "timings_s": dict(fab.timings_s),
-        "hollow": hollow_report(fab),
-        "notes": list(fab.notes),
-        "warnings": list(fab.warnings) + _slower_words(fab, gains, making),
-        **({} if fab.iteration is None else {"changes": fab.iteration.changes}),
-        **({} if fab.inventory is None else {"inventory": {
-            **inventory_stage.summary(fab.colouring), "inventory_only": fab.request.inventory_only,
-            "bought_colour": colours.name(colours.by_name(fab.request.colour)),
-            **fab.inventory.to_json()}}),
-    }
-
-
-def hollow_report(fab: Fabrication) -> dict | None:
-    """The ``hollow`` block of the report: what the hollow stage did (:mod:`core.hollow`) and
-    the bricks and assembly time with and without hollowing (an iteration hollows as its
-    previous version: :func:`core.hollow.as_before`).
-
-    For a hollowed run, ``bricks`` and ``assembly_s`` hold the LEGO bricks ``built`` and
-    the solid part's: ``solid``, its real bricks when the driver laid it out too
-    (:func:`core.hollow.solid_layout_wanted`), by the fast layout, which the improve stage
-    did not shorten (``solid_layout`` is ``"fast"``); else (``"none"``: a solid part too
-    big to lay out as well, or an iteration, which lays out only what changed)
-    ``solid_at_least``, a lower bound: no catalog part covers more cells than the largest,
-    so it needs at least its cells over the largest part's cells, which can be far below
-    a real layout's bricks (an uneven part needs many small ones).  ``compare`` says it in a
-    sentence, and why a bound.
-    """
-    h = fab.hollowing
-    if h is None:
-        return None
-    lego = sum(1 for b in fab.layout.bricks if b.kind == "lego")
-    doc = h.to_json()
-    doc.update(bricks={"built": lego}, assembly_s={"built": round(lego * fab.seconds_per_brick, 1)})
-    if not h.on:
-        return doc
-    largest = max(p.footprint[0] * p.footprint[1] * p.layers for p in fab.parts)
-    if h.bricks_solid is not None:
-        solid, key, how = h.bricks_solid, "solid", "fast"
-        words = f"solid, {solid:,} bricks (fast layout, not improved)"
-        bound = ""
-    else:
-        solid, key, how = -(-h.solid_cells // largest), "solid_at_least", "none"
-        words = f"solid at least {solid:,} bricks"
-        bound = (" (a lower bound: a new version is laid out only where it changed)"
-                 if fab.iteration is not None else
-                 f" (a lower bound: its {h.solid_cells:,} cells are more than the "
-                 f"{hollow_stage.SOLID_LAYOUT_MAX_CELLS:,} laid out solid beside a shell)")
-    doc["bricks"][key] = solid
-    doc["assembly_s"][key] = round(solid * fab.seconds_per_brick, 1)
-    doc["solid_layout"] = how
-    doc["compare"] = (f"{lego:,} LEGO bricks, about {duration_words(lego * fab.seconds_per_brick)} to build; "
-                      f"{words} and {duration_words(solid * fab.seconds_per_brick)}{bound}")
-    return doc
-
-
-def force_line(force: dict | None, build: dict | None = None) -> str:
-    """The force check of report.json (``stability.force``) in one line; with the build
-    check (``stability.build``), what the props left in the finished build do."""
-    if not force:
-        return "not checked"
-    if not force.get("checked", True):
-        return f"not checked: {force['unchecked_why']}"
-    failing = len(force["failing_bricks"])
-    finished = (build or {}).get("finished_with_props")
-    return (forces_stage.verdict_words(force) + (f", {failing} failing brick(s)" if failing else "")
-            + (f"; {build_order.finished_words(finished, force)}" if finished else ""))
-
-
-def steps_record(order: build_order.BuildOrder, layout: Layout) -> dict:
-    """The build order as plain JSON data: its steps, the bricks no step attaches, the
-    printed parts placed early, each step's warning (by step number) and the props."""
-    from core.instructions import page as instructions
-
-    return {"steps": [s.to_json() for s in order.steps],
-            "unattached": list(order.unattached),
-            "early_parts": list(order.early_parts),
-            "warnings": {str(n): text for n, text in instructions.step_warnings(order, layout).items()},
-            "props": list(order.props)}
-
-
-def _slower_words(fab: Fabrication, gains: dict | None, making: float | None) -> list[str]:
-    """A warning when printing the whole model is faster than the printed parts with the
-    LEGO built meanwhile (a speed-up under 1), saying what to mark less of."""
-    if gains is None or making is None or gains["fabrication"] >= 1.0:
-        return []
-    what = ("the suggested regions mark too much of this model for a speed-up: drop some "
-            "(python -m core suggest --out lists them) or print it whole"
-            if fab.marks.get("suggested") else "mark less to be printed, or print it whole")
-    return [f"printing the whole model ({duration_words(fab.print_full.seconds)}) is faster than "
-            f"the printed parts with the LEGO built meanwhile ({duration_words(making)}): {what}"]
-
-
-def duration_words(seconds: float) -> str:
-    """``seconds`` as ``3 h 05 min`` or ``12 min``."""
-    m = int(round(seconds / 60.0))
-    return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"
 
 
 def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
@@ -979,7 +655,7 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     into place at the end, replacing an earlier output atomically
     (:class:`core.io.output_dir.OutputFolder`; ``out`` may be one already open,
     as :func:`fabricate` opens it before the run).  ``report_doc`` is
-    the report to write instead of :func:`report`'s (a stored result's,
+    the report to write instead of :func:`core.report.document`'s (a stored result's,
     :func:`stored`), with its ``changes`` page written too.  Raises
     InputError for a place that cannot take the output (refused before
     anything is written) or that fails while writing (a full disk: the
@@ -1018,11 +694,11 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
                              colours=None if fab.colouring is None or fab.request.palette != "bom"
                              else colours.brick_colours(fab.layout, colouring=fab.colouring))
         if fab.forces is not None and fab.forces.utilisation:
-            render.render_layout(fab.layout, tmp / "stress.png", title=stress_title(fab),
+            render.render_layout(fab.layout, tmp / "stress.png", title=reporting.stress_title(fab),
                                  colours=colours.stress_rgb(
                                      [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]))
     result.snapshot(fab, tmp)
-    doc = report(fab) if report_doc is None else json.loads(json.dumps(report_doc))
+    doc = reporting.document(fab) if report_doc is None else json.loads(json.dumps(report_doc))
     for entry in doc["printed_parts"]:
         if entry["id"] in placed:
             p = placed[entry["id"]]

@@ -59,8 +59,8 @@ def summary(fab) -> list[str]:
         from core.layout import search as improve
         lines.append(improve.bound_words(quality))
     if st.get("force"):
-        from core import pipeline
-        lines.append(f"force check: {pipeline.force_line(st['force'], st.get('build'))}")
+        from core import report as reporting
+        lines.append(f"force check: {reporting.force_line(st['force'], st.get('build'))}")
     times = doc.get("print_time_s")
     if times:
         lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "

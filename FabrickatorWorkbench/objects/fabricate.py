@@ -215,6 +215,7 @@ def run_core(obj) -> Result:
     if bridge.source_kind(source) is None:
         raise InputError(f"the Source {source.Label} has no solid and no mesh")
     from core import pipeline
+    from core import report as reporting
 
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj),
               "loads": list(load_texts(obj, 1.0))}
@@ -229,7 +230,7 @@ def run_core(obj) -> Result:
             log.message(f"{obj.Label}: {note}")
         if not fab.layout.bricks:
             raise InputError("the layout has no bricks")
-        report = pipeline.report(fab)
+        report = reporting.document(fab)
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
         snapshot = _snapshot(fab)
     return Result(fab, fab.order, report, inputs, snapshot, fab.iteration is not None)
@@ -432,9 +433,9 @@ def _store_forces(obj, force: dict | None, build: dict | None = None) -> None:
     says it when the build does not stand."""
     obj.Stands = bool(force and force["stable"])
     obj.FailingBricks = len(force["failing_bricks"]) if force else 0
-    from core import pipeline
+    from core import report as reporting
 
-    obj.Forces = pipeline.force_line(force, build)
+    obj.Forces = reporting.force_line(force, build)
     if force and force.get("checked", True) and not force["stable"]:
         log.warning(f"{obj.Label}: {obj.Forces} (the Report lists them; the Stress display "
                     f"mode shows them white)")
@@ -447,9 +448,9 @@ def _store(obj, result: Result, kept: int, changed: int) -> None:
     layout = fab.layout
     obj.LayoutJson = json.dumps(inventory.with_colours(layout.to_json(), fab.colouring))
     obj.ReportJson = json.dumps(report)
-    from core import pipeline
+    from core import report as reporting
 
-    obj.StepsJson = json.dumps(pipeline.steps_record(result.order, layout))
+    obj.StepsJson = json.dumps(reporting.steps_record(result.order, layout))
     obj.Plates = int(report["plates"])
     obj.Bricks = int(report["bricks"]["total"])
     obj.LegoBricks = int(report["bricks"]["lego"])

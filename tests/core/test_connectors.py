@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from core import pipeline
+
+from core import report as reporting
 from core.errors import InputError
 from core.model import Brick, Grid, Layout
 from core.parts import connectors
@@ -66,7 +68,7 @@ def test_thin_printed_region_clamps_with_studs_and_sockets(wall_files, kind):
     assert len(fab.printed) == 1
     part = fab.printed[0]
     assert part.mesh.is_watertight and part.mesh.body_count == 1
-    doc = pipeline.report(fab)["printed_parts"][0]
+    doc = reporting.document(fab)["printed_parts"][0]
     cells = {tuple(c) for c in fab.connectors.top.tolist()}
     assert doc["engaged"]["studs"] == len(cells) > 2
     assert doc["engaged"]["sockets"] == len(fab.connectors.bottom) > 2
@@ -121,7 +123,7 @@ def test_a_seat_standing_through_the_floor_is_anchored(tmp_path):
     box = "-7,-7,0,7,7,26"
     fab = pipeline.run(step, high_res=[box], slice_parts=False)
     assert fab.stability.components == 1
-    assert pipeline.report(fab)["high_res"]["anchor_cells"] > 0
+    assert reporting.document(fab)["high_res"]["anchor_cells"] > 0
     assert fab.printed[0].complete_studs
     loose = pipeline.run(step, high_res=[box], slice_parts=False, connectors=False)
     assert loose.stability.components > 1

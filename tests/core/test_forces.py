@@ -899,7 +899,7 @@ def test_steps_past_the_work_budget_are_checked_by_the_graph_and_the_report_says
     need one are NaN (checked by the brick graph); the steps before keep the programs'
     answers, the steps in pure compression stay 0, and the report gives the budget reason."""
     import dataclasses
-    from core import pipeline
+    from core import report as reporting
     from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
@@ -914,7 +914,7 @@ def test_steps_past_the_work_budget_are_checked_by_the_graph_and_the_report_says
     first = int(np.flatnonzero(f > 0)[0])
     assert c[first] == pytest.approx(f[first]) and np.all(c[:first] == 0)
     assert np.all(np.isnan(c[f > 0][1:])) and np.all(c[f == 0] == 0)
-    doc = pipeline.build_stability(dataclasses.replace(cut, graph_only_why=checker.why), len(lay.bricks))
+    doc = reporting.build_stability(dataclasses.replace(cut, graph_only_why=checker.why), len(lay.bricks))
     assert doc["graph_only_why"] == checker.why and doc["first_graph_only_step"] > first + 1
 
 
@@ -949,7 +949,7 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     """Past MAX_BODIES no program is solved for a build step: a step whose every brick rests
     on bricks or the ground gets 0, as the programs give it; a step that would need one is
     NaN (joined to the ground: the graph's verdict), and the report counts those steps."""
-    from core import pipeline
+    from core import report as reporting
     from core.instructions import build_order
     lay = slab_over_box()
     order = build_order.plan(lay)
@@ -962,12 +962,12 @@ def test_past_max_bodies_steps_stand_in_compression_or_are_checked_by_the_graph(
     g, f = np.array(graph.utilisation), np.array(full.utilisation)
     assert np.all((g == 0) | np.isnan(g)) and np.any(g == 0) and np.any(np.isnan(g))
     assert np.all(f[g == 0] == 0) and np.all(np.isnan(g[f > 0]))
-    doc = pipeline.build_stability(graph, len(lay.bricks))
+    doc = reporting.build_stability(graph, len(lay.bricks))
     first = int(np.flatnonzero(np.isnan(g))[0]) + 1
     assert doc["graph_only_steps"] == int(np.isnan(g).sum()) and doc["first_graph_only_step"] == first
     assert doc["worst_step_utilisation"] == 0 and doc["stands_every_step"]
     assert "brick graph only" in doc["graph_only_why"]
-    assert "graph_only_steps" not in pipeline.build_stability(full, len(lay.bricks))
+    assert "graph_only_steps" not in reporting.build_stability(full, len(lay.bricks))
     # the builder reads it once, at the first step of each run of such steps
     from core.instructions import page as instructions
     notes = {n for n, text in instructions.step_warnings(graph, lay).items() if "Not force-checked" in text}

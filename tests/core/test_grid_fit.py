@@ -7,6 +7,7 @@ import pytest
 import trimesh
 
 from core import grid_fit, high_res, pipeline, voxelize
+from core import report as reporting
 from core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -67,7 +68,7 @@ def test_pipeline_prints_less_with_the_fitted_grid(tmp_path):
     volume = [sum(p.volume_mm3 for p in fab.printed) for fab in (fitted, centred)]
     assert volume[0] < 0.75 * volume[1]
     assert fitted.fit.shift_mm != (0.0, 0.0) and centred.fit is None
-    doc = pipeline.report(fitted)
+    doc = reporting.document(fitted)
     assert doc["grid"]["fit"]["shift_mm"] == list(fitted.fit.shift_mm)
     assert "shifted" in doc["grid"]["alignment"]
     covered = sum(int(np.prod(b.size)) for b in fitted.layout.bricks)

@@ -17,6 +17,7 @@ import pytest
 import trimesh
 
 from core import catalog, hollow, pipeline, stability
+from core import report as reporting
 from core.errors import InputError
 from core.layout import greedy as layout_stage
 from core.model import Grid
@@ -103,7 +104,7 @@ def test_pipeline_hollows_on_request_and_reports_it(box_stl):
     fab = pipeline.run(box_stl, slice_parts=False, hollow=2)
     assert fab.grid.count == 8000 - 2560 + 40
     assert fab.stability.components == fab.stability.regions == 1
-    doc = pipeline.report(fab)
+    doc = reporting.document(fab)
     h = doc["hollow"]
     assert h["on"] and h["setting"] == 2 and h["cells_solid"] == 8000 and h["cells_kept"] == 5480
     assert h["bricks"]["built"] == doc["bricks"]["lego"]
@@ -123,7 +124,7 @@ def test_pipeline_hollows_on_request_and_reports_it(box_stl):
 def test_a_solid_part_beyond_the_limit_is_reported_as_a_lower_bound(box_stl, monkeypatch):
     monkeypatch.setattr(hollow, "SOLID_LAYOUT_MAX_CELLS", 5000)
     fab = pipeline.run(box_stl, slice_parts=False, hollow=2, effort="fast")
-    doc = pipeline.report(fab)
+    doc = reporting.document(fab)
     h = doc["hollow"]
     assert h["bricks"]["solid_at_least"] == -(-8000 // 48) and "solid" not in h["bricks"]
     assert h["solid_layout"] == "none" and "laid_out_both" not in h
@@ -256,7 +257,7 @@ def test_a_new_version_of_a_hollowed_part_is_hollowed_as_before(box_stl, tmp_pat
     assert again.hollowing.on and again.hollowing.studs == 2
     assert "as the previous version" in again.hollowing.why
     assert again.grid.count == 5480
-    h = pipeline.report(again)["hollow"]
+    h = reporting.document(again)["hollow"]
     assert h["solid_layout"] == "none" and h["bricks"]["solid_at_least"] == -(-7980 // 48)
     assert "a lower bound: a new version is laid out only where it changed" in h["compare"]
     diff = again.iteration.diff

@@ -526,12 +526,14 @@ def test_the_pipeline_improves_and_reports_layout_quality(tmp_path):
 
     from core import pipeline
 
+    from core import report as reporting
+
     path = tmp_path / "block.stl"
     trimesh.creation.box((40, 24, 19.2)).export(path)
     fast = pipeline.run(path, effort="fast", slice_parts=False)
     normal = pipeline.run(path, slice_parts=False)
-    block = pipeline.report(normal)["layout_quality"]
-    assert block["greedy"] == pipeline.report(fast)["layout_quality"]["improved"]
+    block = reporting.document(normal)["layout_quality"]
+    assert block["greedy"] == reporting.document(fast)["layout_quality"]["improved"]
     assert tuple(block["improved"].values()) <= tuple(block["greedy"].values())
     assert block["bricks"] == len(normal.layout.bricks) and block["regions"] == 1
     bound = block["lower_bound"]

@@ -16,6 +16,7 @@ from cadquery import exporters
 from scipy.spatial.transform import Rotation
 
 from core import align, high_res, iterate, pipeline, result
+from core import report as reporting
 from core.errors import InputError
 from core.instructions import changes_page
 from core.printing import export
@@ -235,12 +236,12 @@ def test_screw_seat_marked_later_gets_anchor_tabs_as_in_a_fresh_run(openbot_step
     tabs like a fresh run's (core.high_res.anchor), so its printed part clamps;
     without connectors no tabs are added and the part stays loose."""
     path, base, folder = openbot_step
-    fresh = pipeline.report(pipeline.run(path, high_res=[SCREW_SEAT], slice_parts=False))
+    fresh = reporting.document(pipeline.run(path, high_res=[SCREW_SEAT], slice_parts=False))
     assert fresh["high_res"]["anchor_cells"] > 0
     assert fresh["stability"]["components"] == fresh["stability"]["regions"]
 
     fab = pipeline.run(path, high_res=[SCREW_SEAT], previous=folder, slice_parts=False)
-    doc = pipeline.report(fab)
+    doc = reporting.document(fab)
     it = _view(fab)
     assert it.changes["transform"]["method"] == "identity"
     assert it.changes["cells_added"] == it.changes["cells_removed"] == 0
@@ -257,7 +258,7 @@ def test_screw_seat_marked_later_gets_anchor_tabs_as_in_a_fresh_run(openbot_step
 
     loose = pipeline.run(path, high_res=[SCREW_SEAT], previous=folder, slice_parts=False,
                          connectors=False)
-    doc = pipeline.report(loose)
+    doc = reporting.document(loose)
     assert doc["high_res"] == {"marked_cells": marks["marked_cells"], "anchor_cells": 0}
     assert _printed_cells(loose.layout) == seat
     assert not _clamps_vertically(loose.layout)

@@ -19,6 +19,7 @@ import pytest
 import trimesh
 
 from core import high_res, live_estimate, pipeline
+from core import report as reporting
 from core.errors import InputError
 from core.parts import printed
 from core.printing import print_time
@@ -94,8 +95,8 @@ def test_painting_nothing_gives_the_last_result(fab):
         assert est.estimate([], mode) == est.last()
     last = est.last()
     assert last.print_s == pytest.approx(fab.print_parts.seconds)
-    assert last.speedup == pytest.approx(pipeline.speedups(fab)["fabrication"])
-    assert last.assembly_s == pytest.approx(pipeline.assembly_seconds(fab))
+    assert last.speedup == pytest.approx(reporting.speedups(fab)["fabrication"])
+    assert last.assembly_s == pytest.approx(reporting.assembly_seconds(fab))
     assert last.parts == len(fab.printed)
 
 

@@ -31,7 +31,7 @@ ORDER = [
     "printing.poses", "printing.print_time", "printing.printers", "printing.export",
     "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom", "instructions.drawing_order",
     "instructions.page", "instructions.changes_page", "picking", "face_region",
-    "iterate", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",
+    "iterate", "report", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",
     "cli", "__main__", "__init__",
 ]
 

@@ -1,10 +1,10 @@
-"""Tests of the time model of core.pipeline: assembly split, fabrication time and speed-ups."""
+"""Tests of the time model of core.report: assembly split, fabrication time and speed-ups."""
 
 from types import SimpleNamespace
 
 import pytest
 
-from core import pipeline
+from core import report as reporting
 from core.printing.estimate import PrintEstimate
 
 
@@ -21,10 +21,10 @@ def _fab(lego: int, parts: int, full_s: float, parts_s: float | None, iteration=
 
 def test_printer_bound_fabrication_is_print_plus_insertion():
     fab = _fab(lego=100, parts=2, full_s=36000.0, parts_s=3000.0)
-    assert pipeline.assembly_split(fab) == (1000.0, 60.0)
-    assert pipeline.assembly_seconds(fab) == 1060.0
-    assert pipeline.fabrication_seconds(fab) == 3060.0
-    gains = pipeline.speedups(fab)
+    assert reporting.assembly_split(fab) == (1000.0, 60.0)
+    assert reporting.assembly_seconds(fab) == 1060.0
+    assert reporting.fabrication_seconds(fab) == 3060.0
+    gains = reporting.speedups(fab)
     assert gains["fabrication"] == pytest.approx(36000 / 3060)
     assert gains["printing"] == pytest.approx(12.0)
     assert gains["sequential"] == pytest.approx(36000 / 4060)
@@ -32,26 +32,26 @@ def test_printer_bound_fabrication_is_print_plus_insertion():
 
 def test_builder_bound_fabrication_is_building_plus_insertion():
     fab = _fab(lego=600, parts=1, full_s=36000.0, parts_s=1200.0)
-    assert pipeline.fabrication_seconds(fab) == 6000.0 + 30.0
-    gains = pipeline.speedups(fab)
+    assert reporting.fabrication_seconds(fab) == 6000.0 + 30.0
+    gains = reporting.speedups(fab)
     assert gains["fabrication"] == pytest.approx(36000 / 6030)
     assert gains["fabrication"] >= gains["sequential"]
 
 
 def test_nothing_printed_and_not_sliced():
     fab = _fab(lego=50, parts=0, full_s=9000.0, parts_s=0.0)
-    assert pipeline.fabrication_seconds(fab) == 500.0
-    assert pipeline.speedups(fab)["printing"] == float("inf")
+    assert reporting.fabrication_seconds(fab) == 500.0
+    assert reporting.speedups(fab)["printing"] == float("inf")
     unsliced = _fab(lego=50, parts=1, full_s=0.0, parts_s=None)
-    assert pipeline.fabrication_seconds(unsliced) is None and pipeline.speedups(unsliced) is None
+    assert reporting.fabrication_seconds(unsliced) is None and reporting.speedups(unsliced) is None
 
 
 def test_iteration_counts_the_rework_only():
     changes = {"take_off": [{"kind": "lego"}, {"kind": "printed"}], "add": [{"kind": "lego"}] * 3}
     iteration = SimpleNamespace(changes=changes, reprinted=["P2"])
     fab = _fab(lego=300, parts=2, full_s=20000.0, parts_s=900.0, iteration=iteration)
-    assert pipeline.assembly_split(fab) == (40.0, 30.0)
-    assert pipeline.fabrication_seconds(fab) == 930.0
+    assert reporting.assembly_split(fab) == (40.0, 30.0)
+    assert reporting.fabrication_seconds(fab) == 930.0
 
 
 def test_a_run_slower_than_printing_whole_says_so():
@@ -59,16 +59,16 @@ def test_a_run_slower_than_printing_whole_says_so():
     print 9,000 s, plus 30 s inserting the part, against 8,000 s printed whole."""
     fab = _fab(lego=10, parts=1, full_s=8000.0, parts_s=9000.0)
     fab.marks = {}
-    gains = pipeline.speedups(fab)
-    making = pipeline.fabrication_seconds(fab)
+    gains = reporting.speedups(fab)
+    making = reporting.fabrication_seconds(fab)
     assert making == 9030.0 and gains["fabrication"] < 1
-    words = pipeline._slower_words(fab, gains, making)
+    words = reporting.slower_words(fab, gains, making)
     assert words == ["printing the whole model (2 h 13 min) is faster than the printed parts with "
                      "the LEGO built meanwhile (2 h 30 min): mark less to be printed, or print it "
                      "whole"]
     fab.marks = {"suggested": {"regions": []}}
-    assert "the suggested regions mark too much" in pipeline._slower_words(fab, gains, making)[0]
+    assert "the suggested regions mark too much" in reporting.slower_words(fab, gains, making)[0]
     faster = _fab(lego=10, parts=1, full_s=8000.0, parts_s=3000.0)
     faster.marks = {}
-    assert pipeline._slower_words(faster, pipeline.speedups(faster),
-                                  pipeline.fabrication_seconds(faster)) == []
+    assert reporting.slower_words(faster, reporting.speedups(faster),
+                                  reporting.fabrication_seconds(faster)) == []

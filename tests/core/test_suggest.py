@@ -238,12 +238,13 @@ def test_the_suggest_command_refuses_bad_input_in_one_line(tmp_path, capsys):
 @pytest.mark.slow
 def test_fabricate_suggest_prints_the_hole_and_adds_the_users_marks(tmp_path):
     from core import pipeline
+    from core import report as reporting
 
     path = _plate_with_hole(tmp_path)
     fab = pipeline.run(str(path), suggest=True, slice_parts=False, picture=False,
                        high_res=["20,-20,0,28,-12,3"])
     assert len(fab.printed) == 2
-    doc = pipeline.report(fab)["high_res"]["suggested"]
+    doc = reporting.document(fab)["high_res"]["suggested"]
     assert [r["reason"] for r in doc["regions"]] == ["hole Ø6.5 mm, 9.6 mm deep"]
     # the hole's wall (by hand: radius 3.25 round x -12, y 4) lies in printed bricks only
     angle = np.linspace(0, 2 * np.pi, 24, endpoint=False)
@@ -266,7 +267,7 @@ def test_fabricate_suggest_prints_the_hole_and_adds_the_users_marks(tmp_path):
     touched[tuple(slice(max(int(a), 0), int(b)) for a, b in zip(first, stop))] = True
     assert doc["share_of_cells"] == round(np.count_nonzero(touched & grid.filled) / grid.count, 4)
     plain = pipeline.run(str(path), slice_parts=False, picture=False)
-    assert "suggested" not in pipeline.report(plain)["high_res"] and not plain.printed
+    assert "suggested" not in reporting.document(plain)["high_res"] and not plain.printed
 
 
 def section_round_loops(mesh: trimesh.Trimesh, axis: int, at: float) -> list[tuple]:
