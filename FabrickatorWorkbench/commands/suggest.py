@@ -56,8 +56,8 @@ def suggest_regions(fab, recompute: bool = True) -> list:
     done = False
     with transaction(fab.Document, "Suggest high-res regions"):
         found, boxes = suggestions(fab)
-        for region, box in zip(found.regions, boxes):
-            obj = make.mark_high_res(fab, box=box, label=f"Suggested: {region.reason}")
+        for n, (region, box) in enumerate(zip(found.regions, boxes), 1):
+            obj = make.mark_high_res(fab, box=box, label=f"Suggested {n}: {region.reason}")
             obj.addProperty("App::PropertyString", REASON, "Region",
                             "Why Fabrickator suggests printing this region, and where")
             setattr(obj, REASON, f"{region.reason} at {region.where}")

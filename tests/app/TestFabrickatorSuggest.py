@@ -42,7 +42,7 @@ class TestSuggest(FabrickatorTestCase):
         made = suggest.suggest_regions(f)
         self.assertEqual(len(made), 1)
         region = made[0]
-        self.assertEqual(region.Label, "Suggested: hole Ø6.5 mm, 9.6 mm deep")
+        self.assertEqual(region.Label, "Suggested 1: hole Ø6.5 mm, 9.6 mm deep")
         self.assertEqual(region.Reason, "hole Ø6.5 mm, 9.6 mm deep at axis z through (-10.0, 0.0, 4.8)")
         self.assertTrue(f.Status.startswith("ok"), f.Status)
         self.assertEqual(len(json.loads(f.ReportJson)["printed_parts"]), 1)
@@ -57,4 +57,4 @@ class TestSuggest(FabrickatorTestCase):
 
         self.doc.undo()
         self.assertEqual(len(f.Regions), regions_before)
-        self.assertFalse([o for o in self.doc.Objects if o.Label.startswith("Suggested:")])
+        self.assertFalse([o for o in self.doc.Objects if o.Label.startswith("Suggested")])
