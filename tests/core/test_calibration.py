@@ -275,10 +275,10 @@ def test_fabricate_uses_the_fit_saved_for_the_printer(tmp_path):
         assert done.returncode == 0, done.stderr
         fits[name] = json.loads((tmp_path / name / "report.json").read_text())["fit"]
         said = [line for line in done.stdout.splitlines() if line.startswith("printed on: ")]
-        assert said == ([] if name == "default" else
-                        [f"printed on: {mini} (0.20mm QUALITY @MINI, Prusament PLA), 1 plate; fit: stud "
-                         f"{fits[name]['stud_fit']:+g}, socket {fits[name]['socket_fit']:+g} mm "
-                         f"({fits[name]['source']})"])
+        printer = ("Original Prusa i3 MK3S & MK3S+ (0.20mm QUALITY @MK3, Prusament PLA)"
+                   if name == "default" else f"{mini} (0.20mm QUALITY @MINI, Prusament PLA)")
+        assert said == [f"printed on: {printer}, 1 plate; fit: stud {fits[name]['stud_fit']:+g}, "
+                        f"socket {fits[name]['socket_fit']:+g} mm ({fits[name]['source']})"]
     assert fits["mini"]["stud_fit"] == 0.1 and fits["mini"]["socket_fit"] == -0.05
     assert fits["mini"]["source"].startswith(f"saved for {mini} / Prusament PLA in {tmp_path}")
     assert fits["given"]["stud_fit"] == 0.0 and fits["given"]["socket_fit"] == -0.05
