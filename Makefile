@@ -84,7 +84,7 @@ freecad1-root:
 
 test-freecad1: freecad1-root
 	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 's=0; $(FREECAD1_MAKE) test-quick || s=1; \
-	  $(FREECAD1_MAKE) test-workbench || s=1; exit $$s'
+	  $(FREECAD1_MAKE) test-app || s=1; $(FREECAD1_MAKE) test-gui || s=1; exit $$s'
 
 # the quick benchmark rows against their targets (bench/targets.py), about 3 minutes;
 # prints each row over its target with the stage that grew
