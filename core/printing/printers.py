@@ -47,7 +47,8 @@ PRINT_WORDS = ("QUALITY", "NORMAL", "STANDARD", "OPTIMAL")
 
 #: PrusaSlicer's own defaults of the keys conditions test, for presets that leave them out.
 CONDITION_DEFAULTS = {"nozzle_diameter": "0.4", "printer_notes": "", "printer_model": "",
-                      "single_extruder_multi_material": "0", "printer_technology": "FFF"}
+                      "single_extruder_multi_material": "0", "printer_technology": "FFF",
+                      "nozzle_high_flow": "0"}
 
 #: Keys a flat config must have to be one PrusaSlicer exported for an FFF printer.
 FLAT_KEYS = ("layer_height", "bed_shape", "max_print_height", "nozzle_diameter")
@@ -277,12 +278,15 @@ def compatible(preset: dict[str, str], printer_name: str, printer: dict[str, str
 
 @dataclass(frozen=True)
 class Bundle:
-    """One vendor bundle: its vendor name, config_version, file and sections."""
+    """One vendor bundle: its vendor name, config_version, file and sections.  ``templates``
+    marks PrusaSlicer's template bundle (``templates_profile = 1``, Templates.ini): filaments
+    offered to every printer whose conditions allow them, beside its own bundle's."""
 
     vendor: str
     version: str
     path: str
     sections: dict = field(compare=False, repr=False)
+    templates: bool = False
 
     def presets(self, kind: str) -> list[str]:
         """The names of the bundle's concrete (not ``*abstract*``) presets of ``kind``, in order."""
@@ -317,8 +321,9 @@ def bundles(folder: str | os.PathLike | None) -> list[Bundle]:
 def _bundle(path: str, _size: int, _mtime: int) -> Bundle:
     text = Path(path).read_text(encoding="utf-8", errors="replace")
     vendor = re.search(r"^\[vendor\]\s*$(?:(?!^\[).)*?^name\s*=\s*(.+?)\s*$", text, re.M | re.S)
+    templates = re.search(r"^\[vendor\]\s*$(?:(?!^\[).)*?^templates_profile\s*=\s*1\s*$", text, re.M | re.S)
     return Bundle(vendor[1] if vendor else Path(path).stem, slicer_profile.config_version(text), path,
-                  slicer_profile.parse_bundle(text))
+                  slicer_profile.parse_bundle(text), templates is not None)
 
 
 def fff_printers(bundle: Bundle) -> list[str]:
@@ -367,10 +372,26 @@ def _rank_print(name: str, preset: dict, default: str) -> tuple:
             words[0] if words else len(PRINT_WORDS), name)
 
 
-def _rank_filament(name: str, preset: dict, defaults: list[str]) -> tuple:
+def _rank_filament(name: str, preset: dict, defaults: list[str], own: set[str]) -> tuple:
     pla = plain(preset.get("filament_type", "")).upper() == "PLA"
-    return (not pla, name not in defaults, not name.startswith("Generic PLA"),
+    return (not pla, name not in defaults, name not in own, not name.startswith("Generic PLA"),
             not name.startswith("Prusament PLA"), name)
+
+
+def _filaments(sources: list[Bundle], printer: str, machine: dict, print_config: dict) -> dict[str, dict]:
+    """``name -> resolved preset`` (its ``inherits`` dropped) of the filaments of ``sources``
+    compatible with the printer and print, a name of an earlier bundle kept first.  A
+    filament G-code left bare empty (``start_filament_gcode =``, as Templates.ini has it) is
+    written ``""``, a list of one empty template as PrusaSlicer exports it: PrusaSlicer 2.9
+    reads the bare form as a list of none and fails on the G-code macro."""
+    out: dict[str, dict] = {}
+    for source in sources:
+        for name in source.presets("filament"):
+            if name not in out and compatible(f := slicer_profile.resolve(source.sections, "filament", name),
+                                              printer, machine, print_config):
+                out[name] = {k: '""' if k.endswith("_gcode") and not v.strip() else v
+                             for k, v in f.items() if k != "inherits"}
+    return out
 
 
 def choose(printer: str, print_preset: str | None = None, filament: str | None = None,
@@ -378,8 +399,9 @@ def choose(printer: str, print_preset: str | None = None, filament: str | None =
     """The printer preset ``printer`` of the bundles in ``folder`` (default:
     :func:`bundle_folder`) with ``print_preset`` and ``filament`` (default: the compatible
     print closest to DEFAULT_LAYER_MM layers, preferring the printer's own default and
-    PRINT_WORDS; the compatible PLA the printer names as its default, else a generic
-    one).  Raises InputError with the three nearest names for an unknown or
+    PRINT_WORDS; the compatible PLA the printer names as its default, else one of its own
+    bundle, else a generic one; the template bundle's filaments are offered too, as
+    PrusaSlicer does).  Raises InputError with the three nearest names for an unknown or
     incompatible name, and when no bundle is installed."""
     folder = bundle_folder() if folder is None else folder
     found = [(b, n) for b in bundles(folder) for n in fff_printers(b)]
@@ -402,18 +424,19 @@ def choose(printer: str, print_preset: str | None = None, filament: str | None =
     elif print_preset not in prints:
         raise _unknown(f"print preset for {printer}", print_preset, list(prints),
                        "choose one of the printer's compatible print presets")
-    filaments = {n: f for n in bundle.presets("filament")
-                 if compatible(f := slicer_profile.resolve(sections, "filament", n), printer, machine,
-                               prints[print_preset])}
+    filaments = _filaments([bundle] + [b for b in bundles(folder) if b.templates and b != bundle],
+                           printer, machine, prints[print_preset])
     if not filaments:
         raise InputError(f"--printer {printer!r}: its bundle {bundle.path} has no filament for it")
     if filament is None:
         defaults = _names(machine.get("default_filament_profile", ""))
-        filament = min(filaments, key=lambda n: _rank_filament(n, filaments[n], defaults))
+        own = set(bundle.presets("filament"))
+        filament = min(filaments, key=lambda n: _rank_filament(n, filaments[n], defaults, own))
     elif filament not in filaments:
         raise _unknown(f"filament for {printer}", filament, list(filaments),
                        "choose one of the printer's compatible filaments")
     presets = {"printer": printer, "print": print_preset, "filament": filament}
+    sections = {**sections, ("filament", filament): filaments[filament]}
     try:
         config = slicer_profile.flat_profile(sections, presets)
     except slicer_profile.BundleError as exc:

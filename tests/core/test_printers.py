@@ -94,6 +94,72 @@ def test_every_installed_printer_gets_a_print_and_a_filament():
         assert chosen.config["print_settings_id"] == chosen.print_preset
 
 
+VENDOR_INI = """[vendor]
+name = Tiny
+config_version = 1.0.0
+[printer:Tiny One]
+printer_technology = FFF
+printer_model = ONE
+nozzle_diameter = 0.4
+bed_shape = 0x0,100x0,100x100,0x100
+max_print_height = 100
+printer_notes = PRINTER_VENDOR_TINY
+[print:0.20mm Tiny]
+layer_height = 0.2
+compatible_printers_condition = printer_model=="ONE"
+[filament:Tiny PLA]
+filament_type = PLA
+compatible_printers_condition = printer_model=="TWO"
+"""
+
+TEMPLATES_INI = """[vendor]
+name = Templates
+config_version = 2.0.1
+templates_profile = 1
+[filament:*common*]
+start_filament_gcode =
+compatible_printers_condition = printer_notes!~/.*NO_TEMPLATES.*/
+[filament:Generic PETG]
+inherits = *common*
+filament_type = PETG
+[filament:Generic PLA]
+inherits = *common*
+filament_type = PLA
+"""
+
+
+def test_the_template_bundle_offers_filaments_to_every_printer(tmp_path):
+    """PrusaSlicer 2.6+ offers Templates.ini's filaments to any printer its condition allows;
+    a printer whose own bundle has none for it gets the template PLA, and the bare empty
+    filament G-code PrusaSlicer 2.9 cannot read is written as the list of one empty one."""
+    (tmp_path / "Tiny.ini").write_text(VENDOR_INI)
+    with pytest.raises(InputError, match="no filament"):
+        printers.choose("Tiny One", folder=tmp_path)
+    (tmp_path / "Templates.ini").write_text(TEMPLATES_INI)
+    chosen = printers.choose("Tiny One", folder=tmp_path)
+    assert (chosen.print_preset, chosen.filament, chosen.vendor) == ("0.20mm Tiny", "Generic PLA", "Tiny")
+    assert "start_filament_gcode = \"\"\n" in config_text(chosen.config)
+    assert printers.choose("Tiny One", filament="Generic PETG", folder=tmp_path).config["filament_type"] == "PETG"
+    assert [n for b in printers.bundles(tmp_path) for n in printers.fff_printers(b)] == ["Tiny One"]
+
+
+@needs_bundles
+@pytest.mark.skipif(FOLDER is None or not (FOLDER / "Templates.ini").exists(),
+                    reason="this PrusaSlicer has no template bundle (before 2.6)")
+def test_a_printer_with_a_template_filament_slices(tmp_path):
+    """Geeetech's E180 has no filament in its own bundle (PrusaSlicer 2.9): it is timed with
+    the template PLA, and PrusaSlicer slices that config."""
+    chosen = printers.choose("Geeetech E180", folder=FOLDER)
+    assert chosen.filament == "Generic PLA"
+    (tmp_path / "e180.ini").write_text(config_text(chosen.config))
+    trimesh.creation.box((20.0, 20.0, 10.0)).export(tmp_path / "box.stl")
+    run = subprocess.run([print_time.slicer_path(), "--loglevel", "1", "--load", str(tmp_path / "e180.ini"),
+                          "--export-gcode", "--output", str(tmp_path / "box.gcode"), str(tmp_path / "box.stl")],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert print_time.gcode_seconds(tmp_path / "box.gcode") > 60
+
+
 @needs_bundles
 def test_the_mk3s_named_is_todays_default_profile():
     chosen = printers.choose(slicer_profile.PRESETS["printer"], folder=FOLDER)
