@@ -119,7 +119,8 @@ def _suggest_parser(sub) -> None:
     sug.add_argument("model", metavar="MODEL")
     sug.add_argument("--out", metavar="FILE", default=None,
                      help="also write the regions as JSON (boxes in the frame of --high-res)")
-    request.add_options(sug, ("units", "scale", "up", "suggest_tolerance"), units=request.UNITS)
+    request.add_options(sug, ("units", "scale", "up", "suggest_tolerance", "suggest_speedup"),
+                        units=request.UNITS)
 
 
 def _stability_parser(sub) -> None:
@@ -182,7 +183,7 @@ def _model_options(p: argparse.ArgumentParser) -> None:
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
                             "clutch_n", "hollow", "inventory", "inventory_only", "colour",
                             "printer", "print_preset", "filament", "slicer_config", "suggest",
-                            "suggest_tolerance"),
+                            "suggest_tolerance", "suggest_speedup"),
                         units=request.UNITS)
 
 
@@ -669,7 +670,7 @@ def _suggest(args) -> int:
     model = mesh_io.load_model(job.model, units=job.units, scale=job.scale, up=job.up)
     for warning in model.warnings:
         sys.stderr.write(f"warning: {warning}\n")
-    found = suggest.suggest(model, job.suggest_tolerance)
+    found = suggest.suggest(model, job.suggest_tolerance, min_speedup=job.suggest_speedup)
     for region in found.regions:
         print(region.line(model.offset_mm))
     print(f"{len(found.regions)} region(s) suggested from the {found.source}, marking cells "

@@ -220,7 +220,8 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
                    + high_res_stage.Regions.of((), loaded))
     suggested = suggested_regions = None
     if req.suggest:
-        suggested = timed("suggest", 0.02, suggest_stage.suggest, model, req.suggest_tolerance)
+        suggested = timed("suggest", 0.02, suggest_stage.suggest, model, req.suggest_tolerance,
+                          min_speedup=req.suggest_speedup)
         suggested_regions = high_res_stage.Regions.of(suggested.boxes)
         regions = regions + suggested_regions
     notes: list[str] = []

@@ -82,6 +82,10 @@ class Request:
                                              "legofication (a hole's or pin's radius, a wall's "
                                              "thickness) is at most MM is not suggested",
                                         "--tolerance", "MM")
+    suggest_speedup: float = _setting(1.5, "with --suggest: drop suggested regions, walls first, "
+                                           "then the slowest to print, until printing the rest is "
+                                           "estimated X times faster than printing the model whole "
+                                           "(0 keeps them all)", "--min-speedup", "X")
     part_edits: tuple = _setting((), "merge/split edits of the printed parts")
     stud_fit: float = _setting(Fit.stud_fit, "printed studs are 4.8 + MM across (signed); find "
                                              "your printer's value with calibration-strip",
@@ -221,6 +225,9 @@ class Request:
         if not _number(self.suggest_tolerance) or not 0 <= self.suggest_tolerance < 1e3:
             raise InputError(f"--tolerance {self.suggest_tolerance!r} must be a number of mm "
                              f"from 0 to 1000")
+        if not _number(self.suggest_speedup) or not 0 <= self.suggest_speedup < 1e3:
+            raise InputError(f"--min-speedup {self.suggest_speedup!r} must be a number from 0 "
+                             f"to 1000")
         if isinstance(self.hollow, bool) or not isinstance(self.hollow, int) or not -1 <= self.hollow <= 64:
             raise InputError(f"--hollow {self.hollow!r} must be a whole number of studs from 0 "
                              "(solid) to 64, or -1 (automatic)")
@@ -235,7 +242,7 @@ class Request:
             high_res_bricks=tuple(self.high_res_bricks), part_edits=tuple(self.part_edits),
             stud_fit=float(self.stud_fit), socket_fit=float(self.socket_fit),
             loads=tuple(str(x) for x in self.loads), clutch_n=float(self.clutch_n),
-            suggest_tolerance=float(self.suggest_tolerance),
+            suggest_tolerance=float(self.suggest_tolerance), suggest_speedup=float(self.suggest_speedup),
             inventory=tuple(map(os.fspath, self.inventory)),
             seconds_per_brick=float(self.seconds_per_brick),
             seconds_per_part=float(self.seconds_per_part),

@@ -24,8 +24,11 @@ studs and sockets there (and anchor tabs, :func:`core.high_res.anchor`).  The
 cells the regions mark may hold at most :data:`MAX_SHARE` of the part's volume
 (:func:`capped`): holes and pins are kept before walls, cheapest first, and the
 rest are dropped with a warning, as a part that is all fine detail prints faster
-whole (the paper's limit for artistic or decorative shapes).  Kept regions
-closer than a cell are then merged (:func:`merged`) when that marks little more.
+whole (the paper's limit for artistic or decorative shapes).  The regions are then
+priced by the calibrated print-time estimate (:class:`Pricer`) and dropped, walls
+first, until printing them is :data:`MIN_SPEEDUP` times faster than printing the
+model whole (:func:`sped_up`).  Kept regions closer than a cell are then merged
+(:func:`merged`) when that marks little more.
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from scipy.spatial import cKDTree
 from core import high_res, voxelize
 from core.model import CELL_MM, Grid
 from core.parts import thickness
+from core.printing import estimate, poses
 from core.request import DEFAULTS
 
 #: Features less than this across (mm) are suggested: holes, pins and bosses.
@@ -79,6 +83,9 @@ FINE_SPLIT = (8, 8, 4)
 #: Most share of the model's volume the suggestions may mark: what is left must be
 #: worth building from LEGO.
 MAX_SHARE = 0.35
+#: Default least speed-up (the whole model's estimated print time over the suggested
+#: regions'), from the one table of defaults: regions are dropped until it holds.
+MIN_SPEEDUP = DEFAULTS["suggest_speedup"]
 
 
 @dataclass(frozen=True)
@@ -157,6 +164,7 @@ class Suggestions:
     warnings: tuple = ()
     source: str = "mesh"
     cells_share: float = 0.0
+    times: dict | None = None
 
     @property
     def boxes(self) -> list:
@@ -168,35 +176,144 @@ class Suggestions:
                 "share_of_cells": round(self.cells_share, 4),
                 "regions": [r.to_json(offset) for r in self.regions],
                 "dropped": [r.to_json(offset) for r in self.dropped],
-                "warnings": list(self.warnings)}
+                "estimate": self.times, "warnings": list(self.warnings)}
 
 
 def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_MM,
-            max_share: float = MAX_SHARE) -> Suggestions:
+            max_share: float = MAX_SHARE, min_speedup: float = MIN_SPEEDUP) -> Suggestions:
     """The suggested regions of a loaded model (:class:`core.io.meshes.LoadedModel`), in its
     frame: from its B-rep faces when it has one, else from its mesh; capped at
     ``max_share`` of its volume (:func:`capped`: walls, then the costliest, dropped with a
-    warning) and merged (:func:`merged`) as long as that stays under the cap."""
+    warning), then at an estimated printing speed-up of ``min_speedup`` (:func:`sped_up`,
+    0: no cap), and merged (:func:`merged`) as long as that stays under the share cap."""
     if model.brep is not None:
         features, source = brep_features(model.brep, tolerance_mm, limit_mm), "brep"
     else:
         features, source = mesh_features(model.mesh, tolerance_mm, limit_mm), "mesh"
     grid, weight = _grid(model)
     kept, dropped, wanted = capped(grid, weight, [Region(f.box, (f,)) for f in features], max_share)
+    price = Pricer(model.mesh, grid, weight)
+    kept, slow = sped_up(kept, price, min_speedup)
     joined = merged(kept, grid, weight)
     share = share_of(grid, [r.box for r in joined], weight)
     if share > max_share:
         joined, share = kept, share_of(grid, [r.box for r in kept], weight)
-    warnings = ()
+    warnings = []
     if dropped:
-        warnings = (f"the cells the suggestions mark would hold {wanted:.0%} of the part; "
-                    f"{len(dropped)} of them were dropped to stay under {max_share:.0%}, holes "
-                    f"and pins kept before walls, cheapest first "
-                    f"({'; '.join(r.reason for r in dropped[:3])}{' ...' if len(dropped) > 3 else ''}): "
-                    f"a part that is mostly fine detail prints faster whole (the limit for "
-                    f"artistic or decorative shapes)",)
-    return Suggestions(tuple(joined), tuple(dropped), share, warnings, source,
-                       share_of(grid, [r.box for r in joined]))
+        warnings.append(f"the cells the suggestions mark would hold {wanted:.0%} of the part; "
+                        f"{len(dropped)} of them were dropped to stay under {max_share:.0%}, holes "
+                        f"and pins kept before walls, cheapest first ({_reasons(dropped)}): a part "
+                        f"that is mostly fine detail prints faster whole (the limit for artistic "
+                        f"or decorative shapes)")
+    times = price.times(kept + slow) | {"kept_s": round(price.seconds(kept), 1)} if kept or slow else None
+    if slow:
+        warnings.append(f"printing all the suggested regions would take an estimated "
+                        f"{times['regions_s'] / 60:.0f} min against {times['whole_s'] / 60:.0f} min "
+                        f"for the model whole (a speed-up of {times['speedup']:.2f}); {len(slow)} of "
+                        f"them were dropped, the slowest walls first, toward {min_speedup:g} times "
+                        f"faster (holes and pins only where they are slower than the whole) "
+                        f"({_reasons(slow)}): mark them yourself where they matter")
+    if times is not None:
+        times["kept_speedup"] = round(times["whole_s"] / max(times["kept_s"], 1e-9), 3) if kept else None
+    return Suggestions(tuple(joined), tuple(dropped) + tuple(slow), share, tuple(warnings), source,
+                       share_of(grid, [r.box for r in joined]), times)
+
+
+def _reasons(regions: list) -> str:
+    return "; ".join(r.reason for r in regions[:3]) + (" ..." if len(regions) > 3 else "")
+
+
+class Pricer:
+    """Estimated print times of the model whole and of regions printed on their own.
+
+    The whole model is timed by :func:`core.printing.poses.weigh` in the fastest of its axis
+    poses.  A region is timed as the model inside the cells it marks, upright: the
+    calibrated estimate's plate features (:func:`core.printing.estimate.plate_features`) from
+    the volume there (``weight``), the model's surface there plus the cut across the box
+    faces, and its height, plus the supports of the model's downward faces in it
+    (:func:`core.printing.poses.support_seconds`).  The regions of a set share one plate.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, grid, weight):
+        self._grid, self._weight = grid, np.asarray(weight)
+        self._fine_mm3 = float(np.prod(np.asarray(CELL_MM) / np.array(FINE_SPLIT)))
+        self._centres, self._areas = mesh.triangles_center, mesh.area_faces
+        down = mesh.face_normals[:, 2] < -math.cos(math.radians(poses.OVERHANG_DEG))
+        self._down, self._coeffs, self._support = down, np.asarray(estimate.ESTIMATE_COEFFS), poses.support_seconds
+        self._plate, self._layer_mm = estimate.plate_features, estimate.ESTIMATE_LAYER_MM
+        self._whole = min(poses.weigh(mesh, name, rotation, poses.OVERHANG_DEG, 0.0)[0].cost
+                          for name, rotation in poses.AXIS_POSES)
+        self._cache: dict[int, tuple] = {}
+
+    def _parts(self, region: Region) -> tuple:
+        """(cells mask, faces mask, faces lifted off its bottom, cut area mm^2, height mm) of
+        ``region`` printed on its own."""
+        key = id(region)
+        if key not in self._cache:
+            grid = self._grid
+            first, stop = (np.clip(v, 0, grid.shape) for v in high_res.box_range(grid.origin, grid.cell, region.box))
+            lo = np.asarray(grid.origin) + first * np.asarray(grid.cell)
+            hi = np.asarray(grid.origin) + stop * np.asarray(grid.cell)
+            cells = np.zeros(grid.shape, dtype=bool)
+            cells[first[0]:stop[0], first[1]:stop[1], first[2]:stop[2]] = True
+            block = self._weight[first[0]:stop[0], first[1]:stop[1], first[2]:stop[2]]
+            full = float(np.prod(FINE_SPLIT))
+            cut = sum(float((block.take(0, axis) + block.take(-1, axis)).sum()) / full
+                      * float(np.prod(np.delete(np.asarray(grid.cell), axis))) for axis in range(3))
+            inside = np.all((self._centres >= lo) & (self._centres <= hi), axis=1)
+            lifted = inside & self._down & (self._centres[:, 2] > lo[2] + self._layer_mm)
+            self._cache[key] = (cells, inside, lifted, cut, float(hi[2] - lo[2]), lo[2])
+        return self._cache[key]
+
+    def seconds(self, regions: list) -> float:
+        """Estimated print time (s) of ``regions`` printed on their own, on one plate: the
+        model in the cells any of them marks, the cuts and heights of each."""
+        if not regions:
+            return 0.0
+        parts = [self._parts(r) for r in regions]
+        cells = np.logical_or.reduce([p[0] for p in parts])
+        inside = np.logical_or.reduce([p[1] for p in parts])
+        lifted = np.logical_or.reduce([p[2] for p in parts])
+        volume = float(self._weight[cells].sum()) * self._fine_mm3
+        area = float(self._areas[inside].sum()) + sum(p[3] for p in parts)
+        bottom = min(p[5] for p in parts)
+        support = self._support(float(self._areas[lifted].sum()),
+                                float(self._centres[lifted, 2].max() - bottom) if lifted.any() else 0.0)
+        heights = [p[4] for p in parts]
+        features = self._plate([volume] + [0.0] * (len(heights) - 1), [area] + [0.0] * (len(heights) - 1), heights)
+        return float(features @ self._coeffs + support)
+
+    def times(self, regions: list) -> dict:
+        """The report's figures: the model whole, ``regions`` and the speed-up between them."""
+        parts = self.seconds(regions)
+        return {"whole_s": round(self._whole, 1), "regions_s": round(parts, 1),
+                "speedup": round(self._whole / max(parts, 1e-9), 3)}
+
+    @property
+    def whole(self) -> float:
+        """Estimated print time (s) of the model whole."""
+        return self._whole
+
+
+def sped_up(regions: list, price: Pricer, min_speedup: float) -> tuple[list, list]:
+    """``(kept, dropped)``: ``regions`` less the walls, slowest to print first
+    (:class:`Pricer`), until the rest prints at least ``min_speedup`` times faster than the
+    model whole, then less the holes and pins, slowest first, while printing them would
+    still be slower than printing it whole (they carry the function: they are dropped only
+    where they destroy the speed-up); all kept for ``min_speedup`` 0."""
+    kept = list(regions)
+    if min_speedup <= 0:
+        return kept, []
+    walls = [r for r in kept if any(f.kind == "wall" for f in r.features)]
+    others = [r for r in kept if not any(f.kind == "wall" for f in r.features)]
+    dropped = []
+    for group, least in ((walls, min_speedup), (others, min(1.0, min_speedup))):
+        for region in sorted(group, key=lambda r: -price.seconds([r])):
+            if price.whole >= least * price.seconds(kept):
+                break
+            kept = [r for r in kept if r is not region]
+            dropped.append(region)
+    return kept, dropped
 
 
 def share_of(grid, boxes, weight=None) -> float:

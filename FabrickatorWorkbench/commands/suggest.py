@@ -43,7 +43,7 @@ def suggestions(fab):
     scale = float(fab.Scale)
     with tempfile.TemporaryDirectory(prefix="fabrickator-suggest-") as work:
         model = mesh_io.load_model(bridge.write_source(fab.Source, work), scale=scale)
-        found = suggest.suggest(model, DEFAULTS["suggest_tolerance"])
+        found = suggest.suggest(model, DEFAULTS["suggest_tolerance"], min_speedup=DEFAULTS["suggest_speedup"])
     boxes = [tuple(float(v) / scale for v in (r.box - model.offset_mm).ravel()) for r in found.regions]
     return found, boxes
 

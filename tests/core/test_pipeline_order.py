@@ -16,19 +16,20 @@ CORE = Path(__file__).resolve().parents[2] / "core"
 #: exports, then the drivers and tools that use them all.  The force model comes before
 #: the layout: the exact-cover bounds solve with its HiGHS settings and reinforce asks it.
 #: The maker's inventory (read before any geometry) limits the layout and colours the outputs.
+#: The print-time estimate and poses (plain geometry, no slicer) come before suggest, which
+#: prices its regions with them.
 ORDER = [
     "io", "parts", "layout", "printing", "instructions",
     "errors", "io.output_dir", "colours", "model", "parts.interfaces", "request", "catalog", "inventory",
     "connectivity", "parts.brick_solids", "parts.thickness", "io.brep", "io.repair", "io.meshes", "voxelize", "hollow",
-    "high_res", "suggest", "grid_fit",
+    "high_res", "printing.plate", "printing.estimate", "printing.poses", "suggest", "grid_fit",
     "forces.limits", "forces.joints", "forces.solver", "forces.verdict", "forces.bodies",
     "forces.program", "forces.decompose", "forces.analyse", "forces.build_steps", "forces",
     "layout.bounds", "layout.brick_cells", "layout.merge_kernels", "layout.repair",
     "layout.greedy", "layout.quality", "layout.window_program",
     "layout.connected_bound", "layout.neighbourhood", "layout.search", "align", "diff", "parts.connectors",
     "parts.printed_part", "parts.booleans", "parts.engraving", "parts.printed", "stability", "layout.reinforce", "result", "instructions.build_order",
-    "printing.slicer_profile", "printing.slice_cache", "printing.plate", "printing.estimate",
-    "printing.poses", "printing.print_time", "printing.printers", "printing.export",
+    "printing.slicer_profile", "printing.slice_cache", "printing.print_time", "printing.printers", "printing.export",
     "instructions.render", "instructions.picture", "instructions.ldraw", "instructions.bom", "instructions.drawing_order",
     "instructions.page", "instructions.changes_page", "picking", "face_region",
     "iterate", "report", "pipeline", "live_estimate", "watch", "parts.calibration", "io.layout_file",
