@@ -329,9 +329,10 @@ def share_of(grid, boxes, weight=None) -> float:
 def volume_per_cell(mesh, origin, shape, closed=None) -> np.ndarray:
     """Per cell of the grid of plate cells from ``origin`` of ``shape``, the part's volume
     in it, in cells of that grid split :data:`FINE_SPLIT` times along x, y, z (an eighth
-    of a stud and a quarter of a plate: the part legofied on that finer grid)."""
+    of a stud and a quarter of a plate): the fine cells whose sample point is inside
+    (:func:`core.voxelize.sampled`), a point-sampled volume."""
     cell, split = np.asarray(CELL_MM), np.array(FINE_SPLIT)
-    fine = voxelize.legofy(voxelize.snap_to_lattice(mesh, origin, cell / split), cell=cell / split,
+    fine = voxelize.sampled(voxelize.snap_to_lattice(mesh, origin, cell / split), cell=cell / split,
                            origin=origin, shape=tuple(int(v) for v in np.array(shape) * split),
                            closed=closed)
     (a, b, c), (x, y, z) = shape, FINE_SPLIT

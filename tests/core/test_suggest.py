@@ -316,6 +316,32 @@ def test_the_round_holes_of_the_motor_bracket_mesh_are_covered():
     assert len(reasons) == 5 and all(w.startswith("hole Ø4.") for w in reasons)
 
 
+def test_the_volume_per_cell_adds_up_to_the_parts_volume(tmp_path):
+    """By hand: a 30 x 20 x 9.6 mm plate with a 6 mm bore through it holds
+    30 * 20 * 9.6 - pi * 3^2 * 9.6 = 5488.6 mm^3, off the grid's lattice; the fine cells
+    count it within 2 % (the cells the surface touches would count 10 % more)."""
+    import cadquery as cq
+
+    plate = (cq.Workplane("XY").box(30, 20, 9.6, centered=False)
+             .faces(">Z").workplane(centerOption="CenterOfBoundBox").hole(6).translate((1.3, 2.7, 0.5)))
+    model = mesh_io.load_model(_stl(plate, tmp_path))
+    origin, shape = suggest.voxelize.grid_frame(model.mesh.bounds)
+    total = suggest.volume_per_cell(model.mesh, origin, shape, True).sum()
+    fine_mm3 = np.prod(np.asarray(suggest.CELL_MM) / np.array(suggest.FINE_SPLIT))
+    assert total * fine_mm3 == pytest.approx(30 * 20 * 9.6 - math.pi * 9 * 9.6, rel=0.02)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["asm4_connecting_rod.FCStd", "openbot_motor_bracket.stl"])
+def test_the_volume_per_cell_of_a_shared_model_is_its_volume(name):
+    """Against the mesh's own (divergence-theorem) volume: within 3 %."""
+    model = mesh_io.load_model(shared(name))
+    origin, shape = suggest.voxelize.grid_frame(model.mesh.bounds)
+    total = suggest.volume_per_cell(model.mesh, origin, shape, model.watertight).sum()
+    fine_mm3 = np.prod(np.asarray(suggest.CELL_MM) / np.array(suggest.FINE_SPLIT))
+    assert total * fine_mm3 == pytest.approx(abs(model.mesh.volume), rel=0.03)
+
+
 def test_a_region_is_priced_as_the_block_it_cuts_out_of_the_model(tmp_path):
     """By hand: a region inside a plain block prints as the cell-aligned box it cuts out,
     every face of it a cut; the block whole prints in its flattest pose.  Both are timed
