@@ -203,9 +203,16 @@ def resolve_slicer(slicer: str | None = "auto") -> tuple[str | None, str]:
 def plate_config(profile: str | os.PathLike | None = None, supports: bool = False,
                  slicer: str | None = "auto") -> dict[str, str]:
     """The settings a plate is sliced with: the profile's (:func:`load_profile`, for
-    ``slicer``), SUPPORT_SETTINGS over them when ``supports``.  Raises InputError
-    when the profile cannot be read."""
-    return {**load_profile(profile, slicer), **(SUPPORT_SETTINGS if supports else {})}
+    ``slicer``), SUPPORT_SETTINGS over them when ``supports``, and text G-code where the
+    profile asks for binary (PrusaSlicer 2.7+'s MK4, MINI, XL): the time is read from the
+    text's comments (:func:`gcode_seconds`); the binary form carries it only in its
+    metadata blocks.  Raises InputError when the profile cannot be read."""
+    return text_gcode({**load_profile(profile, slicer), **(SUPPORT_SETTINGS if supports else {})})
+
+
+def text_gcode(config: dict[str, str]) -> dict[str, str]:
+    """``config`` with ``binary_gcode = 0`` where it has that key (PrusaSlicer 2.7+)."""
+    return {**config, "binary_gcode": "0"} if "binary_gcode" in config else config
 
 
 def _slice_or_reason(mesh: trimesh.Trimesh, workdir, profile, slicer: str, supports: bool) -> PrintEstimate | str:
@@ -316,7 +323,7 @@ def slice_plate(meshes, workdir: str | os.PathLike, profile: str | os.PathLike |
     slicer = slicer or slicer_path()
     if not slicer:
         raise _SlicerFailed("no slicer")
-    config = load_profile(profile, slicer)
+    config = text_gcode(load_profile(profile, slicer))
     volume = build_volume(config)
     parts = as_meshes(meshes)
     for index, mesh in enumerate(parts):

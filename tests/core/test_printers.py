@@ -161,6 +161,23 @@ def test_a_printer_with_a_template_filament_slices(tmp_path):
 
 
 @needs_bundles
+@pytest.mark.skipif(print_time.slicer_path() is None, reason="PrusaSlicer is not installed")
+def test_a_printer_asking_for_binary_gcode_is_timed_from_text_gcode(tmp_path):
+    """PrusaSlicer 2.7+ bundles ask for binary G-code on the MINI (``binary_gcode = 1``),
+    whose time lies in compressed metadata: the plate is sliced to text G-code, and the
+    slicer's own time comes back (not the estimate)."""
+    mini = printers.choose(MINI, folder=FOLDER).config
+    if "binary_gcode" not in mini:
+        pytest.skip("this PrusaSlicer's bundle has no binary G-code setting (before 2.7)")
+    assert print_time.plate_config(mini)["binary_gcode"] == "0"
+    cube = trimesh.creation.box((20.0, 20.0, 20.0))
+    cube.apply_translation(-cube.bounds[0])
+    result = print_time.slice_plate([cube], tmp_path, mini)
+    assert result.method.startswith("prusa-slicer") and result.seconds > 60
+    assert "; estimated printing time (normal mode)" in Path(result.gcode_path).read_text(errors="replace")
+
+
+@needs_bundles
 def test_the_mk3s_named_is_todays_default_profile():
     chosen = printers.choose(slicer_profile.PRESETS["printer"], folder=FOLDER)
     assert (chosen.print_preset, chosen.filament) == ("0.20mm QUALITY @MK3", "Prusament PLA")
