@@ -30,11 +30,6 @@ from core.errors import InputError, bug_line, check_path, memory_shortage
 from core.parts.interfaces import Fit
 
 
-#: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
-#: (a sharp corner of the engraved letters, say) stay in report.json's thin_features.
-THIN_WARNING_MM2 = 1.0
-
-
 class _Parser(argparse.ArgumentParser):
     """argparse that reports a usage mistake as one line and exit status 2."""
 
@@ -714,107 +709,11 @@ def _calibration_strip(args) -> int:
 
 
 def _summary(doc: dict, out) -> None:
-    """The short summary of one fabricate run on stdout."""
-    from core import forces
-    from core.instructions import build_order
-    from core.layout import search as improve
+    """The short summary of one fabricate run: lines on stdout, warnings and notes on stderr."""
+    from core import report
 
-    if doc["model"]["repaired"]:
-        sys.stderr.write(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}\n")
-    for warning in doc["model"]["warnings"]:
-        sys.stderr.write(f"warning: {warning}\n")
-    for warning in doc.get("warnings", ()):
-        sys.stderr.write(f"warning: {warning}\n")
-    for note in doc.get("notes", ()):
-        sys.stderr.write(f"note: {note}\n")
-    st, br = doc["stability"], doc["bricks"]
-    print(f"{doc['plates']} cells -> {br['total']} bricks "
-          f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
-          f"{st['components']} component(s) for {st['regions']} region(s), "
-          f"{st['weak_points']} weak point(s); written to {out}")
-    if doc.get("inventory"):
-        from core.inventory import summary_words
-        print(summary_words(doc["inventory"])
-              + (f"; {doc['inventory']['ignored_parts']} owned part(s) ignored (not plates or "
-                 f"bricks of the catalog, report.json inventory.ignored)"
-                 if doc["inventory"]["ignored_parts"] else ""))
-    bound = improve.bound_words(doc.get("layout_quality") or {})
-    if bound:
-        print(bound)
-    force = st.get("force")
-    if force and not force.get("checked", True):
-        print(f"force check skipped: {force['unchecked_why']}")
-    elif force:
-        print(forces.verdict_words(force)
-              + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"
-                 if force["failing_bricks"] else "")
-              + (f"; it rests leaning {force['rests_tilted_deg']:.0f}° on its lower points"
-                 if force.get("rests_tilted_deg", 0) >= 1 else ""))
-        for topple in force.get("topples", ()):
-            sys.stderr.write(f"warning: {topple['why']}\n")
-        build = st.get("build") or {}
-        if build.get("checked") is False:
-            print(f"build steps not force-checked: {build['why']}")
-        elif build.get("graph_only_steps"):
-            print(f"{build['graph_only_steps']} build step(s) from step {build['first_graph_only_step']} "
-                  f"not force-checked: {build['graph_only_why']}")
-        props = build.get("props", ())
-        if props:
-            print(f"{len(props)} prop(s) hold overhanging bricks while the build grows "
-                  "(instructions.html says at which steps; report.json stability.build.props):")
-            for prop in props[:3]:
-                print(f"  {prop['words']}")
-            if len(props) > 3:
-                print(f"  and {len(props) - 3} more")
-        if build.get("finished_with_props"):
-            print(build_order.finished_words(build["finished_with_props"], force))
-        for step in build.get("unstable_steps", ())[:5]:
-            sys.stderr.write(f"warning: build step {step['step']}: {step['why']}\n")
-    hollow = doc.get("hollow")
-    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
-        print(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
-    suggested = doc.get("high_res", {}).get("suggested")
-    if suggested is not None:
-        kinds: dict = {}
-        for region in suggested["regions"]:
-            for feature in region["features"]:
-                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
-        print(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
-              f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
-              f"of the cells; report.json high_res.suggested): "
-              + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
-    fit = doc["grid"].get("fit")
-    if fit and any(fit["shift_mm"]):
-        vol = fit["marked_model_mm3"]
-        print(f"grid shifted {fit['shift_mm'][0]:g}, {fit['shift_mm'][1]:g} mm in x, y: the high-res "
-              f"cells hold {vol['fitted']:.0f} mm³ of the part instead of {vol['centred']:.0f}")
-    if doc["printed_parts"]:
-        pt = doc["print_time_s"] or {}
-        print(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
-              f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
-              f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
-              f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
-        if doc.get("printer"):
-            p = doc["printer"]
-            plates = pt.get("print_plates", 1)
-            print(f"printed on: {p['printer']} ({p['print_preset']}, {p['filament']}), {plates} plate"
-                  f"{'s' if plates != 1 else ''}; fit: stud {doc['fit']['stud_fit']:+g}, socket "
-                  f"{doc['fit']['socket_fit']:+g} mm ({doc['fit']['source']})")
-    for part in doc["printed_parts"]:
-        if not part["engaged"]["clamps"]:
-            sys.stderr.write(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}\n")
-        thin = part.get("thin_features") or {}
-        if thin.get("area_mm2", 0.0) >= THIN_WARNING_MM2:
-            spot = thin["spots"][0]
-            sys.stderr.write(f"warning: printed part {part['id']} has {thin['area_mm2']:.1f} mm² thinner than "
-                             f"{thin['limit_mm']:g} mm (a nozzle cannot print it), thinnest {thin['thinnest_mm']:g} mm "
-                             f"near {', '.join(f'{v:g}' for v in spot['centre_mm'])}\n")
-    ch = doc.get("changes")
-    if ch:
-        t = ch["transform"]
-        if not t.get("confident", True):
-            sys.stderr.write(f"warning: {t.get('message')}\n")
-        print(f"changes: {ch['cells_added']} cell(s) added, {ch['cells_removed']} removed; "
-              f"{ch['bricks_kept']} brick(s) kept, {len(ch['take_off'])} to take off, "
-              f"{len(ch['add'])} to add; reprint {', '.join(ch['parts_reprinted']) or 'nothing'} "
-              f"(see changes.html)")
+    lines, notes = report.summary(doc, out)
+    for note in notes:
+        sys.stderr.write(note + "\n")
+    for line in lines:
+        print(line)

@@ -21,8 +21,13 @@ import numpy as np
 from core import colours, forces as forces_stage, hollow as hollow_stage
 from core import inventory as inventory_stage, stability as stability_stage
 from core.instructions import build_order
+from core.layout import search as improve
 from core.model import Layout
 from core.printing import printers
+
+#: Area (mm²) thinner than a nozzle prints from which the summary warns; smaller spots
+#: (a sharp corner of the engraved letters, say) stay in report.json's thin_features.
+THIN_WARNING_MM2 = 1.0
 
 
 def assembly_split(fab) -> tuple[float, float]:
@@ -345,7 +350,149 @@ def slower_words(fab, gains: dict | None, making: float | None) -> list[str]:
             f"the printed parts with the LEGO built meanwhile ({duration_words(making)}): {what}"]
 
 
-def duration_words(seconds: float) -> str:
-    """``seconds`` as ``3 h 05 min`` or ``12 min``."""
-    m = int(round(seconds / 60.0))
+def duration_words(seconds: float | None) -> str:
+    """``seconds`` as ``3 h 05 min`` or ``12 min``; ``-`` for None."""
+    if seconds is None:
+        return "-"
+    m = int(round(float(seconds) / 60.0))
     return f"{m // 60} h {m % 60:02d} min" if m >= 60 else f"{m} min"
+
+
+def summary(doc: dict, out) -> tuple[list[str], list[str]]:
+    """The short summary of one fabricate run whose ``report.json`` is ``doc``, written to
+    ``out``: ``(lines, notes)``, the lines for stdout and the warnings and notes
+    (``"warning: ..."``, ``"note: ..."``) for stderr."""
+    lines: list[str] = []
+    notes: list[str] = []
+    if doc["model"]["repaired"]:
+        notes.append(f"note: the model was repaired: {'; '.join(doc['model']['repaired'])}")
+    for warning in doc["model"]["warnings"]:
+        notes.append(f"warning: {warning}")
+    for warning in doc.get("warnings", ()):
+        notes.append(f"warning: {warning}")
+    for note in doc.get("notes", ()):
+        notes.append(f"note: {note}")
+    st, br = doc["stability"], doc["bricks"]
+    lines.append(f"{doc['plates']} cells -> {br['total']} bricks "
+                 f"({', '.join(f'{n}x {p}' for p, n in br['by_part'].items())}); "
+                 f"{st['components']} component(s) for {st['regions']} region(s), "
+                 f"{st['weak_points']} weak point(s); written to {out}")
+    if doc.get("inventory"):
+        lines.append(inventory_stage.summary_words(doc["inventory"])
+                     + (f"; {doc['inventory']['ignored_parts']} owned part(s) ignored (not plates or "
+                        f"bricks of the catalog, report.json inventory.ignored)"
+                        if doc["inventory"]["ignored_parts"] else ""))
+    bound = improve.bound_words(doc.get("layout_quality") or {})
+    if bound:
+        lines.append(bound)
+    force = st.get("force")
+    if force and not force.get("checked", True):
+        lines.append(f"force check skipped: {force['unchecked_why']}")
+    elif force:
+        lines.append(forces_stage.verdict_words(force)
+                     + (f", {len(force['failing_bricks'])} failing brick(s) (report.json stability.force)"
+                        if force["failing_bricks"] else "")
+                     + (f"; it rests leaning {force['rests_tilted_deg']:.0f}° on its lower points"
+                        if force.get("rests_tilted_deg", 0) >= 1 else ""))
+        for topple in force.get("topples", ()):
+            notes.append(f"warning: {topple['why']}")
+        build = st.get("build") or {}
+        if build.get("checked") is False:
+            lines.append(f"build steps not force-checked: {build['why']}")
+        elif build.get("graph_only_steps"):
+            lines.append(f"{build['graph_only_steps']} build step(s) from step {build['first_graph_only_step']} "
+                         f"not force-checked: {build['graph_only_why']}")
+        props = build.get("props", ())
+        if props:
+            lines.append(f"{len(props)} prop(s) hold overhanging bricks while the build grows "
+                         "(instructions.html says at which steps; report.json stability.build.props):")
+            for prop in props[:3]:
+                lines.append(f"  {prop['words']}")
+            if len(props) > 3:
+                lines.append(f"  and {len(props) - 3} more")
+        if build.get("finished_with_props"):
+            lines.append(build_order.finished_words(build["finished_with_props"], force))
+        for step in build.get("unstable_steps", ())[:5]:
+            notes.append(f"warning: build step {step['step']}: {step['why']}")
+    hollow = doc.get("hollow")
+    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
+        lines.append(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
+    suggested = doc.get("high_res", {}).get("suggested")
+    if suggested is not None:
+        kinds: dict = {}
+        for region in suggested["regions"]:
+            for feature in region["features"]:
+                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
+        lines.append(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
+                     f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
+                     f"of the cells; report.json high_res.suggested): "
+                     + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
+    fit = doc["grid"].get("fit")
+    if fit and any(fit["shift_mm"]):
+        vol = fit["marked_model_mm3"]
+        lines.append(f"grid shifted {fit['shift_mm'][0]:g}, {fit['shift_mm'][1]:g} mm in x, y: the high-res "
+                     f"cells hold {vol['fitted']:.0f} mm³ of the part instead of {vol['centred']:.0f}")
+    if doc["printed_parts"]:
+        pt = doc["print_time_s"] or {}
+        lines.append(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
+                     f"stud(s); print {pt.get('full_model')} s whole vs {pt.get('printed_parts')} s parts, "
+                     f"{doc['assembly_s']} s assembly (LEGO built while it prints): "
+                     f"{doc['fabrication_s']} s, speed-up {doc['speedup']}")
+        if doc.get("printer"):
+            p = doc["printer"]
+            plates = pt.get("print_plates", 1)
+            lines.append(f"printed on: {p['printer']} ({p['print_preset']}, {p['filament']}), {plates} plate"
+                         f"{'s' if plates != 1 else ''}; fit: stud {doc['fit']['stud_fit']:+g}, socket "
+                         f"{doc['fit']['socket_fit']:+g} mm ({doc['fit']['source']})")
+    for part in doc["printed_parts"]:
+        if not part["engaged"]["clamps"]:
+            notes.append(f"warning: printed part {part['id']} does not clamp: {part['engaged']['why']}")
+        thin = part.get("thin_features") or {}
+        if thin.get("area_mm2", 0.0) >= THIN_WARNING_MM2:
+            spot = thin["spots"][0]
+            notes.append(f"warning: printed part {part['id']} has {thin['area_mm2']:.1f} mm² thinner than "
+                         f"{thin['limit_mm']:g} mm (a nozzle cannot print it), thinnest {thin['thinnest_mm']:g} mm "
+                         f"near {', '.join(f'{v:g}' for v in spot['centre_mm'])}")
+    ch = doc.get("changes")
+    if ch:
+        t = ch["transform"]
+        if not t.get("confident", True):
+            notes.append(f"warning: {t.get('message')}")
+        lines.append(f"changes: {ch['cells_added']} cell(s) added, {ch['cells_removed']} removed; "
+                     f"{ch['bricks_kept']} brick(s) kept, {len(ch['take_off'])} to take off, "
+                     f"{len(ch['add'])} to add; reprint {', '.join(ch['parts_reprinted']) or 'nothing'} "
+                     f"(see changes.html)")
+    return lines, notes
+
+
+def headlines(doc: dict, steps: int) -> list[str]:
+    """The headline numbers of a result whose ``report.json`` is ``doc``, built in ``steps``
+    assembly steps, one short line each, in words (the workbench's Report)."""
+    bricks, st = doc["bricks"], doc["stability"]
+    weak, studs = st["weak_points"], st["incomplete_studs"]
+    lines = [f"{bricks['total']} bricks ({bricks['lego']} LEGO, {bricks['printed']} printed) "
+             f"from {doc['plates']} plates; {steps} assembly steps",
+             ("the bricks hold together as one structure" if st["components"] == st.get("regions", 1)
+              else f"the bricks fall into {st['components']} separate pieces"),
+             (f"{weak} weak point{'s' if weak != 1 else ''} (a brick that alone joins two parts "
+              "of the build)" if weak else "no weak points"),
+             (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
+              "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
+    if doc.get("inventory"):
+        lines.append(inventory_stage.summary_words(doc["inventory"]))
+    quality = doc.get("layout_quality") or {}
+    if "one_piece" in (quality.get("lower_bound") or {}):
+        lines.append(improve.bound_words(quality))
+    if st.get("force"):
+        lines.append(f"force check: {force_line(st['force'], st.get('build'))}")
+    times = doc.get("print_time_s")
+    if times:
+        lines.append(f"print time: whole part {duration_words(times['full_model'])}, printed parts "
+                     f"{duration_words(times['printed_parts'])} + assembly {duration_words(doc['assembly_s'])}")
+    if doc.get("speedup"):
+        gains = doc["speedups"]
+        printing = f"{gains['printing']:.2f}x" if gains.get("printing") else "nothing to print"
+        lines.append(f"speed-up {doc['speedup']:.2f}x over printing the whole part, building the "
+                     f"LEGO while the parts print (printing alone {printing}; building after "
+                     f"printing {gains['sequential']:.2f}x)")
+    return lines

@@ -31,47 +31,11 @@ class Report(Command):
         ReportDialog(fab).exec_()
 
 
-def _time(seconds) -> str:
-    if seconds is None:
-        return "-"
-    minutes = int(round(float(seconds) / 60.0))
-    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
-
-
 def summary(fab) -> list[str]:
     """The headline numbers of ``fab``'s last result, one short line each, in words."""
-    doc = make.report(fab)
-    bricks, st = doc["bricks"], doc["stability"]
-    weak, studs = st["weak_points"], st["incomplete_studs"]
-    lines = [f"{bricks['total']} bricks ({bricks['lego']} LEGO, {bricks['printed']} printed) "
-             f"from {doc['plates']} plates; {fab.Steps} assembly steps",
-             ("the bricks hold together as one structure" if st["components"] == st.get("regions", 1)
-              else f"the bricks fall into {st['components']} separate pieces"),
-             (f"{weak} weak point{'s' if weak != 1 else ''} (a brick that alone joins two parts "
-              "of the build)" if weak else "no weak points"),
-             (f"{studs} incomplete stud{'s' if studs != 1 else ''} on printed parts (a LEGO brick "
-              "above does not clamp there)" if studs else "every stud of the printed parts is complete")]
-    if doc.get("inventory"):
-        from core.inventory import summary_words  # loads scipy
-        lines.append(summary_words(doc["inventory"]))
-    quality = doc.get("layout_quality") or {}
-    if "one_piece" in (quality.get("lower_bound") or {}):
-        from core.layout import search as improve
-        lines.append(improve.bound_words(quality))
-    if st.get("force"):
-        from core import report as reporting
-        lines.append(f"force check: {reporting.force_line(st['force'], st.get('build'))}")
-    times = doc.get("print_time_s")
-    if times:
-        lines.append(f"print time: whole part {_time(times['full_model'])}, printed parts "
-                     f"{_time(times['printed_parts'])} + assembly {_time(doc['assembly_s'])}")
-    if doc.get("speedup"):
-        gains = doc["speedups"]
-        printing = f"{gains['printing']:.2f}x" if gains.get("printing") else "nothing to print"
-        lines.append(f"speed-up {doc['speedup']:.2f}x over printing the whole part, building the "
-                     f"LEGO while the parts print (printing alone {printing}; building after "
-                     f"printing {gains['sequential']:.2f}x)")
-    return lines
+    from core import report as reporting  # loads the stages whose words it uses
+
+    return reporting.headlines(make.report(fab), fab.Steps)
 
 
 def items(fab) -> list[dict]:
@@ -133,6 +97,8 @@ def select(fab, item: dict) -> list:
 
 def report_html(fab) -> str:
     """The report of ``fab`` as a small HTML page: the numbers, what they mean and the tables."""
+    from core import report as reporting  # loads the stages whose words it uses
+
     doc = make.report(fab)
     esc = html.escape
     st = doc["stability"]
@@ -147,7 +113,8 @@ def report_html(fab) -> str:
         "<th>owned</th><th>to buy</th>" if counted else "")
     parts = "".join(
         f"<tr><td><b>{esc(p.PartId)}</b></td><td align='right'>{p.Cells}</td>"
-        f"<td align='right'>{p.VolumeMm3 / 1000:.1f}</td><td align='right'>{_time(p.PrintTime)}</td>"
+        f"<td align='right'>{p.VolumeMm3 / 1000:.1f}</td>"
+        f"<td align='right'>{reporting.duration_words(p.PrintTime)}</td>"
         f"<td align='right'>{p.CompleteStuds}</td><td align='right'>{len(p.IncompleteStuds)}</td>"
         f"<td align='right'>{p.Step}</td></tr>" for p in make.printed_parts(fab))
     lines = "".join(f"<li>{esc(line)}</li>" for line in summary(fab))
