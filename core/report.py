@@ -385,6 +385,46 @@ def summary(doc: dict, out) -> tuple[list[str], list[str]]:
     bound = improve.bound_words(doc.get("layout_quality") or {})
     if bound:
         lines.append(bound)
+    more, warned = _force_summary(st)
+    lines += more
+    notes += warned
+    hollow = doc.get("hollow")
+    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
+        lines.append(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
+    suggested = doc.get("high_res", {}).get("suggested")
+    if suggested is not None:
+        kinds: dict = {}
+        for region in suggested["regions"]:
+            for feature in region["features"]:
+                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
+        lines.append(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
+                     f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
+                     f"of the cells; report.json high_res.suggested): "
+                     + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
+    fit = doc["grid"].get("fit")
+    if fit and any(fit["shift_mm"]):
+        vol = fit["marked_model_mm3"]
+        lines.append(f"grid shifted {fit['shift_mm'][0]:g}, {fit['shift_mm'][1]:g} mm in x, y: the high-res "
+                     f"cells hold {vol['fitted']:.0f} mm³ of the part instead of {vol['centred']:.0f}")
+    more, warned = _parts_summary(doc)
+    lines += more
+    notes += warned
+    ch = doc.get("changes")
+    if ch:
+        t = ch["transform"]
+        if not t.get("confident", True):
+            notes.append(f"warning: {t.get('message')}")
+        lines.append(f"changes: {ch['cells_added']} cell(s) added, {ch['cells_removed']} removed; "
+                     f"{ch['bricks_kept']} brick(s) kept, {len(ch['take_off'])} to take off, "
+                     f"{len(ch['add'])} to add; reprint {', '.join(ch['parts_reprinted']) or 'nothing'} "
+                     f"(see changes.html)")
+    return lines, notes
+
+
+def _force_summary(st: dict) -> tuple[list[str], list[str]]:
+    """:func:`summary`'s lines and warnings on the force check and the build steps."""
+    lines: list[str] = []
+    notes: list[str] = []
     force = st.get("force")
     if force and not force.get("checked", True):
         lines.append(f"force check skipped: {force['unchecked_why']}")
@@ -414,24 +454,14 @@ def summary(doc: dict, out) -> tuple[list[str], list[str]]:
             lines.append(build_order.finished_words(build["finished_with_props"], force))
         for step in build.get("unstable_steps", ())[:5]:
             notes.append(f"warning: build step {step['step']}: {step['why']}")
-    hollow = doc.get("hollow")
-    if hollow and (hollow["on"] or hollow["setting"] != "auto" or "laid_out_both" in hollow):
-        lines.append(hollow["why"] + (f"; {hollow['compare']}" if hollow.get("compare") else ""))
-    suggested = doc.get("high_res", {}).get("suggested")
-    if suggested is not None:
-        kinds: dict = {}
-        for region in suggested["regions"]:
-            for feature in region["features"]:
-                kinds[feature["kind"]] = kinds.get(feature["kind"], 0) + 1
-        lines.append(f"{len(suggested['regions'])} suggested region(s) marked (cells holding "
-                     f"{suggested['share_of_volume']:.0%} of the part, {suggested['share_of_cells']:.0%} "
-                     f"of the cells; report.json high_res.suggested): "
-                     + (", ".join(f"{n} {kind}(s)" for kind, n in sorted(kinds.items())) or "nothing found"))
-    fit = doc["grid"].get("fit")
-    if fit and any(fit["shift_mm"]):
-        vol = fit["marked_model_mm3"]
-        lines.append(f"grid shifted {fit['shift_mm'][0]:g}, {fit['shift_mm'][1]:g} mm in x, y: the high-res "
-                     f"cells hold {vol['fitted']:.0f} mm³ of the part instead of {vol['centred']:.0f}")
+    return lines, notes
+
+
+def _parts_summary(doc: dict) -> tuple[list[str], list[str]]:
+    """:func:`summary`'s lines and warnings on the printed parts, their times and printer."""
+    lines: list[str] = []
+    notes: list[str] = []
+    st = doc["stability"]
     if doc["printed_parts"]:
         pt = doc["print_time_s"] or {}
         lines.append(f"{len(doc['printed_parts'])} printed part(s), {st['incomplete_studs']} incomplete "
@@ -453,15 +483,6 @@ def summary(doc: dict, out) -> tuple[list[str], list[str]]:
             notes.append(f"warning: printed part {part['id']} has {thin['area_mm2']:.1f} mm² thinner than "
                          f"{thin['limit_mm']:g} mm (a nozzle cannot print it), thinnest {thin['thinnest_mm']:g} mm "
                          f"near {', '.join(f'{v:g}' for v in spot['centre_mm'])}")
-    ch = doc.get("changes")
-    if ch:
-        t = ch["transform"]
-        if not t.get("confident", True):
-            notes.append(f"warning: {t.get('message')}")
-        lines.append(f"changes: {ch['cells_added']} cell(s) added, {ch['cells_removed']} removed; "
-                     f"{ch['bricks_kept']} brick(s) kept, {len(ch['take_off'])} to take off, "
-                     f"{len(ch['add'])} to add; reprint {', '.join(ch['parts_reprinted']) or 'nothing'} "
-                     f"(see changes.html)")
     return lines, notes
 
 
