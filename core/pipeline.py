@@ -188,6 +188,8 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
         return _stages(req, progress or _noop, os.path.join(scratch, "run"))
 
 
+# One function on purpose: the one driver's whole sequence of stages, read top to bottom,
+# is where the data flow between them is decided and seen.
 def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     """:func:`run`'s stages for ``req``; what is sliced in the background is sliced under
     ``work``, a folder made when first sliced into, in a scratch folder the caller
