@@ -177,8 +177,8 @@ def _model_options(p: argparse.ArgumentParser) -> None:
     request.add_options(p, ("units", "scale", "up", "seed", "parts", "effort", "lower_bound", "high_res",
                             "high_res_solids", "stud_fit", "socket_fit", "ground", "loads",
                             "clutch_n", "hollow", "inventory", "inventory_only", "colour",
-                            "printer", "print_preset", "filament", "slicer_config", "suggest",
-                            "suggest_tolerance", "suggest_speedup"),
+                            "printer", "print_preset", "filament", "slicer_config", "slicer",
+                            "suggest", "suggest_tolerance", "suggest_speedup"),
                         units=request.UNITS)
 
 

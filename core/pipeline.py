@@ -413,7 +413,8 @@ def _slicer_settings(req: Request) -> dict[str, str]:
     """The slicer settings printed parts are made with (their walls, infill and filament
     weigh them in the force check); the committed profile when they cannot be read."""
     try:
-        return print_time_stage.load_profile(printers.profile(req))
+        return print_time_stage.load_profile(printers.profile(req),
+                                             print_time_stage.requested(req.slicer))
     except InputError:
         return print_time_stage.load_profile(print_time_stage.FALLBACK_PROFILE)
 
@@ -511,8 +512,9 @@ class _Slicing:
     @classmethod
     def start(cls, req: Request, mesh, likely: bool, work: str) -> "_Slicing":
         """The whole model's slicing started now under ``work``, when ``req`` slices, a
-        slicer is installed and printed parts are ``likely`` (regions are marked)."""
-        binary = print_time_stage.slicer_path() if req.slice_parts and likely else None
+        slicer (the request's choice) is installed and printed parts are ``likely``
+        (regions are marked)."""
+        binary = print_time_stage.slicer_path(req.slicer) if req.slice_parts and likely else None
         if binary is None:
             return cls(work=work)
         profile = printers.profile(req)
@@ -560,7 +562,8 @@ def _plates_time(printing: list, profile, slicer, work: str | None = None) -> tu
 def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabrication:
     """``fab`` with print times: the whole model (the baseline) and the plates of the
     printed parts to print (:func:`core.printing.export.plates`: one plate unless they do not
-    fit the bed) sliced, two at a time; the parts' time is the plates' sum.
+    fit the bed) sliced with the request's ``slicer``, two at a time; the parts' time is the
+    plates' sum.
     ``started`` holds what :func:`run` already set slicing in the background (the
     same slices, begun while the other stages ran); the rest is sliced now.
 
@@ -573,7 +576,7 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
     """
     started = started or _Slicing()
     printing = fab.to_print
-    slicer = started.slicer or "auto"
+    slicer = started.slicer or print_time_stage.requested(fab.request.slicer)
     full = started.full or print_time_stage.in_background(_full_time, fab.model.mesh, fab.profile,
                                                           slicer, started.work, fab.printer is not None)
     beds, results = (started.parts.result() if started.parts is not None
@@ -676,7 +679,8 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
         from core.printing import export
         progress(0.9, "export")
         _, parts = export.export_parts(fab.printed, tmp / "parts", profile=fab.profile,
-                                       slicer="none" if fab.print_full is None else "auto",
+                                       slicer="none" if fab.print_full is None
+                                       else print_time_stage.requested(fab.request.slicer),
                                        beds=fab.plates if fab.iteration is None else None)
         placed = {p.id: p for p in parts}
     progress(0.92, "instructions")

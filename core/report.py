@@ -104,8 +104,9 @@ def print_method_words(full_method: str, parts_method: str) -> str:
     """How the print times were found, in a maker's words (from the estimates' methods)."""
     def one(method: str) -> str:
         if method.startswith("estimate"):
-            why = ("slicing is switched off" if "FABRICKATOR_SLICER" in method or "disabled" in method
-                   else "PrusaSlicer is not installed" if "not found" in method
+            why = ("PrusaSlicer is not installed" if "not found on PATH" in method
+                   else "the slicer chosen is not found" if "not found" in method
+                   else "slicing is switched off" if "FABRICKATOR_SLICER" in method or "disabled" in method
                    else "the slicer failed on it")
             return f"estimated from the volume, surface and layers printed ({why})"
         if method.startswith("nothing"):

@@ -55,7 +55,9 @@ class Request:
     regions every time).  ``iterate_moved`` False lays the new version out
     anew where it stands when it was moved or turned against the previous
     one (the workbench, whose bricks stand at the Source); True iterates in
-    the previous frame.  Build a Request, then :meth:`checked` it.
+    the previous frame.  ``slicer`` None leaves the slicer to ``$FABRICKATOR_SLICER``,
+    else ``prusa-slicer`` on PATH; ``"none"`` times prints by the calibrated estimate
+    alone.  Build a Request, then :meth:`checked` it.
     """
 
     model: str = _setting("", "the model file")
@@ -118,6 +120,10 @@ class Request:
                                           "a PLA)", "--filament", "NAME")
     fit_source: str = _setting("default", "where the stud and socket fit come from (the report "
                                           "says): default, given, or the fit saved for the printer")
+    slicer: str | None = _setting(None, "the PrusaSlicer binary to time prints with (a name on PATH "
+                                        "or a path), or none for the calibrated estimate only; "
+                                        "default: $FABRICKATOR_SLICER, else prusa-slicer on PATH",
+                                  "--slicer", "PATH|none")
     slicer_config: str | None = _setting(None, "a config PrusaSlicer exported (File > Export > "
                                                "Export Config), sliced with as it is, instead of "
                                                "--printer", "--slicer-config", "FILE.ini")
@@ -184,7 +190,8 @@ class Request:
         out of range: units not in :data:`UNITS`, an up axis not in :data:`UP_AXES`, a hollow setting not in -1..64, scale not a positive finite
         number, a negative or non-integer seed, seconds not in [0, 1e6), a
         palette :func:`core.colours.check_palette` refuses, an effort not in
-        :data:`EFFORTS`, ``inventory_only`` without an inventory, a ``colour``
+        :data:`EFFORTS`, ``inventory_only`` without an inventory, an empty
+        ``slicer``, a ``colour``
         :func:`core.colours.by_name` does not know, a
         stud or socket fit :meth:`Fit.check` refuses (the units are checked
         where the model is loaded, :func:`core.io.meshes.load_model`).
@@ -233,6 +240,10 @@ class Request:
                              "(solid) to 64, or -1 (automatic)")
         if self.effort not in EFFORTS:
             raise InputError(f"--effort {self.effort!r} must be one of {', '.join(EFFORTS)}")
+        if self.slicer is not None and (not isinstance(self.slicer, (str, os.PathLike))
+                                        or not os.fspath(self.slicer).strip()):
+            raise InputError(f"--slicer {self.slicer!r} names no slicer: give a binary name or "
+                             f"path, or none")
         if self.inventory_only and not self.inventory:
             raise InputError("--inventory-only needs the parts you own: give --inventory FILE")
         by_name(self.colour)
@@ -249,6 +260,7 @@ class Request:
             profile=None if self.profile is None else os.fspath(self.profile),
             printer=self.printer or None, print_preset=self.print_preset or None,
             filament=self.filament or None,
+            slicer=None if self.slicer is None else _slicer_choice(self.slicer),
             slicer_config=os.fspath(self.slicer_config) if self.slicer_config else None,
             previous=None if self.previous is None else os.fspath(self.previous))
 
@@ -293,6 +305,12 @@ def timeout_seconds(value, flag: str = "--timeout") -> float | None:
         raise InputError(f"{flag} {value!r} must be a number of seconds above 0 "
                          f"(leave it out to run until Ctrl-C)")
     return float(value)
+
+
+def _slicer_choice(value) -> str:
+    """A checked ``slicer`` setting: ``"none"`` in any case as ``"none"``, a binary as a str path."""
+    text = os.fspath(value).strip()
+    return "none" if text.lower() == "none" else text
 
 
 def _number(value) -> bool:

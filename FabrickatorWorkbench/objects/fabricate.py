@@ -165,7 +165,8 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
     """The :class:`core.request.Request` of Fabrication ``obj`` for its Source written at
     ``path``: its properties, the preferences' slicer profile, the regions (``boxes``,
     ``solids``) and brush edits, its Ground, Clutch and Loads (:func:`load_texts`);
-    ``previous`` an unpacked snapshot to iterate on.
+    ``previous`` an unpacked snapshot to iterate on.  Its slicer is ``"none"`` (the core's
+    estimate) with SlicePrintTimes off, else the preferences' SlicerPath when set.
 
     The workbench sends all of its regions every time (``previous_regions``
     off) and lays a moved Source out anew where it stands (``iterate_moved``
@@ -184,6 +185,8 @@ def request(obj, path: str, boxes, solids, previous: str | None = None):
         hollow=int(obj.Hollow),
         effort=str(obj.Effort), lower_bound=bool(obj.LowerBound),
         profile=preferences.get("SlicerProfile") or None, previous=previous,
+        slicer=("none" if not obj.SlicePrintTimes
+                else (preferences.get("SlicerPath") or "").strip() or None),
         printer=(getattr(obj, "Printer", "") or preferences.get("Printer") or "").strip() or None,
         previous_regions=False, iterate_moved=False, ground=str(obj.Ground),
         clutch_n=float(obj.Clutch.getValueAs("N")), loads=load_texts(obj, scale),
@@ -220,7 +223,6 @@ def run_core(obj) -> Result:
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj),
               "loads": list(load_texts(obj, 1.0))}
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
-            _slicer(bool(obj.SlicePrintTimes)), \
             _progress(f"Fabrickator: {obj.Label}", obj.Document) as progress:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, float(obj.Scale))
@@ -317,28 +319,6 @@ def region_inputs(obj, work: str, scale: float) -> tuple[list[str], list[str]]:
 def _scaled_box(box, scale: float) -> list[float]:
     """A Source-coordinate box in the core's (scaled) model mm."""
     return [float(v) * scale for v in box]
-
-
-@contextmanager
-def _slicer(slice_parts: bool):
-    """Choose how print times are made for the duration of one run.
-
-    Without slicing, the core's estimate stands in (``FABRICKATOR_SLICER=none``);
-    with slicing, the preferences' slicer path when set.
-    """
-    from core.printing.print_time import SLICER_ENV
-
-    before = os.environ.get(SLICER_ENV)
-    chosen = preferences.get("SlicerPath") if slice_parts else "none"
-    if chosen:
-        os.environ[SLICER_ENV] = chosen
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(SLICER_ENV, None)
-        else:
-            os.environ[SLICER_ENV] = before
 
 
 @contextmanager

@@ -19,7 +19,8 @@ into the pose that prints fastest (:func:`fastest_pose`): the candidate poses ar
 by the calibrated estimate plus their supports, the best POSES_SLICED are sliced, each
 with the supports it needs, SLICER_PROCESSES at a time, and PrusaSlicer's time decides.
 
-Where no slicer is installed, it is disabled (``FABRICKATOR_SLICER=none``) or it fails
+Where no slicer is installed, it is disabled (a request's ``slicer="none"``, or
+``FABRICKATOR_SLICER=none`` for a request that leaves the choice open) or it fails
 (parts too large for the bed, timeout), the calibrated estimate stands in
 (:mod:`core.printing.estimate`) plus the supports' time for the parts that need them.
 The returned :class:`~core.printing.estimate.PrintEstimate` says which method gave the
@@ -55,7 +56,8 @@ from core.printing.poses import (MIN_BED_CONTACT_MM2, POSE_KEY, Pose, candidate_
 #: (:mod:`core.printing.slicer_profile`); a ``profile`` of None means the bundle's presets.
 FALLBACK_PROFILE = slicer_profile.FALLBACK_PROFILE
 
-#: Environment variable naming the slicer binary, or ``none`` to disable it.
+#: Environment variable naming the slicer binary, or ``none`` to disable it, where the
+#: request does not choose (:func:`slicer_path`).
 SLICER_ENV = "FABRICKATOR_SLICER"
 
 #: Seconds one slicer run may take before it is killed.
@@ -101,15 +103,17 @@ class _SlicerFailed(Exception):
     """The slicer could not give a time; the message is the one-line reason."""
 
 
-def slicer_path() -> str | None:
-    """The PrusaSlicer binary to use, or None when there is none.
+def slicer_path(chosen: str | None = None) -> str | None:
+    """The PrusaSlicer binary to use for the choice ``chosen``, or None when there is none.
 
-    ``$FABRICKATOR_SLICER`` wins when set: ``none`` (any case) or an empty
-    value disables slicing, anything else is a binary name or path, returned
-    resolved if it is executable and None otherwise.  Unset, the first of
-    ``prusa-slicer`` and ``prusa-slicer-console`` on PATH.
+    ``chosen`` is a request's :attr:`~core.request.Request.slicer`: ``none`` (any
+    case) or an empty value disables slicing, anything else is a binary name
+    or path, returned resolved if it is executable and None otherwise.  None
+    is the default: ``$FABRICKATOR_SLICER`` when set, read the same way, else
+    the first of ``prusa-slicer`` and ``prusa-slicer-console`` on PATH.
     """
-    chosen = os.environ.get(SLICER_ENV)
+    if chosen is None:
+        chosen = os.environ.get(SLICER_ENV)
     if chosen is not None:
         if chosen.strip().lower() in ("", "none"):
             return None
@@ -119,6 +123,12 @@ def slicer_path() -> str | None:
         if found:
             return found
     return None
+
+
+def requested(chosen: str | None) -> str:
+    """The ``slicer`` argument of this module's functions for a request's choice
+    ``chosen`` (:attr:`~core.request.Request.slicer`): ``"auto"`` for None, else ``chosen``."""
+    return "auto" if chosen is None else chosen
 
 
 def parse_duration(text: str) -> float:
@@ -187,17 +197,20 @@ def profile_label(config: dict[str, str]) -> str:
 def resolve_slicer(slicer: str | None = "auto") -> tuple[str | None, str]:
     """The slicer binary ``slicer`` asks for, or None and why there is none.
 
-    ``"auto"``: :func:`slicer_path`; None or ``"none"``: no slicer; anything
-    else: that binary, found on PATH or as a path.  The reason (for a
+    ``"auto"``: :func:`slicer_path` (``$FABRICKATOR_SLICER`` or PATH); None,
+    ``"none"`` or empty: no slicer; anything else: that binary, found on PATH
+    or as a path.  The reason (for a
     method string) is set either way and only meaningful with None.
     """
     if slicer == "auto":
-        reason = (f"{SLICER_ENV}={os.environ[SLICER_ENV]}" if SLICER_ENV in os.environ
-                  else "prusa-slicer not found on PATH")
-        return slicer_path(), reason
-    if slicer is None or slicer.strip().lower() == "none":
+        binary, outside = slicer_path(), os.environ.get(SLICER_ENV)
+        if outside is None:
+            return binary, "prusa-slicer not found on PATH"
+        off = outside.strip().lower() in ("", "none")
+        return binary, f"{SLICER_ENV}={outside}" + ("" if off else " not found")
+    if slicer is None or slicer.strip().lower() in ("", "none"):
         return None, "slicer disabled"
-    return shutil.which(slicer), f"slicer {slicer} not found"
+    return shutil.which(slicer.strip()), f"slicer {slicer} not found"
 
 
 def plate_config(profile: str | os.PathLike | None = None, supports: bool = False,

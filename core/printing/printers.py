@@ -294,12 +294,12 @@ class Bundle:
 
 
 def bundle_folder(slicer: str | None = None) -> Path | None:
-    """The folder of the vendor bundles installed with ``slicer`` (default: the slicer
-    :func:`core.printing.print_time.slicer_path` finds, or ``prusa-slicer`` on PATH), else
-    DEFAULT_BUNDLES when it exists, else None."""
-    if slicer is None:
-        slicer = print_time.slicer_path() or shutil.which("prusa-slicer")
-    found = slicer_profile.find_bundle(slicer)
+    """The folder of the vendor bundles installed with the slicer a request's choice
+    ``slicer`` names (:func:`core.printing.print_time.slicer_path`; ``prusa-slicer`` on
+    PATH where that names none, also for ``"none"``), else DEFAULT_BUNDLES when it exists,
+    else None."""
+    binary = print_time.slicer_path(slicer) or shutil.which("prusa-slicer")
+    found = slicer_profile.find_bundle(binary)
     if found is not None:
         return found.parent
     return DEFAULT_BUNDLES if (DEFAULT_BUNDLES / slicer_profile.VENDOR_BUNDLE).is_file() else None
@@ -476,7 +476,8 @@ def from_file(path: str | os.PathLike) -> Printer:
 
 def chosen(req) -> Printer | None:
     """The printer of the request ``req`` (its ``printer``, ``print_preset``, ``filament``
-    and ``slicer_config``), or None when it names none.  Raises InputError for a bad
+    and ``slicer_config``; a printer's presets from the bundles of its ``slicer``,
+    :func:`bundle_folder`), or None when it names none.  Raises InputError for a bad
     choice (also ``print_preset`` or ``filament`` without ``printer``, or both a printer
     and a config file)."""
     printer, config = getattr(req, "printer", None), getattr(req, "slicer_config", None)
@@ -489,7 +490,8 @@ def chosen(req) -> Printer | None:
         stat = os.stat(config) if os.path.exists(config) else None
         return _from_file(os.fspath(config), stat and (stat.st_size, stat.st_mtime_ns))
     if printer:
-        return _choose(printer, print_preset, filament, os.fspath(bundle_folder() or ""))
+        return _choose(printer, print_preset, filament,
+                       os.fspath(bundle_folder(getattr(req, "slicer", None)) or ""))
     return None
 
 
@@ -497,17 +499,19 @@ def described(req) -> Printer:
     """The printer a run of ``req`` slices on: the chosen one (:func:`chosen`), else the
     default profile's (:func:`core.printing.print_time.load_profile`): a ``profile`` file
     given, the presets :data:`core.printing.slicer_profile.PRESETS` of the vendor bundle
-    installed with the slicer, or the committed fallback profile where there is none."""
+    installed with the request's ``slicer``, or the committed fallback profile where there is
+    none (also when slicing is off)."""
     printer = chosen(req)
     if printer is not None:
         return printer
-    config = print_time.load_profile(req.profile)
+    binary = print_time.slicer_path(getattr(req, "slicer", None))
+    config = print_time.load_profile(req.profile, binary)
     names = [plain(config.get(k, "")) for k in ("printer_settings_id", "print_settings_id",
                                                  "filament_settings_id")]
     if req.profile:
         vendor, version, source = "user profile", None, os.fspath(Path(req.profile).resolve())
     else:
-        bundle, version = slicer_profile.find_bundle(print_time.slicer_path()), None
+        bundle, version = slicer_profile.find_bundle(binary), None
         if bundle is not None:
             try:
                 slicer_profile.bundle_profile(bundle)   # where this fails, the fallback is used

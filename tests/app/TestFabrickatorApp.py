@@ -382,6 +382,41 @@ class TestFabrication(FabrickatorTestCase):
         self.assertGreaterEqual(part.Step, 1)
         self.assertGreater(f.SpeedUp, 0)
 
+    def test_the_slicer_choice_travels_in_the_request_not_the_environment(self):
+        from FabrickatorWorkbench import preferences
+
+        source = self.doc.addObject("Part::Box", "Box")
+        source.Length, source.Width, source.Height = 32.0, 16.0, 9.6
+        self.doc.recompute()
+        f = fab().make_fabrication(source, slice_print_times=False)
+        fab().mark_high_res(f, box=(0, 0, 6.4, 8, 8, 9.6))
+        missing = os.path.join(tempfile.gettempdir(), "fabrickator-no-such-slicer")
+        saved_env, saved_path = os.environ.get("FABRICKATOR_SLICER"), preferences.get("SlicerPath")
+        os.environ["FABRICKATOR_SLICER"] = "prusa-slicer"     # what the request must not follow
+        def environment():      # engraving points fontconfig at the system's file once
+            return {k: v for k, v in os.environ.items() if k != "FONTCONFIG_FILE"}
+
+        try:
+            before = environment()
+            self.doc.recompute()
+            self.assertEqual(environment(), before)
+            self.assertTrue(f.Status.startswith("ok"), f.Status)
+            (part,) = fab().printed_parts(f)
+            self.assertTrue(part.PrintTimeMethod.startswith("estimate"), part.PrintTimeMethod)
+            self.assertIn("slicer disabled", part.PrintTimeMethod)
+            preferences.set("SlicerPath", missing)
+            f.SlicePrintTimes, f.KeepLayout = True, False      # anew: the part is timed again
+            self.doc.recompute()
+            self.assertEqual(environment(), before)
+            (part,) = fab().printed_parts(f)
+            self.assertIn(f"slicer {missing} not found", part.PrintTimeMethod)
+        finally:
+            preferences.set("SlicerPath", saved_path)
+            if saved_env is None:
+                os.environ.pop("FABRICKATOR_SLICER", None)
+            else:
+                os.environ["FABRICKATOR_SLICER"] = saved_env
+
     def test_split_and_merge_brushes_change_the_printed_parts(self):
         source = self.doc.addObject("Part::Box", "Box")
         source.Length, source.Width, source.Height = 32.0, 16.0, 19.2

@@ -255,9 +255,13 @@ class TestParity(unittest.TestCase):
         path = self.source_file(body, "defaults")
         job = fabricate.request(f, path, (), ())
         self.assertEqual(job.parts, "all")
+        self.assertFalse(f.SlicePrintTimes)     # a recompute estimates unless asked to slice
         self.assertEqual(job.replace(parts=None), type(job)(
-            model=path, previous_regions=False, iterate_moved=False,
+            model=path, previous_regions=False, iterate_moved=False, slicer="none",
             fit_source="the Fabrication's StudFit and SocketFit").checked())
+        f.SlicePrintTimes = True
+        self.assertEqual(fabricate.request(f, path, (), ()).slicer,
+                         (preferences.get("SlicerPath") or "").strip() or None)
 
 
 class TestLikeFreeCAD(unittest.TestCase):

@@ -142,6 +142,12 @@ def test_nan_coordinates(tmp_path):
     assert_refused(fabricate(str(bad), "--out", str(tmp_path / "o")), "nan")
 
 
+def test_an_empty_slicer_is_refused(box_stl, tmp_path):
+    assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--slicer", ""),
+                   "--slicer", "binary name or path, or none")
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.slow
 def test_bad_parts_and_units(box_stl, tmp_path):
     assert_refused(fabricate(str(box_stl), "--out", str(tmp_path / "o"), "--parts", "3001"),

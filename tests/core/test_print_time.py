@@ -9,6 +9,7 @@ core/printing/print_time.py was fitted on.
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -17,11 +18,15 @@ import numpy as np
 import pytest
 import trimesh
 
+from core import pipeline
 from core.errors import InputError
+from core.parts import engraving
 from core.printing import print_time as pt, slicer_profile
 from core.printing.estimate import estimate_seconds
 from core.printing.plate import ARRANGE_GAP_MM, arrange, bed_rectangle, build_volume
 from core.printing.poses import needs_supports, support_need, support_seconds
+from core.report import print_method_words
+from core.request import Request
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT.parent / "shared" / "models"
@@ -338,7 +343,79 @@ def test_env_none_forces_estimate(tmp_path, monkeypatch):
 def test_env_points_to_missing_binary(tmp_path, monkeypatch):
     monkeypatch.setenv(pt.SLICER_ENV, str(tmp_path / "no-such-slicer"))
     assert pt.slicer_path() is None
-    assert pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path).method.startswith("estimate")
+    method = pt.print_time([trimesh.creation.box((20, 20, 20))], tmp_path).method
+    assert method.startswith("estimate") and "not found" in method
+    assert "(the slicer chosen is not found)" in print_method_words(method, method)
+
+
+def test_the_requests_choice_wins_over_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.SLICER_ENV, "none")
+    fake = fake_slicer(tmp_path)
+    assert pt.slicer_path(str(fake)) == str(fake)
+    assert pt.slicer_path(None) is None
+    monkeypatch.setenv(pt.SLICER_ENV, str(fake))
+    assert pt.slicer_path("None") is None and pt.slicer_path(None) == str(fake)
+    assert pt.slicer_path(str(tmp_path / "no-such-slicer")) is None
+    assert pt.requested(None) == "auto" and pt.requested("none") == "none"
+
+
+@pytest.fixture(scope="module")
+def marked_block(tmp_path_factory) -> Path:
+    """A block 32 x 16 x 9.6 mm (4 x 2 x 3 cells) in a file."""
+    path = tmp_path_factory.mktemp("block") / "block.stl"
+    block = trimesh.creation.box((32.0, 16.0, 9.6))
+    block.apply_translation(-block.bounds[0])
+    block.export(path)
+    return path
+
+
+def _run_without_touching_the_environment(req: Request):
+    """``pipeline.run(req)`` with every write to ``os.environ`` failing the test; also
+    checks that the environment is the same afterwards.  Fontconfig's file is set
+    beforehand, as engraving sets it once per process
+    (:func:`core.parts.engraving._use_system_fontconfig`)."""
+    def refused(*_):
+        raise AssertionError("the run changed os.environ")
+
+    with pytest.MonkeyPatch.context() as guard:
+        if not {"FONTCONFIG_FILE", "FONTCONFIG_PATH"} & set(os.environ):
+            guard.setenv("FONTCONFIG_FILE", engraving.SYSTEM_FONTS_CONF)
+        before = dict(os.environ)
+        guard.setattr(type(os.environ), "__setitem__", refused)
+        guard.setattr(type(os.environ), "__delitem__", refused)
+        fab = pipeline.run(req)
+        assert dict(os.environ) == before
+    return fab
+
+
+#: The request's high-res box: the block's corner brick becomes a printed part.
+CORNER = ("0,0,6.4,8,8,9.6",)
+
+
+def test_a_request_for_no_slicer_gives_the_estimate_without_the_environment(marked_block, monkeypatch):
+    monkeypatch.delenv(pt.SLICER_ENV, raising=False)
+    fab = _run_without_touching_the_environment(Request(
+        model=str(marked_block), high_res=CORNER, effort="fast", fit_grid=False, picture=False,
+        slicer="none").checked())
+    assert pt.SLICER_ENV not in os.environ
+    assert fab.printed and fab.print_full is not None and fab.print_parts is not None
+    for method in (fab.print_full.method, fab.print_parts.method):
+        assert method.startswith("estimate") and "slicer disabled" in method
+    assert fab.print_full.gcode_path is None
+    assert "(slicing is switched off)" in print_method_words(fab.print_full.method, fab.print_parts.method)
+
+
+def test_a_request_naming_a_missing_slicer_gives_the_estimate(marked_block, tmp_path, monkeypatch):
+    missing = str(tmp_path / "no-such-slicer")
+    monkeypatch.setenv(pt.SLICER_ENV, "prusa-slicer")
+    fab = _run_without_touching_the_environment(Request(
+        model=str(marked_block), high_res=CORNER, effort="fast", fit_grid=False, picture=False,
+        slicer=missing).checked())
+    assert os.environ[pt.SLICER_ENV] == "prusa-slicer"
+    for method in (fab.print_full.method, fab.print_parts.method):
+        assert method.startswith("estimate") and f"slicer {missing} not found" in method
+    words = print_method_words(fab.print_full.method, fab.print_parts.method)
+    assert "(the slicer chosen is not found)" in words
 
 
 def test_estimate_grows_with_size_and_parts():

@@ -29,6 +29,16 @@ def test_effort_and_lower_bound_options():
         cli._parser().parse_args(["fabricate", "part.stl", "--out", "out", "--effort", "fastest"])
 
 
+def test_the_slicer_option_is_the_requests_choice():
+    parse = cli._parser().parse_args
+    assert request.DEFAULTS["slicer"] is None
+    assert request.from_options(parse(["fabricate", "p.stl", "--out", "o"]), "p.stl").slicer is None
+    off = parse(["fabricate", "p.stl", "--out", "o", "--slicer", "NONE"])
+    assert request.from_options(off, "p.stl").slicer == "none"
+    given = parse(["watch", "in", "--out", "o", "--slicer", " /opt/slicer/prusa-slicer "])
+    assert request.from_options(given, "watched").slicer == "/opt/slicer/prusa-slicer"
+
+
 def test_the_other_defaults_read_the_table():
     assert build_order.SECONDS_PER_BRICK == request.DEFAULTS["seconds_per_brick"] == 10.0
     assert build_order.SECONDS_PER_PART == request.DEFAULTS["seconds_per_part"] == 30.0
@@ -41,6 +51,7 @@ def test_the_other_defaults_read_the_table():
     ({"seconds_per_part": True}, "--seconds-per-part"), ({"stud_fit": 5.0}, "stud"),
     ({"flavour": "red"}, "unknown setting"), ({"effort": "fastest"}, "--effort"),
     ({"colour": "plaid"}, "--colour"), ({"inventory_only": True}, "--inventory-only"),
+    ({"slicer": " "}, "--slicer"), ({"slicer": 3}, "--slicer"),
 ])
 def test_bad_settings_are_one_line_input_errors(settings, words):
     with pytest.raises(InputError) as err:
