@@ -118,7 +118,8 @@ def print_method_words(full_method: str, parts_method: str) -> str:
             else f"Whole part: {full}. Printed parts: {parts}.")
     if "estimated" in text:
         text += (" For a slicer's times, have PrusaSlicer installed and slice them (in FreeCAD the "
-                 "Report's Slice print times button; on the command line, fabricate slices them).")
+                 "Report's Slice print times button; on the command line, fabricate slices them "
+                 "unless --slicer none).")
     return text
 
 
