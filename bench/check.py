@@ -101,6 +101,9 @@ def grown_stage(figures: dict, before: dict | None) -> str:
         slowest = max(figures.get("stages_s", {}).items(), key=lambda kv: kv[1], default=None)
         return f"{slowest[0]} {slowest[1]:.1f} s (no reference)" if slowest else ""
     grown = max(figures["stages_s"], key=lambda k: figures["stages_s"][k] - before["stages_s"].get(k, 0.0))
+    if figures["stages_s"][grown] - before["stages_s"].get(grown, 0.0) < 0.05:
+        slowest = max(figures["stages_s"], key=figures["stages_s"].get)
+        return f"none grew; slowest {slowest} {figures['stages_s'][slowest]:.1f} s"
     return f"{grown} {before['stages_s'].get(grown, 0.0):.1f} -> {figures['stages_s'][grown]:.1f} s"
 
 
