@@ -82,9 +82,11 @@ FREECAD1_MAKE := make --no-print-directory -o .apt.stamp VENV=/root/venv
 freecad1-root:
 	$(SUDO) sh tools/freecad1/root.sh $(FREECAD1_ROOT)
 
+# the root's packages are root.sh's; the copy's .apt.stamp (dated 1970: older than the venv) says
+# so to test-workbench's two parallel sub-makes too (-o does not reach them): neither runs apt
 test-freecad1: freecad1-root
-	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 's=0; $(FREECAD1_MAKE) test-quick || s=1; \
-	  $(FREECAD1_MAKE) test-app || s=1; $(FREECAD1_MAKE) test-gui || s=1; exit $$s'
+	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 'touch -d @0 .apt.stamp; s=0; \
+	  $(FREECAD1_MAKE) test-quick || s=1; $(FREECAD1_MAKE) test-workbench || s=1; exit $$s'
 
 # the quick benchmark rows against their targets (bench/targets.py), about 3 minutes;
 # prints each row over its target with the stage that grew
