@@ -205,7 +205,7 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
                         f"and pins kept before walls, cheapest first ({_reasons(dropped)}): a part "
                         f"that is mostly fine detail prints faster whole (the limit for artistic "
                         f"or decorative shapes)")
-    times = price.times(kept + slow) | {"kept_s": round(price.seconds(kept), 1)} if kept or slow else None
+    times = price.times(kept + slow, kept) if kept or slow else None
     if slow:
         warnings.append(f"printing all the suggested regions would take an estimated "
                         f"{times['regions_s'] / 60:.0f} min against {times['whole_s'] / 60:.0f} min "
@@ -213,8 +213,6 @@ def suggest(model, tolerance_mm: float = TOLERANCE_MM, limit_mm: float = LIMIT_M
                         f"them were dropped, the slowest walls first, toward {min_speedup:g} times "
                         f"faster (holes and pins only where they are slower than the whole) "
                         f"({_reasons(slow)}): mark them yourself where they matter")
-    if times is not None:
-        times["kept_speedup"] = round(times["whole_s"] / max(times["kept_s"], 1e-9), 3) if kept else None
     return Suggestions(tuple(joined), tuple(dropped) + tuple(slow), share, tuple(warnings), source,
                        share_of(grid, [r.box for r in joined]), times)
 
@@ -246,16 +244,15 @@ class Pricer:
         self._cache: dict[int, tuple] = {}
 
     def _parts(self, region: Region) -> tuple:
-        """(cells mask, faces mask, faces lifted off its bottom, cut area mm^2, height mm) of
-        ``region`` printed on its own."""
+        """(cells mask, faces mask, faces lifted off its bottom, cut area mm^2, height mm,
+        bottom z mm) of ``region`` printed on its own."""
         key = id(region)
         if key not in self._cache:
             grid = self._grid
             first, stop = (np.clip(v, 0, grid.shape) for v in high_res.box_range(grid.origin, grid.cell, region.box))
             lo = np.asarray(grid.origin) + first * np.asarray(grid.cell)
             hi = np.asarray(grid.origin) + stop * np.asarray(grid.cell)
-            cells = np.zeros(grid.shape, dtype=bool)
-            cells[first[0]:stop[0], first[1]:stop[1], first[2]:stop[2]] = True
+            cells = high_res.box_cells(grid, region.box)
             block = self._weight[first[0]:stop[0], first[1]:stop[1], first[2]:stop[2]]
             full = float(np.prod(FINE_SPLIT))
             cut = sum(float((block.take(0, axis) + block.take(-1, axis)).sum()) / full
@@ -283,11 +280,13 @@ class Pricer:
         features = self._plate([volume] + [0.0] * (len(heights) - 1), [area] + [0.0] * (len(heights) - 1), heights)
         return float(features @ self._coeffs + support)
 
-    def times(self, regions: list) -> dict:
-        """The report's figures: the model whole, ``regions`` and the speed-up between them."""
-        parts = self.seconds(regions)
+    def times(self, regions: list, kept: list) -> dict:
+        """The report's figures: the model whole, all ``regions`` and those ``kept``, and the
+        speed-ups they give (``kept_speedup`` None when none is kept)."""
+        parts, rest = self.seconds(regions), self.seconds(kept)
         return {"whole_s": round(self._whole, 1), "regions_s": round(parts, 1),
-                "speedup": round(self._whole / max(parts, 1e-9), 3)}
+                "speedup": round(self._whole / max(parts, 1e-9), 3), "kept_s": round(rest, 1),
+                "kept_speedup": round(self._whole / max(rest, 1e-9), 3) if kept else None}
 
     @property
     def whole(self) -> float:
