@@ -45,6 +45,85 @@ def cut_margins(cuts: np.ndarray, axis: int, xy: np.ndarray, mass: np.ndarray,
     return out
 
 
+def reattached(groups: list[np.ndarray], support: np.ndarray,
+               under: sparse.csr_matrix) -> list[np.ndarray]:
+    """``groups`` with every body that a cut (:meth:`Decompositions._windows`) left joined to
+    no support of its own group moved to a group it is joined to (a few passes): alone it
+    would float.  ``support`` is a bool per body and ``under[b]`` lists the bodies body ``b``
+    rests on."""
+    if len(groups) < 2:
+        return groups
+    nbody = under.shape[0]
+    joined = (under + under.T).tocsr()
+    window = np.full(nbody, -1)
+    for w, g in enumerate(groups):
+        window[g] = w
+    for _ in range(4):
+        moved = False
+        for w in range(len(groups)):
+            mine = np.flatnonzero(window == w)
+            if not len(mine):
+                continue
+            rests = np.zeros(nbody, dtype=bool)
+            rests[mine] = np.asarray((joined[mine].multiply(support[None, :].astype(float))).sum(axis=1)).ravel() > 0
+            held = reach(joined[:, mine][mine].tocsr(), rests[mine])
+            for body in mine[~held].tolist():
+                near = window[joined[body].indices]
+                near = near[(near >= 0) & (near != w)]
+                if len(near):
+                    window[body] = int(np.bincount(near).argmax())
+                    moved = True
+        if not moved:
+            break
+    out = [np.flatnonzero(window == w) for w in range(len(groups))]
+    return [g for g in out if len(g)]
+
+
+def height_bands(under: sparse.csr_matrix, low: np.ndarray) -> np.ndarray:
+    """Per body, its band of :meth:`Decompositions._by_bands` (0 the top one): whole layers
+    from the top, about :data:`limits.BAND_BODIES` bodies each.  A body is never in a band
+    above one it rests on (a printed part reaching down moves the body under it down).  Then
+    a body that nothing joins, within its band, to a body of a band below or to the ground
+    moves up a band, and so does what rests on it: held only through the band above, under
+    forces fixed without it, it would float.  ``under[b]`` lists the bodies body ``b`` rests
+    on and ``low`` is each body's lowest layer."""
+    nbody = under.shape[0]
+    layers, counts = np.unique(low, return_counts=True)
+    edges = np.zeros(len(layers), dtype=np.int64)
+    size = current = 0
+    for n in range(len(layers) - 1, -1, -1):
+        if size >= limits.BAND_BODIES:
+            current, size = current + 1, 0
+        edges[n] = current
+        size += counts[n]
+    band = edges[np.searchsorted(layers, low)]
+    pairs = under.tocoo()
+    upper, lower = pairs.row, pairs.col
+    for _ in range(nbody):
+        before = band.copy()
+        np.maximum.at(band, lower, band[upper])
+        if np.array_equal(before, band):
+            break
+    for _ in range(nbody):
+        anchor = low == 0
+        anchor[upper[band[lower] > band[upper]]] = True
+        same = band[upper] == band[lower]
+        graph = sparse.coo_matrix((np.ones(int(same.sum())), (upper[same], lower[same])),
+                                  shape=(nbody, nbody))
+        _, comp = connected_components(graph, directed=False)
+        held = np.isin(comp, comp[anchor])
+        loose = ~held & (band > 0)
+        if not loose.any():
+            break
+        band[loose] -= 1
+        for _ in range(nbody):
+            before = band.copy()
+            np.minimum.at(band, upper, band[lower])
+            if np.array_equal(before, band):
+                break
+    return band
+
+
 class Decompositions:
     """The decompose methods of :class:`core.forces.analyse._Model`."""
 
@@ -112,37 +191,7 @@ class Decompositions:
             cut = cuts[np.argmax(np.minimum(margin, 2.0) - off_middle)] + 0.5
             left = xy[:, axis] < cut
             todo += [group[left], group[~left]]
-        return self._reattached(sorted(out, key=lambda g: int(g[0])), support, under)
-
-    def _reattached(self, groups: list[np.ndarray], support: np.ndarray,
-                    under: sparse.csr_matrix) -> list[np.ndarray]:
-        """``groups`` with every body that a cut left joined to no support of its own group
-        moved to a group it is joined to (a few passes): alone it would float."""
-        if len(groups) < 2:
-            return groups
-        joined = (under + under.T).tocsr()
-        window = np.full(self.nbody, -1)
-        for w, g in enumerate(groups):
-            window[g] = w
-        for _ in range(4):
-            moved = False
-            for w in range(len(groups)):
-                mine = np.flatnonzero(window == w)
-                if not len(mine):
-                    continue
-                rests = np.zeros(self.nbody, dtype=bool)
-                rests[mine] = np.asarray((joined[mine].multiply(support[None, :].astype(float))).sum(axis=1)).ravel() > 0
-                held = reach(joined[:, mine][mine].tocsr(), rests[mine])
-                for body in mine[~held].tolist():
-                    near = window[joined[body].indices]
-                    near = near[(near >= 0) & (near != w)]
-                    if len(near):
-                        window[body] = int(np.bincount(near).argmax())
-                        moved = True
-            if not moved:
-                break
-        out = [np.flatnonzero(window == w) for w in range(len(groups))]
-        return [g for g in out if len(g)]
+        return reattached(sorted(out, key=lambda g: int(g[0])), support, under)
 
     def _by_parts(self, detail: bool) -> tuple[Forces | None, str]:
         """The verdict from the hanging parts alone (:meth:`_hanging_part`), each group of
@@ -289,7 +338,7 @@ class Decompositions:
         start = self.work
         under = self._under()
         low = self._lowest_layer()
-        band = self._bands(under, low)
+        band = height_bands(under, low)
         extra = np.zeros((self.nbody, 6))
         pressed: dict[int, list] = {}
         done: list[tuple[np.ndarray, Forces, dict, dict]] = []
@@ -353,48 +402,6 @@ class Decompositions:
         out = self._forces(True, max(f.max_utilisation for _, f, _, _ in done), util, [], [], [])
         out.bands = len(done)
         return out, ""
-
-    def _bands(self, under: sparse.csr_matrix, low: np.ndarray) -> np.ndarray:
-        """Per body, its band of :meth:`_by_bands` (0 the top one): whole layers from the top,
-        about :data:`limits.BAND_BODIES` bodies each.  A body is never in a band above one it rests
-        on (a printed part reaching down moves the body under it down).  Then a body that
-        nothing joins, within its band, to a body of a band below or to the ground moves up a
-        band, and so does what rests on it: held only through the band above, under forces
-        fixed without it, it would float."""
-        layers, counts = np.unique(low, return_counts=True)
-        edges = np.zeros(len(layers), dtype=np.int64)
-        size = current = 0
-        for n in range(len(layers) - 1, -1, -1):
-            if size >= limits.BAND_BODIES:
-                current, size = current + 1, 0
-            edges[n] = current
-            size += counts[n]
-        band = edges[np.searchsorted(layers, low)]
-        pairs = under.tocoo()
-        upper, lower = pairs.row, pairs.col
-        for _ in range(self.nbody):
-            before = band.copy()
-            np.maximum.at(band, lower, band[upper])
-            if np.array_equal(before, band):
-                break
-        for _ in range(self.nbody):
-            anchor = low == 0
-            anchor[upper[band[lower] > band[upper]]] = True
-            same = band[upper] == band[lower]
-            graph = sparse.coo_matrix((np.ones(int(same.sum())), (upper[same], lower[same])),
-                                      shape=(self.nbody, self.nbody))
-            _, comp = connected_components(graph, directed=False)
-            held = np.isin(comp, comp[anchor])
-            loose = ~held & (band > 0)
-            if not loose.any():
-                break
-            band[loose] -= 1
-            for _ in range(self.nbody):
-                before = band.copy()
-                np.minimum.at(band, upper, band[lower])
-                if np.array_equal(before, band):
-                    break
-        return band
 
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
                 detail: bool) -> Forces:
