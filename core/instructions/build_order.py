@@ -461,29 +461,13 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
     if not order.steps:
         return dataclasses.replace(order, utilisation=[], unstable=[], moved=0, props=[])
     index = {b.id: n for n, b in enumerate(layout.bricks)}
-    u = _units(layout)
-    unit_of, _, _ = units(layout)
-    below = [set(u.below.indices[u.below.indptr[v]:u.below.indptr[v + 1]].tolist())
-             for v in range(len(u.members))]
-    above = [set(u.above.indices[u.above.indptr[v]:u.above.indptr[v + 1]].tolist())
-             for v in range(len(u.members))]
-    unit_steps = [sorted({int(unit_of[index[b]]) for b in s.bricks}) for s in order.steps]
-    early = set(order.early_parts)
-    placed_units = np.zeros(len(u.members), dtype=bool)
+    placing = _Placing.of(layout, order, index)
     spots: list[_Spots] = []              # made when a step first needs a prop
 
     def spotted() -> _Spots:
         if not spots:
             spots.append(_Spots(layout, ground))
         return spots[0]
-
-    def placeable(n: int) -> bool:
-        for v in unit_steps[n]:
-            if u.part[v] is not None and u.part[v] not in early and not all(placed_units[w] for w in below[v]):
-                return False
-            if u.k0[v] != 0 and not any(placed_units[w] for w in below[v] | above[v]):
-                return False
-        return True
 
     present = np.zeros(len(layout.bricks), dtype=bool)
     remaining = list(range(len(order.steps)))
@@ -500,18 +484,10 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
 
     moved = 0
     while remaining:
-        pick, fallback = None, None
         # once the build does not stand, later steps rarely save it: look less far ahead
         ahead = lookahead if not unstable or unstable[-1]["step"] < len(chosen) else 2
-        for n in remaining[:ahead]:
-            if n != remaining[0] and not placeable(n):
-                continue
-            ok, value = check(_with(present, index, order.steps[n]))
-            if ok:
-                pick = (n, value)
-                break
-            if fallback is None:
-                fallback = (n, value)
+        pick, fallback = _first_standing(remaining[:ahead], placing.placeable,
+                                         lambda n: check(_with(present, index, order.steps[n])))
         if pick is None and props:
             step = order.steps[remaining[0]]
             trial = _with(present, index, step)
@@ -533,7 +509,7 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
         chosen.append(n)
         worst.append(float(value))
         present[[index[b] for b in order.steps[n].bricks]] = True
-        placed_units[unit_steps[n]] = True
+        placing.placed[placing.steps[n]] = True
         top = max(top, order.steps[n].layer)
         since += 1
         if standing_props and (not remaining or order.steps[remaining[0]].layer > top
@@ -541,16 +517,72 @@ def standing(layout: Layout, order: BuildOrder, stands, lookahead: int = LOOKAHE
             since = 0
             ok, value = stands(present)
             if ok and (np.isfinite(value) or not remaining):
-                outside = spotted().open_air(present)
-                for p in standing_props:
-                    out = bool(outside[p["cell"][0], p["cell"][1]])
-                    done_props.append(dict(p, removed_after=len(chosen) if out else None,
-                                           closed_in=not out))
+                done_props += _taken_away(standing_props, spotted().open_air(present), len(chosen))
                 standing_props = []
     done_props += [dict(p, removed_after=None, closed_in=False) for p in standing_props]
     steps = [dataclasses.replace(order.steps[n], number=k + 1) for k, n in enumerate(chosen)]
     return dataclasses.replace(order, steps=steps, utilisation=worst, unstable=unstable,
                                moved=moved, props=sorted(done_props, key=lambda p: p["step"]))
+
+
+@dataclass
+class _Placing:
+    """Which steps of an order can be placed next (:func:`standing`): per step its units, per
+    unit the units right under and right over it, and the units placed so far."""
+
+    u: _Units
+    steps: list[list[int]]
+    below: list[set[int]]
+    above: list[set[int]]
+    early: set[str]
+    placed: np.ndarray
+
+    @classmethod
+    def of(cls, layout: Layout, order: BuildOrder, index: dict[int, int]) -> "_Placing":
+        """``order``'s steps in units of ``layout`` (``index``: brick id -> its position), none
+        placed yet."""
+        u = _units(layout)
+        unit_of, _, _ = units(layout)
+        below, above = ([set(m.indices[m.indptr[v]:m.indptr[v + 1]].tolist()) for v in range(len(u.members))]
+                        for m in (u.below, u.above))
+        steps = [sorted({int(unit_of[index[b]]) for b in s.bricks}) for s in order.steps]
+        return cls(u, steps, below, above, set(order.early_parts), np.zeros(len(u.members), dtype=bool))
+
+    def placeable(self, n: int) -> bool:
+        """Whether step ``n`` can be placed now: each of its units on the ground or touching a
+        placed unit, a printed part (unless placed early in the order) only once every unit
+        under it is placed."""
+        for v in self.steps[n]:
+            if self.u.part[v] is not None and self.u.part[v] not in self.early \
+                    and not all(self.placed[w] for w in self.below[v]):
+                return False
+            if self.u.k0[v] != 0 and not any(self.placed[w] for w in self.below[v] | self.above[v]):
+                return False
+        return True
+
+
+def _first_standing(candidates: list[int], placeable, check) -> tuple[tuple | None, tuple | None]:
+    """Of the steps ``candidates`` (the planned next one first, always tried), the first that
+    is ``placeable(n)`` and stands by ``check(n)`` -> (bool, worst utilisation), as (n, worst),
+    else None; and the first one checked, as (n, worst), or None."""
+    fallback = None
+    for n in candidates:
+        if n != candidates[0] and not placeable(n):
+            continue
+        ok, value = check(n)
+        if ok:
+            return (n, value), fallback
+        if fallback is None:
+            fallback = (n, value)
+    return None, fallback
+
+
+def _taken_away(props: list[dict], outside: np.ndarray, after: int) -> list[dict]:
+    """The ``props`` once the build stands without them after ``after`` steps: each taken
+    away then if ``outside`` (a bool per column x, y) says its cell is in the open air, else
+    closed in for good."""
+    free = [bool(outside[p["cell"][0], p["cell"][1]]) for p in props]
+    return [dict(p, removed_after=after if f else None, closed_in=not f) for p, f in zip(props, free)]
 
 
 class _Spots:
