@@ -39,15 +39,42 @@ def layout_from_document(data, parts_folder=None) -> Layout:
     ``colour`` that is not an LDraw code of :data:`core.colours.COLORS` or an ``owned`` that is
     not true or false (both optional, from a run with an inventory).
     """
-    from core.catalog import BY_NUMBER
-    from core.voxelize import MAX_GRID_CELLS
-
     if not isinstance(data, dict):
         raise InputError(f"not a layout.json: the document is {_json_type(data)}, not an object "
                          f"with cell_mm, origin_mm, shape and bricks")
     for key in ("cell_mm", "origin_mm", "shape", "bricks"):
         if key not in data:
             raise InputError(f"not a layout.json: it has no {key!r}")
+    shape = _checked_grid(data)
+    bricks = data["bricks"]
+    if not isinstance(bricks, list):
+        raise InputError(f"bricks must be a list of bricks, got {_json_type(bricks)}")
+    if not bricks:
+        raise InputError("has no bricks: there is nothing to check")
+    filled = np.zeros(shape, dtype=bool)
+    seen: dict[int, int] = {}
+    boxes: list[tuple[int, tuple[int, ...], tuple[int, ...]]] = []
+    for n, b in enumerate(bricks):
+        bid, cell, size = _checked_brick(n, b, shape, seen, parts_folder)
+        where = tuple(slice(c, c + s) for c, s in zip(cell, size))
+        if filled[where].any():
+            other = next(o for o, c0, s0 in boxes
+                         if all(a < c1 + t1 and c1 < a + t for a, t, c1, t1 in zip(cell, size, c0, s0)))
+            raise InputError(f"brick {bid} overlaps brick {other}: two bricks cannot fill one cell")
+        filled[where] = True
+        boxes.append((bid, cell, size))
+    del filled
+    try:
+        return Layout.from_json(data)
+    except (ValueError, KeyError, TypeError, IndexError) as exc:   # every field was checked above
+        raise InputError(f"not a layout.json ({type(exc).__name__}: {exc})") from None
+
+
+def _checked_grid(data: dict) -> tuple[int, int, int]:
+    """The ``shape`` of a layout document that has ``cell_mm``, ``origin_mm`` and ``shape``,
+    once all three are as :func:`layout_from_document` asks; else :class:`InputError`."""
+    from core.voxelize import MAX_GRID_CELLS
+
     cell_mm = _numbers(data["cell_mm"])
     if cell_mm is None or not all(0 < v <= MAX_CELL_MM for v in cell_mm):
         raise InputError(f"cell_mm must be three numbers above 0 and at most {MAX_CELL_MM:g} mm, "
@@ -63,74 +90,65 @@ def layout_from_document(data, parts_folder=None) -> Layout:
         raise InputError(f"shape {shape[0]} x {shape[1]} x {shape[2]} is "
                          f"{shape[0] * shape[1] * shape[2]:.3g} cells, more than the "
                          f"{MAX_GRID_CELLS:,} a grid may have")
-    bricks = data["bricks"]
-    if not isinstance(bricks, list):
-        raise InputError(f"bricks must be a list of bricks, got {_json_type(bricks)}")
-    if not bricks:
-        raise InputError("has no bricks: there is nothing to check")
-    filled = np.zeros(shape, dtype=bool)
-    seen: dict[int, int] = {}
-    boxes: list[tuple[int, tuple[int, ...], tuple[int, ...]]] = []
-    for n, b in enumerate(bricks):
-        if not isinstance(b, dict):
-            raise InputError(f"the brick at index {n} is {_json_type(b)}, not an object")
-        bid = _whole(b.get("id"))
-        if bid is None or bid < 0:
-            raise InputError(f"the brick at index {n}: id must be a whole number >= 0, "
-                             f"got {_show(b.get('id'))}")
-        name = f"brick {bid}"
-        if bid in seen:
-            raise InputError(f"{name}: the id is used twice (the bricks at index {seen[bid]} and {n})")
-        seen[bid] = n
-        for key in ("part", "size", "cell", "kind", "printed_part"):
-            if key not in b:
-                raise InputError(f"{name}: it has no {key!r}")
-        part = BY_NUMBER.get(b["part"]) if isinstance(b["part"], str) else None
-        if part is None:
-            raise InputError(f"{name}: unknown part {_show(b['part'])} "
-                             f"(not a catalog design number like \"3001\")")
-        if b["kind"] not in ("lego", "printed"):
-            raise InputError(f"{name}: unknown kind {_show(b['kind'])} (use \"lego\" or \"printed\")")
-        size = _wholes(b["size"])
-        if size is None:
-            raise InputError(f"{name}: size must be three whole numbers, got {_show(b['size'])}")
-        real = [(w, d, part.layers) for w, d in part.orientations()]
-        if size not in real:
-            ways = " or ".join(" x ".join(map(str, r)) for r in real)
-            raise InputError(f"{name}: size {' x '.join(map(str, size))} is not that of part "
-                             f"{part.number} ({part.name}), which is {ways} cells")
-        cell = _wholes(b["cell"])
-        if cell is None or min(cell) < 0:
-            raise InputError(f"{name}: cell must be three whole numbers >= 0, got {_show(b['cell'])}")
-        if any(c + s > m for c, s, m in zip(cell, size, shape)):
-            raise InputError(f"{name}: lies outside the grid: cell {list(cell)} plus size "
-                             f"{list(size)} passes shape {list(shape)}")
-        step = b.get("step")
-        if step is not None and (_whole(step) is None or _whole(step) < 0):
-            raise InputError(f"{name}: step must be a whole number >= 0 or null, got {_show(step)}")
-        if "load_g" in b:
-            load = _number(b["load_g"])
-            if load is None or not 0 <= load <= MAX_LOAD_G:
-                raise InputError(f"{name}: load_g must be a number of grams from 0 to "
-                                 f"{MAX_LOAD_G:g}, got {_show(b['load_g'])}")
-        _check_printed_part(name, b["kind"], b["printed_part"], parts_folder)
-        if "colour" in b and (isinstance(b["colour"], bool) or b["colour"] not in COLORS):
-            raise InputError(f"{name}: colour must be an LDraw colour code Fabrickator knows "
-                             f"(such as 71, Light Bluish Grey), got {_show(b['colour'])}")
-        if "owned" in b and not isinstance(b["owned"], bool):
-            raise InputError(f"{name}: owned must be true or false, got {_show(b['owned'])}")
-        where = tuple(slice(c, c + s) for c, s in zip(cell, size))
-        if filled[where].any():
-            other = next(o for o, c0, s0 in boxes
-                         if all(a < c1 + t1 and c1 < a + t for a, t, c1, t1 in zip(cell, size, c0, s0)))
-            raise InputError(f"{name} overlaps brick {other}: two bricks cannot fill one cell")
-        filled[where] = True
-        boxes.append((bid, cell, size))
-    del filled
-    try:
-        return Layout.from_json(data)
-    except (ValueError, KeyError, TypeError, IndexError) as exc:   # every field was checked above
-        raise InputError(f"not a layout.json ({type(exc).__name__}: {exc})") from None
+    return shape
+
+
+def _checked_brick(n: int, b, shape: tuple[int, int, int], seen: dict[int, int],
+                   parts_folder) -> tuple[int, tuple[int, int, int], tuple[int, int, int]]:
+    """(id, cell, size) of the brick ``b`` at index ``n`` of a layout document whose grid is
+    ``shape``, once its own fields are as :func:`layout_from_document` asks (overlaps with
+    other bricks aside); else :class:`InputError`.  ``seen`` (id -> index of the bricks
+    before it) gets its id."""
+    from core.catalog import BY_NUMBER
+
+    if not isinstance(b, dict):
+        raise InputError(f"the brick at index {n} is {_json_type(b)}, not an object")
+    bid = _whole(b.get("id"))
+    if bid is None or bid < 0:
+        raise InputError(f"the brick at index {n}: id must be a whole number >= 0, "
+                         f"got {_show(b.get('id'))}")
+    name = f"brick {bid}"
+    if bid in seen:
+        raise InputError(f"{name}: the id is used twice (the bricks at index {seen[bid]} and {n})")
+    seen[bid] = n
+    for key in ("part", "size", "cell", "kind", "printed_part"):
+        if key not in b:
+            raise InputError(f"{name}: it has no {key!r}")
+    part = BY_NUMBER.get(b["part"]) if isinstance(b["part"], str) else None
+    if part is None:
+        raise InputError(f"{name}: unknown part {_show(b['part'])} "
+                         f"(not a catalog design number like \"3001\")")
+    if b["kind"] not in ("lego", "printed"):
+        raise InputError(f"{name}: unknown kind {_show(b['kind'])} (use \"lego\" or \"printed\")")
+    size = _wholes(b["size"])
+    if size is None:
+        raise InputError(f"{name}: size must be three whole numbers, got {_show(b['size'])}")
+    real = [(w, d, part.layers) for w, d in part.orientations()]
+    if size not in real:
+        ways = " or ".join(" x ".join(map(str, r)) for r in real)
+        raise InputError(f"{name}: size {' x '.join(map(str, size))} is not that of part "
+                         f"{part.number} ({part.name}), which is {ways} cells")
+    cell = _wholes(b["cell"])
+    if cell is None or min(cell) < 0:
+        raise InputError(f"{name}: cell must be three whole numbers >= 0, got {_show(b['cell'])}")
+    if any(c + s > m for c, s, m in zip(cell, size, shape)):
+        raise InputError(f"{name}: lies outside the grid: cell {list(cell)} plus size "
+                         f"{list(size)} passes shape {list(shape)}")
+    step = b.get("step")
+    if step is not None and (_whole(step) is None or _whole(step) < 0):
+        raise InputError(f"{name}: step must be a whole number >= 0 or null, got {_show(step)}")
+    if "load_g" in b:
+        load = _number(b["load_g"])
+        if load is None or not 0 <= load <= MAX_LOAD_G:
+            raise InputError(f"{name}: load_g must be a number of grams from 0 to "
+                             f"{MAX_LOAD_G:g}, got {_show(b['load_g'])}")
+    _check_printed_part(name, b["kind"], b["printed_part"], parts_folder)
+    if "colour" in b and (isinstance(b["colour"], bool) or b["colour"] not in COLORS):
+        raise InputError(f"{name}: colour must be an LDraw colour code Fabrickator knows "
+                         f"(such as 71, Light Bluish Grey), got {_show(b['colour'])}")
+    if "owned" in b and not isinstance(b["owned"], bool):
+        raise InputError(f"{name}: owned must be true or false, got {_show(b['owned'])}")
+    return bid, cell, size
 
 
 def _check_printed_part(name: str, kind, printed, parts_folder) -> None:
