@@ -239,7 +239,7 @@ def solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cos
     LP relaxation is fractional: branch and bound over ``boxes`` when they are at most
     ``level.mip_columns``, else over the placements the relaxation uses and ``current``
     when those are, else :data:`TOO_LARGE`.  ``limits``
-    (:meth:`~core.layout.neighbourhood.Search._limits`, None: none) add a row per design: its
+    (:func:`~core.layout.neighbourhood._design_limits`, None: none) add a row per design: its
     placements at most the owned count left, plus a bought count (at most 0 where buying is not
     allowed) priced :data:`core.inventory.BUY_COST`.
     """
