@@ -14,6 +14,7 @@ and :func:`core.layout.search.improve` merges the layouts it found with it.
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import highspy
 import numpy as np
@@ -35,37 +36,35 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
     component per region and no weak point but those holding a leaf on a one-cell-thin
     feature (:func:`~core.layout.quality.thin_weak_points`).
 
-    The exact-cover program (:mod:`core.layout.bounds`) with what such a layout cannot have:
-    a brick touching nothing above or below in a region it does not fill alone (it would
-    be a component of its own), and, in regions of more than twice the cells of the largest
-    of ``parts`` (which need three bricks or more), a brick that touches cells on one side only, at
-    least two of them, all under (or over) one other brick (a leaf: that brick would be a
-    weak point, and not a thin one).  Both are necessary conditions, so the answer is a
-    lower bound, usually above the plain exact cover's, and the gap between them is what
-    connection costs at least.  With ``no_weak_points`` it bounds the layouts with one
-    component per region and no weak point at all (thin ones included): it also forbids
-    every brick whose cells split its region (:func:`separating`), which such a layout
-    cannot have.  With ``connected`` the program is solved again and again with lazy cuts
+    The exact-cover program (:mod:`core.layout.bounds`) with what such a layout cannot have
+    (:func:`_program`): a brick touching nothing above or below in a region it does not fill
+    alone (it would be a component of its own), and, in regions of more than twice the cells
+    of the largest of ``parts`` (which need three bricks or more), a brick that touches cells
+    on one side only, at least two of them, all under (or over) one other brick (a leaf: that
+    brick would be a weak point, and not a thin one).  Both are necessary conditions, so the
+    answer is a lower bound, usually above the plain exact cover's, and the gap between them
+    is what connection costs at least.  With ``no_weak_points`` it bounds the layouts with one
+    component per region and no weak point at all (thin ones included): it also forbids every
+    brick whose cells split its region (:func:`separating`), which such a layout cannot have.
+    With ``connected`` the program is solved again and again with lazy cuts
     (:func:`_connection_cuts`) until its cover has one component per region (and, with
     ``no_weak_points``, no weak point) or ``time_limit_s`` runs out: each cut only removes
     covers that are not such layouts, so every round's bound is still one, and a cover that
-    passes is the fewest bricks any such layout has; a cover that does not pass also gets
-    the cuts of :func:`_degree_cuts` (two neighbours or more for every brick in a region of
-    three bricks or more, but a leaf on a one-cell-thin feature where thin weak points
-    are allowed).  Programs of more than :data:`LP_CUT_VARIABLES` placements solve their
-    relaxation with the leaf rows it breaks and degree cuts, added round by round
-    (:func:`_relaxed_cuts`); the integer program keeps the degree cuts.  With ``connected``
-    and ``most_weak`` (and not ``no_weak_points``) it bounds the layouts that also have at
-    most ``most_weak`` weak points: the weak-point cuts of :func:`_connection_cuts` hold for
-    every brick but those the program marks as weak, at most ``most_weak`` of them.
+    passes is the fewest bricks any such layout has; a cover that does not pass also gets the
+    cuts of :func:`_degree_cuts` (two neighbours or more for every brick in a region of three
+    bricks or more, but a leaf on a one-cell-thin feature where thin weak points are allowed).
+    With ``connected`` and ``most_weak`` (and not ``no_weak_points``) it bounds the layouts
+    that also have at most ``most_weak`` weak points: the weak-point cuts of
+    :func:`_connection_cuts` hold for every brick but those the program marks as weak, at most
+    ``most_weak`` of them.
     With ``placements`` ((n, 6) boxes ``x, y, z, sx, sy, sz`` on filled cells, e.g. the
     bricks of several layouts) the program has only those: ``bound`` then bounds only the
     covers made of them, and ``cover`` is such a layout with the fewest of them
     (:func:`~core.layout.search._merged`).
     Returns ``{"bound", "optimal", "objective", "status", "seconds", "variables", "rounds",
     "cuts", "cover"}`` as :func:`core.layout.bounds.brick_lower_bound`; ``bound`` is the larger of the
-    relaxation's bound (interior point, certified by weak duality) and HiGHS's dual
-    bounds, rounded up (0 when neither came in ``time_limit_s``; None past
+    relaxation's bound (interior point, certified by weak duality; :func:`_relaxation_bound`)
+    and HiGHS's dual bounds, rounded up (0 when neither came in ``time_limit_s``; None past
     :data:`core.layout.bounds.MAX_VARIABLES` placements, ``status`` "too large"),
     ``objective`` the bricks of the best such cover found or None (with ``connected``, only a
     cover that passes the cuts), ``cover`` its placements as ``[x, y, z, sx, sy, sz]`` cell
@@ -90,6 +89,76 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
         return result(0, True, 0, "optimal")
     if n > MAX_VARIABLES:
         return result(None, False, None, "too large")
+    program = _program(filled, boxes, largest, no_weak_points)
+    lp = _leaf_free_lp(sparse.vstack([program.cover, program.leaf]).tocsc(), m, program.island)
+    relaxed = _relaxation_bound(program, lp, time_limit_s, start)
+    if relaxed is None:
+        return result(None, True, None, "infeasible")
+    bound, degree_rows = relaxed
+    weak_cuts = connected and (no_weak_points or most_weak is not None)
+    h, marks_row = _integer_program(lp, bound, degree_rows,
+                                    time_limit_s - (time.perf_counter() - start),
+                                    most_weak if weak_cuts and not no_weak_points else None)
+    by_placement = program.cover.T.tocsr()
+    marks: dict[int, int] = {}        # placement -> the column of "it may be a weak point"
+    while True:
+        rounds += 1
+        h.run()
+        status = h.getModelStatus()
+        if status == highspy.HighsModelStatus.kInfeasible:
+            return result(None, True, None, "infeasible")
+        objective, bound, solution = _round_answer(h, bound)
+        added = []
+        if solution is not None:
+            chosen = np.flatnonzero(solution[:n] > 0.5)
+            if connected:
+                added = _broken_cuts(program, chosen, solution, by_placement, weak_cuts, marks)
+            passed = None if added else boxes[chosen].tolist()
+        if added:
+            objective = None
+        left = time_limit_s - (time.perf_counter() - start)
+        if not added or status != highspy.HighsModelStatus.kOptimal or left <= 0:
+            break
+        _add_cuts(h, added, marks, marks_row)
+        cuts += len(added)
+        more_time(h, max(left, 0.05))
+    optimal = objective is not None and (status == highspy.HighsModelStatus.kOptimal
+                                         or bound >= objective)
+    if optimal:
+        bound = objective
+    return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+
+
+class _Program(NamedTuple):
+    """:func:`leaf_free_bound`'s exact cover and what its cuts read: the placements ``boxes``
+    on the ``filled`` cells, the 6-connected regions ``labels`` (numbered from 1), the row
+    ``cell_index`` of each filled cell (-1 elsewhere), the (cells, placements) 0/1 ``cover``,
+    the ``leaf`` rows (at most 1 each), and per placement whether it is barred (``island``)
+    and whether it has two neighbours or more in every layout the bound is of (``sociable``,
+    :func:`_degree_cuts`)."""
+
+    boxes: np.ndarray
+    filled: np.ndarray
+    labels: np.ndarray
+    cell_index: np.ndarray
+    cover: sparse.csr_matrix
+    leaf: sparse.csr_matrix
+    island: np.ndarray
+    sociable: np.ndarray
+
+
+def _program(filled: np.ndarray, boxes: np.ndarray, largest: int,
+             no_weak_points: bool) -> _Program:
+    """The program of :func:`leaf_free_bound` over the placements ``boxes`` on the ``filled``
+    cells.  Barred: a placement touching nothing above or below in a region it does not fill
+    alone, and with ``no_weak_points`` one whose cells split its region (:func:`separating`).
+    A leaf row, per placement ``p`` in a region of more than twice ``largest`` cells (the
+    largest part's; such a region needs three bricks or more) that touches two filled cells
+    or more on one side only: ``p`` plus the placements ``q`` covering all those cells is at
+    most 1 (with ``q`` chosen, ``p`` would be a leaf on it and ``q`` a weak point, not a thin
+    one)."""
+    m = int(filled.sum())
+    n = len(boxes)
     labels = ndimage.label(filled, structure=_SIX)[0]
     region_cells = np.bincount(labels.ravel())
     cell_index = np.full(filled.shape, -1, dtype=np.int64)
@@ -114,85 +183,100 @@ def leaf_free_bound(grid, parts: tuple[Part, ...] = CATALOG, time_limit_s: float
                               (np.concatenate([np.arange(len(cand)), t]),
                                np.concatenate([cand, q]))), shape=(len(cand), n))
     leaf.data[:] = 1.0
-    lp = _leaf_free_lp(sparse.vstack([cover, leaf]).tocsc(), m, island)
-    # the relaxation by interior point first (HiGHS's MIP root, by the dual simplex, is slow
-    # on such programs), its bound certified by weak duality; a large one without the leaf
-    # rows, which it gets as they are broken (:func:`_relaxed_cuts`)
+    return _Program(boxes, filled, labels, cell_index, cover, leaf, island, sociable)
+
+
+def _relaxation_bound(program: _Program, lp: highspy.HighsLp, time_limit_s: float,
+                      start: float) -> tuple[int, list] | None:
+    """The bound the relaxation ``lp`` of ``program`` certifies (:func:`_certified`), and the
+    degree cuts found on the way as (columns, values) of rows ``>= 0``; None when it is
+    infeasible.  Solved by interior point (HiGHS's MIP root, by the dual simplex, is slow on
+    such programs) in half of ``time_limit_s``.  One of more than :data:`LP_CUT_VARIABLES`
+    placements has :data:`LP_CUT_SHARE` of it instead, starts without the leaf rows and gets
+    those it breaks, and degree cuts, round by round (:func:`_relaxed_cuts`) until that share
+    of ``time_limit_s`` after ``start`` (a ``time.perf_counter`` time) has passed."""
+    n, m = len(program.boxes), program.cover.shape[0]
     large = n > LP_CUT_VARIABLES
     h = _highs((LP_CUT_SHARE if large else 0.5) * time_limit_s, random_seed=0, solver="ipm",
                run_crossover="off", presolve="off")
-    h.passModel(_leaf_free_lp(cover.tocsc(), m, island) if large else lp)
+    h.passModel(_leaf_free_lp(program.cover.tocsc(), m, program.island) if large else lp)
     h.run()
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
-        return result(None, True, None, "infeasible")
+        return None
     bound = _certified(h)
-    degree_rows = []
-    if large:
-        found, degree_rows = _relaxed_cuts(h, leaf, boxes, filled, cover, cell_index,
-                                           sociable, start + LP_CUT_SHARE * time_limit_s)
-        if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
-            return result(None, True, None, "infeasible")
-        bound = max(bound, found)
+    if not large:
+        return bound, []
+    found, degree_rows = _relaxed_cuts(h, program, start + LP_CUT_SHARE * time_limit_s)
+    if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
+        return None
+    return max(bound, found), degree_rows
+
+
+def _integer_program(lp: highspy.HighsLp, bound: int, degree_rows: list, seconds: float,
+                     most_weak: int | None) -> tuple[highspy.Highs, int | None]:
+    """HiGHS holding ``lp`` in integers, with ``seconds`` (at least 0.05) to run, its bricks
+    at least ``bound``, the ``degree_rows`` (columns, values) each ``>= 0``, and with
+    ``most_weak`` a row of at most that many marked weak points (empty, its columns come with
+    the cuts: :func:`_add_cuts`); and that row's index (None without ``most_weak``)."""
+    n = lp.num_col_
     lp.integrality_ = [highspy.HighsVarType.kInteger] * n
     # a large program's presolve does not watch the clock
-    h = _highs(max(time_limit_s - (time.perf_counter() - start), 0.05), random_seed=0,
-               mip_abs_gap=1.0 - 1e-3, presolve="off" if large else "choose")
+    h = _highs(max(seconds, 0.05), random_seed=0, mip_abs_gap=1.0 - 1e-3,
+               presolve="off" if n > LP_CUT_VARIABLES else "choose")
     h.passModel(lp)
     h.addRow(float(bound), highspy.kHighsInf, n, np.arange(n, dtype=np.int32), np.ones(n))
     for columns, values in degree_rows:
         h.addRow(0.0, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
-    by_placement = cover.T.tocsr()
-    weak_cuts = connected and (no_weak_points or most_weak is not None)
-    marks: dict[int, int] = {}        # placement -> the column of "it may be a weak point"
-    if weak_cuts and not no_weak_points:
-        h.addRow(-highspy.kHighsInf, float(most_weak), 0, np.empty(0, np.int32), np.empty(0))
-        marks_row = h.getNumRow() - 1
-    while True:
-        rounds += 1
-        h.run()
-        status = h.getModelStatus()
-        if status == highspy.HighsModelStatus.kInfeasible:
-            return result(None, True, None, "infeasible")
-        info = h.getInfo()
-        found = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
-        objective = round(info.objective_function_value) if found else None
-        dual = info.mip_dual_bound
-        if np.isfinite(dual):
-            bound = max(bound, int(np.ceil(dual - 1e-6)))
-        added = []
-        if found:
-            solution = np.asarray(h.getSolution().col_value)
-            chosen = np.flatnonzero(solution[:n] > 0.5)
-            if connected:
-                added = _connection_cuts(boxes[chosen], chosen, filled, by_placement, labels,
-                                         weak_cuts)
-                # a weak point the program marked as one breaks no cut
-                added = [cut for cut in added if cut[3] not in marks
-                         or solution[marks[cut[3]]] < 0.5]
-                if added:
-                    added += _degree_cuts(boxes[chosen], chosen, filled, cover, cell_index,
-                                          sociable)
-            passed = None if added else boxes[chosen].tolist()
-        if added:
-            objective = None
-        left = time_limit_s - (time.perf_counter() - start)
-        if not added or status != highspy.HighsModelStatus.kOptimal or left <= 0:
-            break
-        for columns, values, lower, p in added:
-            if p >= 0 and not no_weak_points:
-                if p not in marks:
-                    h.addCol(0.0, 0.0, 1.0, 1, np.array([marks_row], np.int32), np.ones(1))
-                    marks[p] = h.getNumCol() - 1
-                    h.changeColIntegrality(marks[p], highspy.HighsVarType.kInteger)
-                columns, values = np.append(columns, marks[p]), np.append(values, 1.0)
-            h.addRow(lower, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
-        cuts += len(added)
-        more_time(h, max(left, 0.05))
-    optimal = objective is not None and (status == highspy.HighsModelStatus.kOptimal
-                                         or bound >= objective)
-    if optimal:
-        bound = objective
-    return result(bound, optimal, objective, "optimal" if optimal else "time limit")
+    if most_weak is None:
+        return h, None
+    h.addRow(-highspy.kHighsInf, float(most_weak), 0, np.empty(0, np.int32), np.empty(0))
+    return h, h.getNumRow() - 1
+
+
+def _round_answer(h: highspy.Highs, bound: int) -> tuple[int | None, int, np.ndarray | None]:
+    """What the integer program ``h`` just solved gives: the bricks of its cover (None without
+    one), ``bound`` raised to its dual bound rounded up, and its column values (None without
+    a cover)."""
+    info = h.getInfo()
+    dual = info.mip_dual_bound
+    if np.isfinite(dual):
+        bound = max(bound, int(np.ceil(dual - 1e-6)))
+    if info.primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
+        return None, bound, None
+    return round(info.objective_function_value), bound, np.asarray(h.getSolution().col_value)
+
+
+def _broken_cuts(program: _Program, chosen: np.ndarray, solution: np.ndarray,
+                 by_placement: sparse.csr_matrix, weak_cuts: bool, marks: dict[int, int]) -> list:
+    """The cuts of :func:`_connection_cuts` that the cover ``chosen`` (placement indices;
+    ``solution`` the program's column values) breaks, less those on a weak point whose column
+    in ``marks`` the program set, and then, if any are left, the cuts of :func:`_degree_cuts`
+    too; empty when the cover passes."""
+    chosen_boxes = program.boxes[chosen]
+    added = _connection_cuts(chosen_boxes, chosen, program.filled, by_placement, program.labels,
+                             weak_cuts)
+    # a weak point the program marked as one breaks no cut
+    added = [cut for cut in added if cut[3] not in marks or solution[marks[cut[3]]] < 0.5]
+    if added:
+        added += _degree_cuts(chosen_boxes, chosen, program.filled, program.cover,
+                              program.cell_index, program.sociable)
+    return added
+
+
+def _add_cuts(h: highspy.Highs, added: list, marks: dict[int, int],
+              marks_row: int | None) -> None:
+    """Add the cuts ``added`` (``(columns, values, lower, p)`` rows) to the integer program
+    ``h``.  With ``marks_row`` (:func:`_integer_program`'s row of marked weak points) a cut
+    on the weak point ``p`` also takes ``p``'s mark column, a 0/1 variable in that row made
+    the first time (``marks``, placement -> column): marked, ``p`` may be a weak point."""
+    for columns, values, lower, p in added:
+        if p >= 0 and marks_row is not None:
+            if p not in marks:
+                h.addCol(0.0, 0.0, 1.0, 1, np.array([marks_row], np.int32), np.ones(1))
+                marks[p] = h.getNumCol() - 1
+                h.changeColIntegrality(marks[p], highspy.HighsVarType.kInteger)
+            columns, values = np.append(columns, marks[p]), np.append(values, 1.0)
+        h.addRow(lower, highspy.kHighsInf, len(columns), columns.astype(np.int32), values)
 
 
 def _leaf_free_lp(a: sparse.csc_matrix, m: int, island: np.ndarray) -> highspy.HighsLp:
@@ -385,17 +469,16 @@ LP_CUT_SHARE = 0.8
 LP_CUTS = 4000
 
 
-def _relaxed_cuts(h: highspy.Highs, leaf: sparse.csr_matrix, boxes: np.ndarray,
-                  filled: np.ndarray, cover: sparse.csr_matrix, cell_index: np.ndarray,
-                  sociable: np.ndarray, deadline: float) -> tuple[int, list]:
-    """Leaf rows and degree cuts (:func:`_degree_cuts`) for the relaxation ``h`` (solved):
-    while its solution breaks some and ``deadline`` (a ``time.perf_counter`` time) is ahead,
-    the rows of ``leaf`` (one per row of the program, ``<= 1``) it breaks and the ``LP_CUTS``
-    most broken degree cuts are added to ``h`` and it is solved again.  Every row holds for
-    every layout the bound is of, so every round's certified bound (:func:`_certified`) is
-    one.  Returns the largest of those of the rounds it solved (0 without any; the caller
-    has ``h``'s own) and the degree cuts added, as (columns, values) of rows ``>= 0``, for
-    the integer program (which has all the leaf rows)."""
+def _relaxed_cuts(h: highspy.Highs, program: _Program, deadline: float) -> tuple[int, list]:
+    """Leaf rows and degree cuts (:func:`_degree_cuts`) for the relaxation ``h`` (solved) of
+    ``program``: while its solution breaks some and ``deadline`` (a ``time.perf_counter``
+    time) is ahead, the rows of ``program.leaf`` (one per row of the program, ``<= 1``) it
+    breaks and the ``LP_CUTS`` most broken degree cuts are added to ``h`` and it is solved
+    again.  Every row holds for every layout the bound is of, so every round's certified bound
+    (:func:`_certified`) is one.  Returns the largest of those of the rounds it solved (0
+    without any; the caller has ``h``'s own) and the degree cuts added, as (columns, values)
+    of rows ``>= 0``, for the integer program (which has all the leaf rows)."""
+    boxes, leaf, sociable = program.boxes, program.leaf, program.sociable
     best = 0
     taken = np.zeros(leaf.shape[0], dtype=bool)
     added = []
@@ -410,7 +493,7 @@ def _relaxed_cuts(h: highspy.Highs, leaf: sparse.csr_matrix, boxes: np.ndarray,
             h.addRow(-highspy.kHighsInf, 1.0, row.nnz, row.indices.astype(np.int32), row.data)
         found = []
         for p in np.flatnonzero(sociable & (x > 1e-6)):
-            q = _next_to(boxes[p], filled, cover, cell_index)
+            q = _next_to(boxes[p], program.filled, program.cover, program.cell_index)
             short = 2.0 * x[p] - x[q].sum()
             if short > 1e-4:
                 found.append((short, p, q))

@@ -137,23 +137,6 @@ class Search:
         """The number of bricks now."""
         return len(self.rec) - self.dead
 
-    def _limits(self, ids: list[int]):
-        """The window program's design rows when bricks ``ids`` are freed (None without a
-        stock): (box size codes, sorted; each one's design row; the designs' owned counts
-        left over by the fixed bricks; whether more may be bought)."""
-        if self.stock is None:
-            return None
-        designs = sorted({p for _, p in self.shapes})
-        row = {d: j for j, d in enumerate(designs)}
-        codes = np.array([size_code(*size) for size, _ in self.shapes], dtype=np.int64)
-        order = np.argsort(codes)
-        rows = np.array([row[p] for _, p in self.shapes], dtype=np.int64)[order]
-        fixed = dict(self.used)
-        for i in ids:
-            fixed[self.part[i]] = fixed.get(self.part[i], 0) - 1
-        left = np.array([self.stock.owned.get(d, 0) - fixed.get(d, 0) for d in designs], dtype=float)
-        return codes[order], rows, left, self.stock.buy
-
     def _part_of(self, i):
         return self.part[i] if i < len(self.part) else self._pending_part[i]
 
@@ -185,17 +168,8 @@ class Search:
         moved inside the grid; the freed bricks are the movable ones it touches, the
         nearest to the site first up to ``max_cells`` freed cells.
         """
-        x, y, z, sx, sy, sz = self.rec[site]
-        wx, wy, layers = shape
-        if anchor == 0:
-            lo = np.array([x + sx // 2 - wx // 2, y + sy // 2 - wy // 2, z + sz // 2 - layers // 2])
-            lo += self.rng.integers(-1, 2, size=3)
-        elif anchor == 1:
-            lo = np.array([x, y, z])
-        else:
-            lo = np.array([x + sx - wx, y + sy - wy, z + sz - layers])
-        lo = np.clip(lo, 0, np.maximum(np.array(self.grid.shape) - (wx, wy, layers), 0))
-        hi = lo + (wx, wy, layers)
+        x, y, z = self.rec[site][:3]
+        lo, hi = _window_box(self.rec[site], shape, anchor, self.grid.shape, self.rng)
         box = self.lab[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
         ids = []
         cells = 0
@@ -273,13 +247,8 @@ class Search:
         shapes = self.shapes if shapes is None else shapes
         limit = level.max_columns
         while True:
-            recs = np.array([self.rec[i] for i in ids], dtype=np.int64)
-            lo = np.maximum(recs[:, :3].min(axis=0) - 1, 0)
-            hi = np.minimum((recs[:, :3] + recs[:, 3:]).max(axis=0) + 1, self.grid.shape)
-            sl = tuple(slice(a, b) for a, b in zip(lo, hi))
-            free = np.zeros(tuple(hi - lo), dtype=bool)
-            for x, y, z, sx, sy, sz in recs - np.concatenate([lo, np.zeros(3, np.int64)]):
-                free[x:x + sx, y:y + sy, z:z + sz] = True
+            lo, sl, free = _freed_box(np.array([self.rec[i] for i in ids], dtype=np.int64),
+                                      self.grid.shape)
             boxes = free_placements(free, None, shapes)
             if len(ids) > 2 and len(boxes) > limit:
                 ids = ids[:max(2, (len(ids) * 4) // 5)]
@@ -289,7 +258,7 @@ class Search:
             current = [tuple(np.subtract(self.rec[i][:3], lo)) + self.rec[i][3:] for i in ids]
             window = (boxes, free, self.filled[sl], np.where(free, -1, self.lab[sl]),
                       current, self.rng, level, LEAF_COST if self.weak_on else COMPACT_LEAF_COST)
-            limits = self._limits(ids)
+            limits = _design_limits(self.shapes, self.used, [self.part[i] for i in ids], self.stock)
             chosen, spent = solve_window(*window, limits=limits)
             self.iterations += spent
             if chosen is not TOO_LARGE:
@@ -477,3 +446,55 @@ def _nearest_groups(rec: np.ndarray, sign: np.ndarray, cells: int) -> list[list[
         groups.append(taken.tolist())
         left = np.setdiff1d(left, taken)
     return groups
+
+
+def _window_box(site: tuple, shape: tuple[int, int, int], anchor: int, grid_shape,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The low and high corners of the window box of ``shape`` (studs x, studs y, layers) at
+    the brick ``site`` (x, y, z, sx, sy, sz), inside the grid of ``grid_shape`` where it fits:
+    centred on the site and shifted by up to one stud and one layer (one draw of ``rng``;
+    ``anchor`` 0), or starting (1) or ending (2) where the site does."""
+    x, y, z, sx, sy, sz = site
+    wx, wy, layers = shape
+    if anchor == 0:
+        lo = np.array([x + sx // 2 - wx // 2, y + sy // 2 - wy // 2, z + sz // 2 - layers // 2])
+        lo += rng.integers(-1, 2, size=3)
+    elif anchor == 1:
+        lo = np.array([x, y, z])
+    else:
+        lo = np.array([x + sx - wx, y + sy - wy, z + sz - layers])
+    lo = np.clip(lo, 0, np.maximum(np.array(grid_shape) - (wx, wy, layers), 0))
+    return lo, lo + (wx, wy, layers)
+
+
+def _freed_box(recs: np.ndarray, grid_shape) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """The local box of a window program around the bricks ``recs`` ((k, 6) boxes), with a
+    margin of one cell where the grid of ``grid_shape`` allows: its low corner, its slices of
+    the grid, and, over the box, the cells the bricks cover (the freed cells)."""
+    lo = np.maximum(recs[:, :3].min(axis=0) - 1, 0)
+    hi = np.minimum((recs[:, :3] + recs[:, 3:]).max(axis=0) + 1, grid_shape)
+    sl = tuple(slice(a, b) for a, b in zip(lo, hi))
+    free = np.zeros(tuple(hi - lo), dtype=bool)
+    for x, y, z, sx, sy, sz in recs - np.concatenate([lo, np.zeros(3, np.int64)]):
+        free[x:x + sx, y:y + sy, z:z + sz] = True
+    return lo, sl, free
+
+
+def _design_limits(shapes, used: dict[str, int], freed: list[str], stock: Stock | None):
+    """The window program's design rows (the ``limits`` of
+    :func:`~core.layout.window_program.solve_window`) over the placements of ``shapes`` when
+    bricks of the parts ``freed`` leave a layout whose LEGO bricks of each design are
+    ``used`` (None without a ``stock``): (box size codes, sorted; each one's design row; the
+    designs' owned counts left over by the fixed bricks; whether more may be bought)."""
+    if stock is None:
+        return None
+    designs = sorted({p for _, p in shapes})
+    row = {d: j for j, d in enumerate(designs)}
+    codes = np.array([size_code(*size) for size, _ in shapes], dtype=np.int64)
+    order = np.argsort(codes)
+    rows = np.array([row[p] for _, p in shapes], dtype=np.int64)[order]
+    fixed = dict(used)
+    for part in freed:
+        fixed[part] = fixed.get(part, 0) - 1
+    left = np.array([stock.owned.get(d, 0) - fixed.get(d, 0) for d in designs], dtype=float)
+    return codes[order], rows, left, stock.buy

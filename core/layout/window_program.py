@@ -239,89 +239,16 @@ def solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cos
     LP relaxation is fractional: branch and bound over ``boxes`` when they are at most
     ``level.mip_columns``, else over the placements the relaxation uses and ``current``
     when those are, else :data:`TOO_LARGE`.  ``limits``
-    (:meth:`~core.layout.neighbourhood.Search._limits`, None: none) add a row per design: its
+    (:func:`~core.layout.neighbourhood._design_limits`, None: none) add a row per design: its
     placements at most the owned count left, plus a bought count (at most 0 where buying is not
     allowed) priced :data:`core.inventory.BUY_COST`.
     """
     n = len(boxes)
     if n == 0:
         return None, 0
-    cell_index = np.full(free.shape, -1, dtype=np.int64)
-    cell_index[free] = np.arange(int(free.sum()))
     m = int(free.sum())
-    cover = cover_matrix(boxes, cell_index, m)
-    rows, cols = cover.row, cover.col
-    by_cell = cover.tocsr()
-    fixed, wb, wa, bbox, seams = contacts(boxes, free, filled, lab)
-    cost = BRICK_COST + SEAM_COST * seams + 1e-4 * rng.random(n)
-    cost += ISLAND_COST * ((fixed == 0) & (wb == 0) & (wa == 0))
-    cost += leaf_cost * ((fixed == 1) & (wb == 0) & (wa == 0))
-    for box, extra in (penalty or {}).items():
-        cost[np.flatnonzero((boxes == box).all(axis=1))] += extra
-    # A placement p with no fixed neighbour that touches freed cells on one side only is
-    # a leaf when one placement q covers all of those cells.  All such q cover the same
-    # cell, so at most one is chosen: y_p >= x_p + sum_q x_q - 1 is exact (one row per p).
-    # A fixed brick beside the window with no other fixed neighbour: y_F >= sum_q x_q.
-    ptr, idx = by_cell.indptr.astype(np.int64), by_cell.indices.astype(np.int64)
-    cand = np.flatnonzero((fixed == 0) & (bbox[:, 4] >= 0))
-    t, q = covering(boxes, bbox[cand], ptr, idx, cell_index)
-    keep = cand[t] != q
-    t, q = t[keep], q[keep]
-    leaves, t = np.unique(t, return_inverse=True)
-    targets = _fixed_leaf_targets(free, filled, lab)
-    ft, fq = (covering(boxes, targets, ptr, idx, cell_index) if len(targets)
-              else (np.empty(0, np.int64), np.empty(0, np.int64)))
-    n_leaf, n_fixed = leaves.size, len(targets)
-    design, n_buy = None, 0
-    if limits is not None:
-        codes, design_rows, left, may_buy = limits
-        design = design_rows[np.searchsorted(codes, size_code(boxes[:, 3], boxes[:, 4], boxes[:, 5]))]
-        n_buy = len(left)
-    n_cols = n + n_leaf + n_fixed + n_buy
-    n_rows = m + n_leaf + n_fixed + n_buy
-    leaf_rows = m + np.arange(n_leaf)
-    fixed_rows = m + n_leaf + np.arange(n_fixed)
-    r_rows = [rows, leaf_rows, m + t, leaf_rows, fixed_rows[ft], fixed_rows]
-    r_cols = [cols, cand[leaves], q, n + np.arange(n_leaf), fq, n + n_leaf + np.arange(n_fixed)]
-    r_vals = [np.ones(rows.size), np.ones(n_leaf), np.ones(q.size), -np.ones(n_leaf),
-              np.ones(fq.size), -np.ones(n_fixed)]
-    if n_buy:
-        buy_rows = m + n_leaf + n_fixed + np.arange(n_buy)
-        r_rows += [buy_rows[design], buy_rows]
-        r_cols += [np.arange(n), n + n_leaf + n_fixed + np.arange(n_buy)]
-        r_vals += [np.ones(n), -np.ones(n_buy)]
-    a = sparse.csc_matrix((np.concatenate(r_vals), (np.concatenate(r_rows).astype(np.int64),
-                                                   np.concatenate(r_cols).astype(np.int64))),
-                          shape=(n_rows, n_cols))
-    a.sum_duplicates()
-    lp = highspy.HighsLp()
-    lp.num_col_ = n_cols
-    lp.num_row_ = n_rows
-    lp.col_cost_ = np.concatenate([cost, np.full(n_leaf + n_fixed, leaf_cost),
-                                   np.full(n_buy, BUY_COST)])
-    lp.col_lower_ = np.zeros(n_cols)
-    lp.col_upper_ = np.concatenate([np.ones(n + n_leaf + n_fixed),
-                                    np.full(n_buy, highspy.kHighsInf if n_buy and may_buy else 0.0)])
-    lp.row_lower_ = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed + n_buy,
-                                                        -highspy.kHighsInf)])
-    lp.row_upper_ = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed),
-                                    left if n_buy else np.zeros(0)])
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.num_col_ = n_cols
-    lp.a_matrix_.num_row_ = n_rows
-    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = a.indices.astype(np.int32)
-    lp.a_matrix_.value_ = a.data.astype(np.float64)
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
-    h.setOptionValue("threads", 1)
-    h.setOptionValue("random_seed", 0)
-    # no presolve: it would change which of equal re-covers is kept
-    h.setOptionValue("presolve", "off")
-    h.setOptionValue("time_limit", level.time_limit_s)
-    h.setOptionValue("mip_max_nodes", level.node_limit)
-    h.setOptionValue("mip_rel_gap", 1e-6)
-    h.passModel(lp)
+    a, lp, n_buy = _window_lp(boxes, free, filled, lab, rng, leaf_cost, penalty, limits)
+    h = _window_highs(lp, level)
     # The LP relaxation first: most windows' are integral, and then it is the optimum.
     h.run()
     spent = max(h.getInfo().simplex_iteration_count, 0)
@@ -339,23 +266,167 @@ def solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cos
                                      leaf_cost, penalty, limits)
         return chosen, spent + more
     if not lp_done:
-        h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
-                                np.full(n, highspy.HighsVarType.kInteger))
-        start = _start_solution(boxes, current, a, n, n_cols, m, lp.row_upper_[m:], n_buy)
-        if start is not None:
-            sol = highspy.HighsSolution()
-            sol.col_value = list(start)
-            sol.value_valid = True
-            h.setSolution(sol)
-        h.run()
-        spent += max(h.getInfo().simplex_iteration_count, 0)
-        if h.getInfo().primal_solution_status != highspy.SolutionStatus.kSolutionStatusFeasible:
+        more, found = _branch_and_bound(h, boxes, current, a, lp, m, n_buy)
+        spent += more
+        if not found:
             return None, spent
     x = np.asarray(h.getSolution().col_value)[:n]
     chosen = boxes[x > 0.5]
     if int((chosen[:, 3] * chosen[:, 4] * chosen[:, 5]).sum()) != m:
         return None, spent
     return [tuple(int(v) for v in b) for b in chosen], spent
+
+
+def _window_lp(boxes, free, filled, lab, rng, leaf_cost: float, penalty: dict | None, limits):
+    """The program of :func:`solve_window` (its arguments of the same names): its matrix
+    (CSC), the :class:`highspy.HighsLp` and the number of its bought-count columns.
+
+    Columns: the placements (:func:`_placement_costs`), the leaf variables
+    (:func:`_leaf_entries`) at ``leaf_cost`` each, and with ``limits`` a bought count per
+    design at :data:`core.inventory.BUY_COST`.  Rows: each freed cell covered once, each leaf
+    row, and with ``limits`` a row per design: its placements less its bought count at most
+    the owned count left."""
+    n = len(boxes)
+    cell_index = np.full(free.shape, -1, dtype=np.int64)
+    cell_index[free] = np.arange(int(free.sum()))
+    m = int(free.sum())
+    cover = cover_matrix(boxes, cell_index, m)
+    fixed, wb, wa, bbox, seams = contacts(boxes, free, filled, lab)
+    cost = _placement_costs(boxes, fixed, wb, wa, seams, rng, leaf_cost, penalty)
+    rows, cols, vals, n_leaf, n_fixed = _leaf_entries(boxes, free, filled, lab, cover,
+                                                      cell_index, fixed, bbox)
+    r_rows, r_cols = [cover.row, *rows], [cover.col, *cols]
+    r_vals = [np.ones(cover.row.size), *vals]
+    design, n_buy = None, 0
+    if limits is not None:
+        codes, design_rows, left, may_buy = limits
+        design = design_rows[np.searchsorted(codes, size_code(boxes[:, 3], boxes[:, 4], boxes[:, 5]))]
+        n_buy = len(left)
+    n_cols = n + n_leaf + n_fixed + n_buy
+    n_rows = m + n_leaf + n_fixed + n_buy
+    if n_buy:
+        buy_rows = m + n_leaf + n_fixed + np.arange(n_buy)
+        r_rows += [buy_rows[design], buy_rows]
+        r_cols += [np.arange(n), n + n_leaf + n_fixed + np.arange(n_buy)]
+        r_vals += [np.ones(n), -np.ones(n_buy)]
+    a = sparse.csc_matrix((np.concatenate(r_vals), (np.concatenate(r_rows).astype(np.int64),
+                                                   np.concatenate(r_cols).astype(np.int64))),
+                          shape=(n_rows, n_cols))
+    a.sum_duplicates()
+    col_cost = np.concatenate([cost, np.full(n_leaf + n_fixed, leaf_cost),
+                               np.full(n_buy, BUY_COST)])
+    col_upper = np.concatenate([np.ones(n + n_leaf + n_fixed),
+                                np.full(n_buy, highspy.kHighsInf if n_buy and may_buy else 0.0)])
+    row_lower = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed + n_buy, -highspy.kHighsInf)])
+    row_upper = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed),
+                                left if n_buy else np.zeros(0)])
+    return a, _highs_lp(a, col_cost, col_upper, row_lower, row_upper), n_buy
+
+
+def _placement_costs(boxes, fixed, wb, wa, seams, rng, leaf_cost: float,
+                     penalty: dict | None) -> np.ndarray:
+    """Per placement (``boxes``, with :func:`contacts`' ``fixed``, ``wb``, ``wa`` and
+    ``seams``): its objective weight, :data:`BRICK_COST` plus :data:`SEAM_COST` per seam cell,
+    :data:`ISLAND_COST` where it touches nothing above or below, ``leaf_cost`` where it
+    touches one fixed brick there and nothing else, a seeded tie-breaker below 1e-4 (one draw
+    of ``rng`` per placement) and its extra price in ``penalty`` (box -> price)."""
+    n = len(boxes)
+    cost = BRICK_COST + SEAM_COST * seams + 1e-4 * rng.random(n)
+    cost += ISLAND_COST * ((fixed == 0) & (wb == 0) & (wa == 0))
+    cost += leaf_cost * ((fixed == 1) & (wb == 0) & (wa == 0))
+    for box, extra in (penalty or {}).items():
+        cost[np.flatnonzero((boxes == box).all(axis=1))] += extra
+    return cost
+
+
+def _leaf_entries(boxes, free, filled, lab, cover: sparse.coo_matrix, cell_index, fixed,
+                  bbox) -> tuple[list, list, list, int, int]:
+    """The entries of the window program's leaf rows, after the rows of ``cover`` (the
+    (cells, placements) matrix), as lists of rows, of columns and of values arrays, and the
+    numbers of leaf rows of placements and of fixed bricks; one leaf variable per leaf row,
+    in the columns after the placements.
+
+    A placement p with no fixed neighbour that touches freed cells on one side only is a
+    leaf when one placement q covers all of those cells.  All such q cover the same cell, so
+    at most one is chosen: y_p >= x_p + sum_q x_q - 1 is exact (one row per p).  A fixed
+    brick beside the window with no other fixed neighbour (:func:`_fixed_leaf_targets`):
+    y_F >= sum_q x_q."""
+    n, m = len(boxes), cover.shape[0]
+    by_cell = cover.tocsr()
+    ptr, idx = by_cell.indptr.astype(np.int64), by_cell.indices.astype(np.int64)
+    cand = np.flatnonzero((fixed == 0) & (bbox[:, 4] >= 0))
+    t, q = covering(boxes, bbox[cand], ptr, idx, cell_index)
+    keep = cand[t] != q
+    t, q = t[keep], q[keep]
+    leaves, t = np.unique(t, return_inverse=True)
+    targets = _fixed_leaf_targets(free, filled, lab)
+    ft, fq = (covering(boxes, targets, ptr, idx, cell_index) if len(targets)
+              else (np.empty(0, np.int64), np.empty(0, np.int64)))
+    n_leaf, n_fixed = leaves.size, len(targets)
+    leaf_rows = m + np.arange(n_leaf)
+    fixed_rows = m + n_leaf + np.arange(n_fixed)
+    rows = [leaf_rows, m + t, leaf_rows, fixed_rows[ft], fixed_rows]
+    cols = [cand[leaves], q, n + np.arange(n_leaf), fq, n + n_leaf + np.arange(n_fixed)]
+    vals = [np.ones(n_leaf), np.ones(q.size), -np.ones(n_leaf), np.ones(fq.size),
+            -np.ones(n_fixed)]
+    return rows, cols, vals, n_leaf, n_fixed
+
+
+def _highs_lp(a: sparse.csc_matrix, col_cost, col_upper, row_lower, row_upper) -> highspy.HighsLp:
+    """The LP ``min col_cost . x`` subject to ``row_lower <= a x <= row_upper`` and
+    ``0 <= x <= col_upper``, its matrix column-wise."""
+    n_rows, n_cols = a.shape
+    lp = highspy.HighsLp()
+    lp.num_col_ = n_cols
+    lp.num_row_ = n_rows
+    lp.col_cost_ = col_cost
+    lp.col_lower_ = np.zeros(n_cols)
+    lp.col_upper_ = col_upper
+    lp.row_lower_ = row_lower
+    lp.row_upper_ = row_upper
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_ = n_cols
+    lp.a_matrix_.num_row_ = n_rows
+    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = a.indices.astype(np.int32)
+    lp.a_matrix_.value_ = a.data.astype(np.float64)
+    return lp
+
+
+def _window_highs(lp: highspy.HighsLp, level: Effort) -> highspy.Highs:
+    """A silent single-threaded HiGHS holding ``lp``, with ``level``'s time and node limits."""
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("threads", 1)
+    h.setOptionValue("random_seed", 0)
+    # no presolve: it would change which of equal re-covers is kept
+    h.setOptionValue("presolve", "off")
+    h.setOptionValue("time_limit", level.time_limit_s)
+    h.setOptionValue("mip_max_nodes", level.node_limit)
+    h.setOptionValue("mip_rel_gap", 1e-6)
+    h.passModel(lp)
+    return h
+
+
+def _branch_and_bound(h: highspy.Highs, boxes, current, a, lp: highspy.HighsLp, m: int,
+                      n_buy: int) -> tuple[int, bool]:
+    """Solve the window program ``h`` (``lp``, matrix ``a``, ``m`` cell rows, ``n_buy``
+    bought counts last) with its placements ``boxes`` in integers, from the ``current``
+    bricks where they are all placements: (the simplex iterations spent, whether it found a
+    cover)."""
+    n = len(boxes)
+    h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
+                            np.full(n, highspy.HighsVarType.kInteger))
+    start = _start_solution(boxes, current, a, n, lp.num_col_, m, lp.row_upper_[m:], n_buy)
+    if start is not None:
+        sol = highspy.HighsSolution()
+        sol.col_value = list(start)
+        sol.value_valid = True
+        h.setSolution(sol)
+    h.run()
+    spent = max(h.getInfo().simplex_iteration_count, 0)
+    found = h.getInfo().primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
+    return spent, found
 
 
 def _start_solution(boxes, current, a, n, n_cols, m, upper, n_buy=0):
