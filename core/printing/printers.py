@@ -26,6 +26,7 @@ import re
 import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import trimesh
@@ -118,6 +119,7 @@ def _tokens(text: str) -> list[tuple[str, str]]:
     return out
 
 
+@functools.lru_cache(maxsize=4096)
 def condition(text: str):
     """The parsed condition ``text`` as a tree of tuples: ``("or", a, b)``, ``("and", a, b)``,
     ``("not", a)``, ``(op, left, right)`` for a comparison, ``("value", kind, text)`` for an
@@ -288,9 +290,19 @@ class Bundle:
     sections: dict = field(compare=False, repr=False)
     templates: bool = False
 
+    resolved_presets: dict = field(default_factory=dict, compare=False, repr=False)
+
     def presets(self, kind: str) -> list[str]:
         """The names of the bundle's concrete (not ``*abstract*``) presets of ``kind``, in order."""
         return [name for k, name in self.sections if k == kind and not name.startswith("*")]
+
+    def resolved(self, kind: str, name: str) -> MappingProxyType:
+        """Preset ``[kind:name]`` with its ``inherits`` chain applied
+        (:func:`core.printing.slicer_profile.resolve`), read-only; resolved once per bundle."""
+        key = (kind, name)
+        if key not in self.resolved_presets:
+            self.resolved_presets[key] = MappingProxyType(slicer_profile.resolve(self.sections, kind, name))
+        return self.resolved_presets[key]
 
 
 def bundle_folder(slicer: str | None = None) -> Path | None:
@@ -329,7 +341,7 @@ def _bundle(path: str, _size: int, _mtime: int) -> Bundle:
 def fff_printers(bundle: Bundle) -> list[str]:
     """The bundle's concrete printer presets for filament printers (not SLA)."""
     return [name for name in bundle.presets("printer")
-            if slicer_profile.resolve(bundle.sections, "printer", name).get("printer_technology", "FFF") != "SLA"]
+            if bundle.resolved("printer", name).get("printer_technology", "FFF") != "SLA"]
 
 
 def listing(folder: str | os.PathLike | None) -> dict[str, list[tuple[str, list[float]]]]:
@@ -337,7 +349,7 @@ def listing(folder: str | os.PathLike | None) -> dict[str, list[tuple[str, list[
     out: dict[str, list] = {}
     for bundle in bundles(folder):
         for name in fff_printers(bundle):
-            config = slicer_profile.resolve(bundle.sections, "printer", name)
+            config = bundle.resolved("printer", name)
             try:
                 size = [float(v) for v in build_volume(config)]
             except InputError:
@@ -387,7 +399,7 @@ def _filaments(sources: list[Bundle], printer: str, machine: dict, print_config:
     out: dict[str, dict] = {}
     for source in sources:
         for name in source.presets("filament"):
-            if name not in out and compatible(f := slicer_profile.resolve(source.sections, "filament", name),
+            if name not in out and compatible(f := source.resolved("filament", name),
                                               printer, machine, print_config):
                 out[name] = {k: '""' if k.endswith("_gcode") and not v.strip() else v
                              for k, v in f.items() if k != "inherits"}
@@ -413,9 +425,9 @@ def choose(printer: str, print_preset: str | None = None, filament: str | None =
         raise _unknown("printer", printer, [n for _, n in found], "python -m core printers lists them")
     bundle, _ = match[0]
     sections = bundle.sections
-    machine = slicer_profile.resolve(sections, "printer", printer)
+    machine = bundle.resolved("printer", printer)
     prints = {n: p for n in bundle.presets("print")
-              if compatible(p := slicer_profile.resolve(sections, "print", n), printer, machine)}
+              if compatible(p := bundle.resolved("print", n), printer, machine)}
     if not prints:
         raise InputError(f"--printer {printer!r}: its bundle {bundle.path} has no print preset for it")
     if print_preset is None:
