@@ -92,30 +92,15 @@ def test_best_starts_from_more_seeds_on_small_layouts():
 
 
 @pytest.mark.slow
-def test_best_is_no_worse_than_normal_from_any_of_its_seeds(monkeypatch):
+def test_best_is_no_worse_than_normal_from_any_of_its_seeds_it_spends_within_its_work(monkeypatch):
     """``best`` goes on from the best of ``normal``'s searches from best_starts seeds (3
-    here, to keep the test short).  On this terraced shape (142 cells) seed 5 leaves fewer
-    weak points than seeds 3 and 4 do, and ``best`` from seed 3 is no worse than any of them."""
-    monkeypatch.setattr(improve, "BEST_STARTS", ((1_000, 3),))
-    rng = np.random.default_rng(15)
-    heights = rng.integers(1, 9, size=(6, 5))
-    grid = grid_of(np.arange(9)[None, None, :] < heights[:, :, None])
-    start = layout_stage.lay_out(grid, catalog.CATALOG, seed=3)
-    best = improve.improve(start, catalog.CATALOG, "best", 3)
-    assert covers_once(best)
-    normal = [quality(improve.improve(start, catalog.CATALOG, "normal", 3 + k))
-              for k in range(improve.best_starts(grid.count))]
-    assert min(normal) < normal[0]
-    assert quality(best) <= min(normal)
-
-
-@pytest.mark.slow
-def test_best_spends_its_seeds_within_its_work(monkeypatch):
-    """``best`` starts another seed's search only while the seeds so far, one more on
-    average, stay within its share of the work.  On the terraced shape of the test above,
-    with the work of ``best`` itself all 3 seeds run; with a work of one simplex iteration
-    only the first (``normal`` itself, so ``best`` is still no worse than ``normal``), its
-    last search has none left for windows, and the progress still only rises, to 1."""
+    here, to keep the test short), and starts another seed's search only while the seeds so
+    far, one more on average, stay within its share of the work.  On this terraced shape
+    (142 cells), with the work of ``best`` itself, all 3 seeds run; seed 5 leaves fewer weak
+    points than seeds 3 and 4 do, and ``best`` from seed 3 is no worse than any of them.
+    With a work of one simplex iteration only the first runs (``normal`` itself, so
+    ``best`` is still no worse than ``normal``), its last search has none left for windows,
+    and the progress still only rises, to 1."""
     monkeypatch.setattr(improve, "BEST_STARTS", ((1_000, 3),))
     rng = np.random.default_rng(15)
     heights = rng.integers(1, 9, size=(6, 5))
@@ -136,10 +121,15 @@ def test_best_spends_its_seeds_within_its_work(monkeypatch):
 
     monkeypatch.setattr(improve, "_stage", counted_stage)
     monkeypatch.setattr(Search, "run", counted_run)
-    improve.improve(start, catalog.CATALOG, "best", 3)
-    normal, best = (improve.EFFORT_LEVELS[name].windows_per_cell for name in ("normal", "best"))
-    assert stages == [(normal, 3), (normal, 4), (normal, 5), (best, 3)]
+    best = improve.improve(start, catalog.CATALOG, "best", 3)
+    assert covers_once(best)
+    normal, level = (improve.EFFORT_LEVELS[name].windows_per_cell for name in ("normal", "best"))
+    assert stages == [(normal, 3), (normal, 4), (normal, 5), (level, 3)]
     assert sum(windows) > 0
+    qualities = [quality(improve.improve(start, catalog.CATALOG, "normal", 3 + k))
+                 for k in range(improve.best_starts(grid.count))]
+    assert min(qualities) < qualities[0]
+    assert quality(best) <= min(qualities)
     stages.clear()
     windows.clear()
     monkeypatch.setitem(improve.EFFORT_LEVELS, "best",
@@ -147,10 +137,9 @@ def test_best_spends_its_seeds_within_its_work(monkeypatch):
     seen = []
     tight = improve.improve(start, catalog.CATALOG, "best", 3,
                             progress=lambda fraction, message: seen.append(fraction))
-    assert stages == [(normal, 3), (best, 3)] and sum(windows) == 0
+    assert stages == [(normal, 3), (level, 3)] and sum(windows) == 0
     assert seen == sorted(seen) and seen[-1] == 1.0
-    assert quality(tight) <= quality(improve.improve(start, catalog.CATALOG,
-                                                                     "normal", 3))
+    assert quality(tight) <= qualities[0]
 
 
 def test_windows_stop_once_they_have_spent_their_work():

@@ -282,7 +282,7 @@ def mk3s_demo(hmd_step, tmp_path_factory) -> dict:
 @pytest.mark.slow
 @needs_bundles
 @pytest.mark.skipif(print_time.slicer_path() is None, reason="PrusaSlicer is not installed")
-@pytest.mark.parametrize("name", [MINI, ENDER, "Anycubic i3 Mega"])
+@pytest.mark.parametrize("name", [MINI, ENDER])
 def test_demo_is_timed_on_the_printer(name, hmd_step, tmp_path, mk3s_demo):
     """Each written plate, re-sliced by hand, gives the report's printed-parts time (2 %);
     the plates carry the printer's presets, the instructions name it, and the times are
