@@ -335,9 +335,10 @@ def test_layout_json_with_colours_is_read_back_and_checked():
     assert colouring_of(doc) == {0: (4, True), 1: (71, False)}
     assert with_colours(lay.to_json(), None) == lay.to_json() and colouring_of(lay.to_json()) is None
     assert len(layout_file.layout_from_document(json.loads(json.dumps(doc))).bricks) == 2
-    doc["bricks"][0]["colour"] = 123456
-    with pytest.raises(InputError, match="brick 0: colour must be an LDraw colour code"):
-        layout_file.layout_from_document(doc)
+    for wrong in (123456, [4], {"code": 4}, "4", True):
+        doc["bricks"][0]["colour"] = wrong
+        with pytest.raises(InputError, match="brick 0: colour must be an LDraw colour code"):
+            layout_file.layout_from_document(doc)
     doc["bricks"][0]["colour"], doc["bricks"][1]["owned"] = 4, "yes"
     with pytest.raises(InputError, match="brick 1: owned must be true or false"):
         layout_file.layout_from_document(doc)
