@@ -45,22 +45,20 @@ demo: examples/build/hmd.step
 	$(PY) -m core fabricate examples/build/hmd.step $(DEMO_HIGH_RES) --out $(DEMO_OUT)
 	@echo "== demo written to $(DEMO_OUT)/: report.json, layout.json, layout.png, parts/ (P1, P2: the printed lens mounts, STL + STEP, plate-1.3mf), instructions.html, assembly.mpd, bom.csv, bricklink.xml"
 
-# the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb)
-# on this machine's FreeCAD (0.20 on Debian 12) and on FreeCAD 1.x (Python 3.13), with
-# there the quick core tests, in two lanes at once (tools/test_lanes.sh). The FreeCAD 1.x
-# root and its venv (mostly downloads and unpacking) are built meanwhile, in the
+# the core's pytest suite, then the workbench in freecadcmd and in the FreeCAD GUI (xvfb),
+# on this machine's FreeCAD (0.20 on Debian 12), then on FreeCAD 1.x (Python 3.13) the quick
+# core tests and both workbench suites, which run the pipeline end to end there.
+# The FreeCAD 1.x root (mostly downloads and unpacking) is built meanwhile, in the
 # background, where no password can be asked (as root, or with sudo that needs none).
 test: $(VENV)/.installed
 	@if [ "$$(id -u)" = 0 ] || sudo -n true 2>/dev/null; then \
-	  echo "== building the FreeCAD 1.x root and its venv in the background, log: $(FREECAD1_LOG)"; \
-	  $(MAKE) --no-print-directory freecad1-venv >$(FREECAD1_LOG) 2>&1 & root=$$!; \
-	else root=; echo "== no root or password-less sudo: the FreeCAD 1.x suites are left out"; fi; \
-	$(MAKE) --no-print-directory test-core; core=$$?; s=0; fc1=; \
-	if [ -n "$$root" ]; then \
-	  if wait $$root; then fc1=$(FREECAD1_ROOT); else s=1; echo "== the FreeCAD 1.x root failed:"; fi; \
+	  echo "== building the FreeCAD 1.x root in the background, log: $(FREECAD1_LOG)"; \
+	  $(MAKE) --no-print-directory freecad1-root >$(FREECAD1_LOG) 2>&1 & root=$$!; \
+	else root=; fi; \
+	$(MAKE) --no-print-directory test-core && $(MAKE) --no-print-directory test-workbench; s=$$?; \
+	if [ -n "$$root" ]; then wait $$root || { s=1; echo "== the FreeCAD 1.x root failed:"; }; \
 	  cat $(FREECAD1_LOG); fi; \
-	[ $$core = 0 ] || exit 1; \
-	sh tools/test_lanes.sh "$(MAKE)" "$$fc1" || s=1; exit $$s
+	[ $$s = 0 ] && $(MAKE) --no-print-directory test-freecad1
 
 # the test files are shared between the cores (a file's tests stay together: they share
 # their module fixtures)
@@ -69,9 +67,8 @@ test-core: $(VENV)/.installed
 
 # the inner loop: the core tests that need neither FreeCAD, PrusaSlicer, the shared models
 # nor a whole pipeline run (those are marked slow), spread over the cores test by test
-QUICK_WORKERS ?= auto
 test-quick: $(VENV)/.installed
-	$(PY) -m pytest tests/core -q -n $(QUICK_WORKERS) -m "not slow" --durations=10
+	$(PY) -m pytest tests/core -q -n auto -m "not slow" --durations=10
 
 # --- FreeCAD 1.x: a Debian 13 (trixie) root made with debootstrap, beside the host's apt
 # sources (which stay Debian 12); built once into FREECAD1_ROOT, the suites run on a copy
@@ -80,14 +77,10 @@ FREECAD1_ROOT ?= /var/tmp/fabrickator-trixie
 FREECAD1_LOG  := $(FREECAD1_ROOT).build.log
 FREECAD1_MAKE := make --no-print-directory -o .apt.stamp VENV=/root/venv
 
-.PHONY: test-core test-quick test-freecad1 freecad1-root freecad1-venv
+.PHONY: test-core test-quick test-freecad1 freecad1-root
 
 freecad1-root:
 	$(SUDO) sh tools/freecad1/root.sh $(FREECAD1_ROOT)
-
-# the root with its venv (/root/venv, kept between runs like .venv here)
-freecad1-venv: freecad1-root
-	$(SUDO) sh tools/freecad1/run.sh $(FREECAD1_ROOT) sh -c 'touch -d @0 .apt.stamp; $(FREECAD1_MAKE) setup'
 
 # the root's packages are root.sh's; the copy's .apt.stamp (dated 1970: older than the venv) says
 # so to test-workbench's two parallel sub-makes too (-o does not reach them): neither runs apt
