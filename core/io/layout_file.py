@@ -143,8 +143,9 @@ def _checked_brick(n: int, b, shape: tuple[int, int, int], seen: dict[int, int],
             raise InputError(f"{name}: load_g must be a number of grams from 0 to "
                              f"{MAX_LOAD_G:g}, got {_show(b['load_g'])}")
     _check_printed_part(name, b["kind"], b["printed_part"], parts_folder)
-    colour = b.get("colour", 71)
-    if isinstance(colour, bool) or not isinstance(colour, (int, float)) or colour not in COLORS:
+    colour = b.get("colour")
+    if "colour" in b and (isinstance(colour, bool) or not isinstance(colour, (int, float))
+                          or colour not in COLORS):
         raise InputError(f"{name}: colour must be an LDraw colour code Fabrickator knows "
                          f"(such as 71, Light Bluish Grey), got {_show(b['colour'])}")
     if "owned" in b and not isinstance(b["owned"], bool):

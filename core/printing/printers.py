@@ -290,6 +290,7 @@ class Bundle:
     sections: dict = field(compare=False, repr=False)
     templates: bool = False
 
+    #: :meth:`resolved`'s answers so far, (kind, name) -> preset (a cache: the sections never change)
     resolved_presets: dict = field(default_factory=dict, compare=False, repr=False)
 
     def presets(self, kind: str) -> list[str]:
