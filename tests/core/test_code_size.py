@@ -1,4 +1,4 @@
-"""Issue 45's limits on the size of the code's rooms: no file of ``core/`` or
+"""The limits on the size of the code's rooms: no file of ``core/`` or
 ``FabrickatorWorkbench/`` over 800 lines, no class over 400 and no function over 100,
 unless a comment says why: ``# One file on purpose: ...`` among a file's comments, or
 ``# One class on purpose: ...`` / ``# One function on purpose: ...`` in the comment just
