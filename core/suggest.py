@@ -27,8 +27,8 @@ rest are dropped with a warning, as a part that is all fine detail prints faster
 whole (the paper's limit for artistic or decorative shapes).  The regions are then
 priced by the calibrated print-time estimate (:class:`Pricer`) and dropped, walls
 first, until printing them is :data:`MIN_SPEEDUP` times faster than printing the
-model whole (:func:`sped_up`).  Kept regions closer than a cell are then merged
-(:func:`merged`) when that marks little more.
+model whole (:func:`sped_up`).  Kept regions closer than a cell are merged (:func:`merged`)
+when that marks little more.
 """
 
 from __future__ import annotations

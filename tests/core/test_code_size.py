@@ -2,17 +2,20 @@
 ``FabrickatorWorkbench/`` over 800 lines, no class over 400 and no function over 100,
 unless a comment says why: ``# One file on purpose: ...`` among a file's comments, or
 ``# One class on purpose: ...`` / ``# One function on purpose: ...`` in the comment just
-above the definition (or above its decorators)."""
+above the definition (or above its decorators). A module's docstring is at most about
+30 lines and tells no history ("N -> M"); the README is at most 200 lines."""
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-LIMITS = {"file": 800, "class": 400, "function": 100}
+LIMITS = {"file": 800, "class": 400, "function": 100, "module docstring": 32, "README": 200}
+HISTORY = re.compile(r"[0-9]+ -> [0-9]+")
 FILES = sorted(p for folder in ("core", "FabrickatorWorkbench") for p in (ROOT / folder).rglob("*.py"))
 
 
@@ -57,3 +60,15 @@ def test_the_checker_finds_a_long_function_and_takes_its_reason(tmp_path):
 @pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_no_room_is_oversized_without_its_reason(path):
     assert oversized(path) == []
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_a_module_docstring_is_short_and_tells_no_history(path):
+    text = path.read_text(encoding="utf-8")
+    doc = ast.get_docstring(ast.parse(text), clean=False) or ""
+    assert len(doc.splitlines()) <= LIMITS["module docstring"]
+    assert HISTORY.findall(text) == []
+
+
+def test_the_readme_is_short():
+    assert len((ROOT / "README.md").read_text(encoding="utf-8").splitlines()) <= LIMITS["README"]
