@@ -6,11 +6,11 @@
 FreeCAD runs this file as a macro once its window is up; the tests start
 from the event loop, and the process exits with 0 when all pass, 1
 otherwise (also when they take longer than $FABRICKATOR_GUI_TIMEOUT
-seconds, default 2400: a dialog nobody answers must not hang CI; the 49 tests take
-about 540-600 s on a 2-core machine, and the install tests' pip may take minutes more where
-the package index is slow).  A test
+seconds, default 2400: a dialog nobody answers must not hang CI).  A test
 name (or part of one) in $FABRICKATOR_GUI_TESTS runs only the matching
-tests.
+tests.  With $FABRICKATOR_GUI_CLAIMS naming a folder, several runners share the
+tests: each runs a test only once it has claimed it there (a class with class
+fixtures as a whole), so a second runner started later takes what is left.
 """
 
 import os
@@ -66,6 +66,40 @@ class _ReportAtOnce(unittest.TextTestResult):
                               "their tracebacks are printed above, where they happened\n")
 
 
+class _Claimed(unittest.TestSuite):
+    """The tests of ``suite`` that this runner claims in the folder ``claims`` as it reaches
+    them (an exclusive file per test, or per class where the class has class fixtures)."""
+
+    _cleanup = False  # the tests are held in ``flat``, not in the suite's own list
+
+    def __init__(self, suite, claims):
+        super().__init__()
+        self.flat = [t for s in suite for t in (s if isinstance(s, unittest.TestSuite) else [s])]
+        self.claims = claims
+
+    @staticmethod
+    def _whole(cls) -> bool:
+        return "setUpClass" in vars(cls) or "tearDownClass" in vars(cls)
+
+    def _claim(self, test) -> bool:
+        cls = type(test)
+        name = f"{cls.__module__}.{cls.__qualname__}" if self._whole(cls) else test.id()
+        try:
+            os.close(os.open(os.path.join(self.claims, name), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            return True
+        except FileExistsError:
+            return False
+
+    def __iter__(self):
+        held = set()
+        for test in self.flat:
+            cls = type(test)
+            if cls in held or self._claim(test):
+                if self._whole(cls):
+                    held.add(cls)
+                yield test
+
+
 def _run():
     status = 1
     try:
@@ -79,6 +113,9 @@ def _run():
         wanted = os.environ.get("FABRICKATOR_GUI_TESTS")
         if wanted:
             suite = unittest.TestSuite(t for s in suite for t in s if wanted in t.id())
+        claims = os.environ.get("FABRICKATOR_GUI_CLAIMS")
+        if claims:
+            suite = _Claimed(suite, claims)
         result = unittest.TextTestRunner(stream=sys.stderr, verbosity=2, resultclass=_ReportAtOnce).run(suite)
         sys.stderr.write(f"\nslowest {min(15, len(result.took))} tests:\n{result.slowest()}")
         status = 0 if result.wasSuccessful() else 1
