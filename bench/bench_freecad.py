@@ -84,6 +84,41 @@ def hmd(doc, scale=1.0, regions=True, slice_print_times=False):
     return f, seconds
 
 
+def brush_ok(f) -> tuple[float, float | None]:
+    """Mark two LEGO bricks beside the first printed part high-res as the brush panel's OK does,
+    and recompute; (seconds, seconds until the layout preview was drawn (None headless))."""
+    import FreeCAD as App
+
+    import FabrickatorWorkbench as fab
+    from core import high_res
+
+    layout = fab.layout(f)
+    part = fab.printed_parts(f)[0]
+    graph = high_res.adjacency(layout)
+    index = {b.id: n for n, b in enumerate(layout.bricks)}
+    printed = {b.id for b in layout.bricks if b.kind == "printed"}
+    near = sorted({layout.bricks[j].id for i in part.BrickIds
+                   for j in graph[index[i]].indices} - printed)[:2]
+    fab.mark_high_res(f, bricks=[b for b in fab.bricks(f) if b.BrickId in near])
+    f.touch()
+    start = time.perf_counter()
+    f.Document.recompute()
+    seconds = time.perf_counter() - start
+    if not f.Status.startswith("ok"):
+        raise RuntimeError(f.Status)
+    last = getattr(f.ViewObject.Proxy, "last_preview", None) if App.GuiUp else None
+    return seconds, None if last is None else last.shown_after
+
+
+def again(f) -> tuple[float, dict | None]:
+    """Recompute ``f`` with nothing changed; (seconds, the report's print times: None when
+    nothing was sliced)."""
+    f.touch()
+    start = time.perf_counter()
+    f.Document.recompute()
+    return time.perf_counter() - start, json.loads(f.ReportJson).get("print_time_s")
+
+
 def measure(gui: bool) -> dict:
     """All measurements of one process (headless or GUI)."""
     import FreeCAD as App
@@ -98,11 +133,16 @@ def measure(gui: bool) -> dict:
     doc = App.newDocument("BenchHMD")
     f, out["hmd_s"] = hmd(doc)
     out["hmd_bricks"], out["hmd_parts"], out["hmd_steps"] = f.Bricks, f.PrintedParts, f.Steps
+    out["brush_s"], out["brush_layout_s"] = brush_ok(f)
+    out["again_s"], _ = again(f)
     App.closeDocument(doc.Name)
     if not gui:
         doc = App.newDocument("BenchHMDSliced")
         f, out["hmd_sliced_s"] = hmd(doc, slice_print_times=True)
         out["hmd_speedup"] = f.SpeedUp
+        out["sliced_brush_s"], _ = brush_ok(f)
+        out["sliced_again_s"], times = again(f)
+        out["sliced_again_slices"] = "none" if times is None else times.get("method")
         App.closeDocument(doc.Name)
 
     doc = App.newDocument("Bench3000")
@@ -148,6 +188,13 @@ def table(app: dict, gui: dict) -> str:
          app.get("hmd_s"), gui.get("hmd_s"), "< 10 s"),
         (f"same, sliced by PrusaSlicer (speed-up {app.get('hmd_speedup', 0):.2f}x)",
          app.get("hmd_sliced_s"), None, "-"),
+        ("brush OK beside a lens mount (2 bricks to print): the layout shown",
+         None, gui.get("brush_layout_s"), "< 3 s"),
+        ("same: the recompute done", app.get("brush_s"), gui.get("brush_s"), "-"),
+        ("a second recompute with nothing changed", app.get("again_s"), gui.get("again_s"), "-"),
+        ("brush OK, sliced by PrusaSlicer: the recompute done", app.get("sliced_brush_s"), None, "-"),
+        (f"a second recompute, nothing changed (sliced: {app.get('sliced_again_slices')})",
+         app.get("sliced_again_s"), None, "slices nothing"),
         (f"{app['big_bricks']}-brick Fabrication (HMD x {SCALE_3000}) made and computed",
          app.get("big_s"), gui.get("big_s"), "< 20 s"),
         (f"save it ({app['big_file_mb']:.1f} MB)", app.get("big_save_s"), gui.get("big_save_s"), "-"),

@@ -44,6 +44,18 @@ from core.request import UNITS, Request, request as request_of
 Progress = Callable[[float, str], None]
 
 
+@dataclass(frozen=True)
+class LayoutReady:
+    """The bricks of a run, told once they are decided, before the printed parts are cut and
+    the forces and the build order checked: the ``layout`` (its bricks' steps not yet
+    numbered), the ids of its bricks that become printed parts (``printed``) and the seconds
+    since the run began."""
+
+    layout: Layout
+    printed: frozenset[int]
+    seconds: float
+
+
 @dataclass
 class Fabrication:
     """Everything one run produced, stage by stage, and the :class:`Request` it was made for.
@@ -129,9 +141,12 @@ def as_request(job, **settings) -> Request:
     return request_of(job, **settings)
 
 
-def run(job, progress: Progress | None = None, **settings) -> Fabrication:
+def run(job, progress: Progress | None = None,
+        on_layout: Callable[[LayoutReady], None] | None = None, **settings) -> Fabrication:
     """The driver: run every stage for ``job`` (a :class:`Request`, or a model path with
-    ``settings`` as Request fields) and return the :class:`Fabrication`.
+    ``settings`` as Request fields) and return the :class:`Fabrication`.  ``on_layout`` is
+    called once with the :class:`LayoutReady` as soon as the bricks are decided (after
+    stage 4, the groups of stage 5 known), so that a user sees the layout before the rest.
 
     The stages, in order (each returns new data):
 
@@ -185,17 +200,19 @@ def run(job, progress: Progress | None = None, **settings) -> Fabrication:
     """
     req = as_request(job, **settings)
     with output_dir.scratch("slice") as scratch:
-        return _stages(req, progress or _noop, os.path.join(scratch, "run"))
+        return _stages(req, progress or _noop, os.path.join(scratch, "run"), on_layout)
 
 
 # One function on purpose: the one driver's whole sequence of stages, read top to bottom,
 # is where the data flow between them is decided and seen.
-def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
-    """:func:`run`'s stages for ``req``; what is sliced in the background is sliced under
-    ``work``, a folder made when first sliced into, in a scratch folder the caller
-    removes after the run however it ends (a slice still running then fails, and
-    makes neither again)."""
+def _stages(req: Request, progress: Progress, work: str,
+            on_layout: Callable[[LayoutReady], None] | None = None) -> Fabrication:
+    """:func:`run`'s stages for ``req`` (``on_layout`` as there); what is sliced in the
+    background is sliced under ``work``, a folder made when first sliced into, in a scratch
+    folder the caller removes after the run however it ends (a slice still running then
+    fails, and makes neither again)."""
     timings: dict[str, float] = {}
+    began = time.perf_counter()
 
     def timed(name: str, fraction: float, fn, *args, **kwargs):
         progress(fraction, name)
@@ -329,6 +346,9 @@ def _stages(req: Request, progress: Progress, work: str) -> Fabrication:
     if req.high_res_bricks:
         regions = regions + high_res_stage.Regions.of_bricks(layout, req.high_res_bricks)
     groups = _edited(layout, high_res_stage.groups(layout, ids), req.part_edits)
+    if on_layout is not None:
+        on_layout(LayoutReady(layout, frozenset(i for g in groups for i in g),
+                              round(time.perf_counter() - began, 4)))
     printer = printers.chosen(req)
     if groups and before is None and printer is not None:
         groups, cut = printed_stage.fitting_groups(

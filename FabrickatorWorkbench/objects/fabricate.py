@@ -27,6 +27,7 @@ from core.model import CELL_MM
 from core.parts.interfaces import Fit
 from FabrickatorWorkbench import bridge, deps, log, preferences
 from FabrickatorWorkbench.objects import high_res_region, load, tree
+from FabrickatorWorkbench.viewproviders.layout_preview import LayoutPreview
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
 #: kept in ``LastGood`` and put back when a recompute fails.
@@ -222,12 +223,14 @@ def run_core(obj) -> Result:
 
     inputs = {"parameters": parameters(obj), "regions": region_signature(obj),
               "loads": list(load_texts(obj, 1.0))}
+    title = f"Fabrickator: {obj.Label}"
     with tempfile.TemporaryDirectory(prefix="fabrickator-fc-") as work, \
-            _progress(f"Fabrickator: {obj.Label}", obj.Document) as progress:
+            _progress(title, obj.Document) as progress, _preview(obj, title) as preview:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, float(obj.Scale))
         previous = _previous(obj, work) if obj.KeepLayout else None
-        fab = pipeline.run(request(obj, path, boxes, solids, previous), progress=progress)
+        fab = pipeline.run(request(obj, path, boxes, solids, previous), progress=progress,
+                           on_layout=None if preview is None else preview.show)
         for note in fab.notes:
             log.message(f"{obj.Label}: {note}")
         if not fab.layout.bricks:
@@ -319,6 +322,24 @@ def region_inputs(obj, work: str, scale: float) -> tuple[list[str], list[str]]:
 def _scaled_box(box, scale: float) -> list[float]:
     """A Source-coordinate box in the core's (scaled) model mm."""
     return [float(v) * scale for v in box]
+
+
+@contextmanager
+def _preview(obj, title: str):
+    """The :class:`~FabrickatorWorkbench.viewproviders.layout_preview.LayoutPreview` of
+    Fabrication ``obj``'s run (None without the GUI), removed when the run ends however it
+    ends; its view provider keeps it as ``last_preview`` (when the layout was shown)."""
+    if not App.GuiUp:
+        yield None
+        return
+    preview = LayoutPreview(obj, title)
+    try:
+        yield preview
+    finally:
+        preview.close()
+        proxy = getattr(getattr(obj, "ViewObject", None), "Proxy", None)
+        if proxy is not None:
+            proxy.last_preview = preview
 
 
 @contextmanager

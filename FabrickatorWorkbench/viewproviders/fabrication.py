@@ -25,6 +25,9 @@ class ViewProviderFabrication(ViewProvider):
 
     #: The task panel open on this Fabrication, if any (the commands set it).
     panel = None
+    #: The layout preview of the last recompute
+    #: (:class:`~FabrickatorWorkbench.viewproviders.layout_preview.LayoutPreview`), if any.
+    last_preview = None
 
     def attach(self, vobj):
         super().attach(vobj)

@@ -127,3 +127,21 @@ def test_a_seat_standing_through_the_floor_is_anchored(tmp_path):
     assert fab.printed[0].complete_studs
     loose = pipeline.run(step, high_res=[box], slice_parts=False, connectors=False)
     assert loose.stability.components > 1
+
+
+def test_the_layout_is_told_before_the_printed_parts_are_cut(wall_files):
+    """``on_layout`` gets the final bricks once, before the printed_parts stage: its LEGO
+    bricks are the finished layout's, and its printed ones fill the printed parts' cells."""
+    told, stages = [], []
+    fab = pipeline.run(wall_files["step"], high_res=[REGION], slice_parts=False,
+                       progress=lambda fraction, message: stages.append(message),
+                       on_layout=lambda ready: told.append((ready, len(stages))))
+    assert len(told) == 1
+    ready, at = told[0]
+    assert "printed_parts" in stages[at:] and "printed_parts" not in stages[:at]
+    assert ready.printed and ready.seconds > 0
+    lego = {(b.cell, b.size) for b in fab.layout.bricks if b.kind == "lego"}
+    assert {(b.cell, b.size) for b in ready.layout.bricks if b.id not in ready.printed} == lego
+    assert ready.printed == {i for p in fab.printed for i in p.bricks}
+    cells = sum(int(np.prod(b.size)) for b in ready.layout.bricks if b.id in ready.printed)
+    assert cells == sum(p.cells for p in fab.printed)

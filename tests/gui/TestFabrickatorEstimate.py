@@ -11,7 +11,6 @@ from __future__ import annotations
 import sys
 import time
 
-import FreeCAD as App
 import FreeCADGui as Gui
 from PySide import QtGui
 
@@ -106,3 +105,64 @@ class TestLiveEstimate(GuiTestCase):
         self.assertEqual(panel.form.estimate.text(), "Estimate unavailable (the Report view says why).")
         panel.reject()
         settle()
+
+
+class TestLayoutFirst(GuiTestCase):
+    def test_a_brush_ok_shows_the_new_layout_before_the_recompute_ends(self):
+        """After OK in the brush panel the bricks to print show in the 3D view as soon as the
+        layout is decided, before the printed parts are cut; the preview is gone afterwards
+        and the undo stack has the brush's one step.  Seconds are printed, not asserted."""
+        from FabrickatorWorkbench.viewproviders import layout_preview
+        from core import high_res
+        f = self.open_example()
+        undo = f.Document.UndoCount
+        Gui.Selection.clearSelection()
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_HighResBrush")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        part = fab().printed_parts(f)[0]
+        graph = high_res.adjacency(panel.layout)
+        index = {b.id: n for n, b in enumerate(panel.layout.bricks)}
+        printed = {b.id for b in panel.layout.bricks if b.kind == "printed"}
+        near = sorted({panel.layout.bricks[j].id for i in part.BrickIds
+                       for j in graph[index[i]].indices} - printed)
+        panel.painted |= set(near[:2])
+        panel.refresh()
+        Gui.ActiveDocument.ActiveView.viewIsometric()
+        Gui.SendMsgToActiveView("ViewFit")
+        settle()
+        seen = []
+        shown = layout_preview.LayoutPreview.show
+
+        def show_and_look(preview, ready):
+            shown(preview, ready)
+            scene = Gui.ActiveDocument.ActiveView.getSceneGraph()
+            seen.append((time.perf_counter(), preview.drawn,
+                         any(scene.getChild(i).getName() == layout_preview.NODE_NAME
+                             for i in range(scene.getNumChildren()))))
+            ARTIFACTS.mkdir(parents=True, exist_ok=True)
+            Gui.ActiveDocument.ActiveView.saveImage(str(ARTIFACTS / "layout_first.png"), 800, 600,
+                                                    "White")
+
+        layout_preview.LayoutPreview.show = show_and_look
+        try:
+            started = time.perf_counter()
+            panel.accept()
+            ended = time.perf_counter()
+        finally:
+            layout_preview.LayoutPreview.show = shown
+        settle()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertEqual(len(seen), 1)
+        at, drawn, in_scene = seen[0]
+        self.assertTrue(in_scene)
+        self.assertGreaterEqual(drawn, 2 + len(part.BrickIds))   # the painted bricks print
+        last = f.ViewObject.Proxy.last_preview
+        self.assertIsNotNone(last.shown_after)
+        scene = Gui.ActiveDocument.ActiveView.getSceneGraph()
+        self.assertFalse(any(scene.getChild(i).getName() == layout_preview.NODE_NAME
+                             for i in range(scene.getNumChildren())))
+        self.assertEqual(f.Document.UndoCount, undo + 1)
+        sys.stderr.write(f"\nbrush OK on the demo: layout shown after {at - started:.2f} s, "
+                         f"recompute done after {ended - started:.2f} s\n")
