@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import io
 import os
+import shutil
+import tempfile
 
 import FreeCAD as App
 import Mesh
@@ -107,3 +109,14 @@ def part_to_trimesh(shape, tolerance: float = 0.05):
 def vector(values) -> App.Vector:
     """A FreeCAD vector from three numbers."""
     return App.Vector(float(values[0]), float(values[1]), float(values[2]))
+
+
+def snapshot(fab) -> str:
+    """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
+    own, which the caller removes)."""
+    from core import result
+
+    with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
+        result.snapshot(fab, folder)
+        holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
+        return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)

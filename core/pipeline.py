@@ -621,6 +621,14 @@ def print_times(fab: Fabrication, started: _Slicing | None = None) -> Fabricatio
 
 
 
+def sliced_later(fab: Fabrication, slicer: str | None):
+    """A Future of ``fab`` with its print times sliced by ``slicer`` (:func:`print_times`; None:
+    the one installed), sliced in a background thread while the caller shows ``fab`` with its
+    estimates.  ``fab`` itself is not changed."""
+    job = dataclasses.replace(fab, request=fab.request.replace(slicer=slicer))
+    return print_time_stage.in_background(print_times, job)
+
+
 def stored(folder: str | os.PathLike, doc: dict) -> Fabrication:
     """The Fabrication of a stored result: the iteration snapshot in ``folder`` (an output
     folder, or what the workbench keeps of one) and its report ``doc``.

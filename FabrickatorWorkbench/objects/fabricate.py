@@ -26,7 +26,7 @@ from core.errors import InputError, memory_shortage
 from core.model import CELL_MM
 from core.parts.interfaces import Fit
 from FabrickatorWorkbench import bridge, deps, log, preferences
-from FabrickatorWorkbench.objects import high_res_region, load, tree
+from FabrickatorWorkbench.objects import high_res_region, later_slices, load, tree
 from FabrickatorWorkbench.viewproviders.layout_preview import LayoutPreview
 
 #: Inputs of a Fabrication the user edits; the last values that recomputed fine are
@@ -57,6 +57,10 @@ class Result:
     #: Whether the run was an iteration on the last result: then the tree marks what
     #: changed (new bricks highlighted, removed ones as ghosts).
     marks: bool = True
+    #: Whether the print times are estimates to be sliced after the recompute (with
+    #: ``slicer``, :mod:`.later_slices`).
+    later: bool = False
+    slicer: str | None = None
 
 
 def cell_size() -> App.Vector:
@@ -126,6 +130,10 @@ def recompute(obj) -> bool:
     obj.Changes = change_lines(obj, first, result.marks)
     for line in obj.Changes:
         log.message(f"{obj.Label}: {line}")
+    if App.GuiUp:
+        obj.ViewObject.Proxy.later_slice = None
+        if result.later and result.fab.to_print:
+            later_slices.start(obj, result, result.slicer)
     return True
 
 
@@ -229,7 +237,9 @@ def run_core(obj) -> Result:
         path = bridge.write_source(source, work)
         boxes, solids = region_inputs(obj, work, float(obj.Scale))
         previous = _previous(obj, work) if obj.KeepLayout else None
-        fab = pipeline.run(request(obj, path, boxes, solids, previous), progress=progress,
+        job = request(obj, path, boxes, solids, previous)
+        later = slices_later(obj)
+        fab = pipeline.run(job.replace(slicer="none") if later else job, progress=progress,
                            on_layout=None if preview is None else preview.show)
         for note in fab.notes:
             log.message(f"{obj.Label}: {note}")
@@ -237,8 +247,16 @@ def run_core(obj) -> Result:
             raise InputError("the layout has no bricks")
         report = reporting.document(fab)
         report["model"]["path"] = f"{source.Document.Name}#{source.Name} ({source.Label})"
-        snapshot = _snapshot(fab)
-    return Result(fab, fab.order, report, inputs, snapshot, fab.iteration is not None)
+        state = bridge.snapshot(fab)
+    return Result(fab, fab.order, report, inputs, state, fab.iteration is not None,
+                  later, job.slicer)
+
+
+def slices_later(obj) -> bool:
+    """Whether Fabrication ``obj``'s recompute leaves slicing to the background
+    (:mod:`.later_slices`): with SlicePrintTimes on, in the GUI."""
+    return bool(App.GuiUp and obj.SlicePrintTimes
+                and getattr(getattr(obj, "ViewObject", None), "Proxy", None) is not None)
 
 
 def region_signature(obj) -> str:
@@ -279,17 +297,6 @@ def _previous(obj, work: str) -> str | None:
                     f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); laying out anew")
         return None
     return folder
-
-
-def _snapshot(fab) -> str:
-    """A zip of the core's iteration snapshot of ``fab`` (in a temporary folder of its
-    own, which the caller removes)."""
-    from core import result
-
-    with tempfile.TemporaryDirectory(prefix="fabrickator-snap-") as folder:
-        result.snapshot(fab, folder)
-        holder = tempfile.mkdtemp(prefix="fabrickator-snapshot-")
-        return shutil.make_archive(os.path.join(holder, "iteration"), "zip", folder)
 
 
 def region_inputs(obj, work: str, scale: float) -> tuple[list[str], list[str]]:

@@ -28,6 +28,9 @@ class ViewProviderFabrication(ViewProvider):
     #: The layout preview of the last recompute
     #: (:class:`~FabrickatorWorkbench.viewproviders.layout_preview.LayoutPreview`), if any.
     last_preview = None
+    #: The print times being sliced after the last recompute
+    #: (:class:`~FabrickatorWorkbench.objects.later_slices.LaterSlice`), if any.
+    later_slice = None
 
     def attach(self, vobj):
         super().attach(vobj)

@@ -8,7 +8,9 @@ printed (to stderr), not asserted.  Screenshots go to tests/gui/artifacts/.
 
 from __future__ import annotations
 
+import json
 import sys
+import tempfile
 import time
 
 import FreeCADGui as Gui
@@ -166,3 +168,44 @@ class TestLayoutFirst(GuiTestCase):
         self.assertEqual(f.Document.UndoCount, undo + 1)
         sys.stderr.write(f"\nbrush OK on the demo: layout shown after {at - started:.2f} s, "
                          f"recompute done after {ended - started:.2f} s\n")
+
+
+class TestSlicedLater(GuiTestCase):
+    def test_sliced_times_fill_in_after_the_recompute(self):
+        """With SlicePrintTimes on, the recompute ends with estimates (said in Status), and
+        PrusaSlicer's times fill in afterwards: the same seconds as the core's own run with the
+        slicer, no object left touched, no undo step added."""
+        from core import live_estimate, pipeline
+        from FabrickatorWorkbench import bridge
+        from FabrickatorWorkbench.objects import fabricate, later_slices
+        from TestFabrickatorApp import padded_body
+
+        body, _, _ = padded_body(self.doc, 40.0, 24.0, 19.2)
+        f = fab().make_fabrication(body, slice_print_times=True)
+        fab().mark_high_res(f, box=(0, 0, 12.8, 8, 8, 19.2))
+        undo = self.doc.UndoCount
+        started = time.perf_counter()
+        self.doc.recompute()
+        ended = time.perf_counter()
+        self.assertTrue(f.Status.startswith("ok"), f.Status)
+        self.assertTrue(f.Status.endswith(later_slices.SLICING), f.Status)
+        part = fab().printed_parts(f)[0]
+        self.assertTrue(part.PrintTimeMethod.startswith("estimate"), part.PrintTimeMethod)
+        job = f.ViewObject.Proxy.later_slice
+        while not job.done and time.perf_counter() - ended < 240:
+            settle(0.1)
+        self.assertEqual(job.outcome, "sliced")
+        filled = time.perf_counter()
+        self.assertTrue(live_estimate.is_sliced(part.PrintTimeMethod), part.PrintTimeMethod)
+        self.assertFalse(f.Status.endswith(later_slices.SLICING), f.Status)
+        self.assertTrue(live_estimate.is_sliced(json.loads(f.ReportJson)["print_time_s"]["method"]))
+        self.assertEqual([o.Name for o in self.doc.Objects if "Touched" in o.State], [])
+        self.assertEqual(self.doc.UndoCount, undo)
+        with tempfile.TemporaryDirectory() as work:
+            path = bridge.write_source(body, work)
+            boxes, solids = fabricate.region_inputs(f, work, 1.0)
+            core = pipeline.run(fabricate.request(f, path, boxes, solids))
+        self.assertAlmostEqual(part.PrintTime, core.printed[0].print_s, places=3)
+        self.assertAlmostEqual(f.SpeedUp, json.loads(f.ReportJson)["speedup"], places=6)
+        sys.stderr.write(f"\nsliced later: recompute {ended - started:.2f} s, sliced times "
+                         f"{filled - ended:.2f} s after it\n")
