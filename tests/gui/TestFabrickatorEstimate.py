@@ -89,34 +89,14 @@ class TestLiveEstimate(GuiTestCase):
         self.assertIn("Estimate with these changes", label.text())
         panel.reject()
         settle()
+        self.brush_ok_shows_the_new_layout_first(f)     # the same example, opened once
 
-    def test_without_a_stored_result_the_estimate_is_unavailable(self):
-        f = self.fabrication()
-        broken = self.tmp / "broken.zip"
-        broken.write_text("not a zip")
-        f.IterationState = str(broken)
-        Gui.Selection.clearSelection()
-        Gui.Selection.addSelection(f)
-        Gui.runCommand("Fabrickator_HighResBrush")
-        settle()
-        panel = f.ViewObject.Proxy.panel
-        self.assertEqual(panel.form.estimate.text(), "Estimate unavailable (the Report view says why).")
-        panel.painted |= {fab().bricks(f)[0].BrickId}
-        panel.refresh()
-        settle(0.3)
-        self.assertEqual(panel.form.estimate.text(), "Estimate unavailable (the Report view says why).")
-        panel.reject()
-        settle()
-
-
-class TestLayoutFirst(GuiTestCase):
-    def test_a_brush_ok_shows_the_new_layout_before_the_recompute_ends(self):
+    def brush_ok_shows_the_new_layout_first(self, f):
         """After OK in the brush panel the bricks to print show in the 3D view as soon as the
         layout is decided, before the printed parts are cut; the preview is gone afterwards
         and the undo stack has the brush's one step.  Seconds are printed, not asserted."""
         from FabrickatorWorkbench.viewproviders import layout_preview
         from core import high_res
-        f = self.open_example()
         undo = f.Document.UndoCount
         Gui.Selection.clearSelection()
         Gui.Selection.addSelection(f)
@@ -168,6 +148,24 @@ class TestLayoutFirst(GuiTestCase):
         self.assertEqual(f.Document.UndoCount, undo + 1)
         sys.stderr.write(f"\nbrush OK on the demo: layout shown after {at - started:.2f} s, "
                          f"recompute done after {ended - started:.2f} s\n")
+
+    def test_without_a_stored_result_the_estimate_is_unavailable(self):
+        f = self.fabrication()
+        broken = self.tmp / "broken.zip"
+        broken.write_text("not a zip")
+        f.IterationState = str(broken)
+        Gui.Selection.clearSelection()
+        Gui.Selection.addSelection(f)
+        Gui.runCommand("Fabrickator_HighResBrush")
+        settle()
+        panel = f.ViewObject.Proxy.panel
+        self.assertEqual(panel.form.estimate.text(), "Estimate unavailable (the Report view says why).")
+        panel.painted |= {fab().bricks(f)[0].BrickId}
+        panel.refresh()
+        settle(0.3)
+        self.assertEqual(panel.form.estimate.text(), "Estimate unavailable (the Report view says why).")
+        panel.reject()
+        settle()
 
 
 class TestSlicedLater(GuiTestCase):

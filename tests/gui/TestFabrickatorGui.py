@@ -793,4 +793,4 @@ from TestFabrickatorUndoGui import TestUndoInTheGui  # noqa: E402,F401
 from TestFabrickatorReport import TestReport  # noqa: E402,F401
 from TestFabrickatorInstallGui import TestInstallInTheGui  # noqa: E402,F401
 from TestFabrickatorStress import TestStress, TestStressReopens  # noqa: E402,F401
-from TestFabrickatorEstimate import TestLayoutFirst, TestLiveEstimate, TestSlicedLater  # noqa: E402,F401
+from TestFabrickatorEstimate import TestLiveEstimate, TestSlicedLater  # noqa: E402,F401
