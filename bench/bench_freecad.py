@@ -94,11 +94,7 @@ def brush_ok(f) -> tuple[float, float | None]:
 
     layout = fab.layout(f)
     part = fab.printed_parts(f)[0]
-    graph = high_res.adjacency(layout)
-    index = {b.id: n for n, b in enumerate(layout.bricks)}
-    printed = {b.id for b in layout.bricks if b.kind == "printed"}
-    near = sorted({layout.bricks[j].id for i in part.BrickIds
-                   for j in graph[index[i]].indices} - printed)[:2]
+    near = high_res.lego_beside(layout, part.BrickIds)[:2]
     fab.mark_high_res(f, bricks=[b for b in fab.bricks(f) if b.BrickId in near])
     f.touch()
     start = time.perf_counter()

@@ -287,6 +287,17 @@ def adjacency(layout: Layout) -> sparse.csr_matrix:
     return graph
 
 
+def lego_beside(layout: Layout, brick_ids) -> list[int]:
+    """Sorted ids of the LEGO bricks touching the bricks ``brick_ids`` face to face (those
+    bricks themselves left out)."""
+    graph = adjacency(layout)
+    index = {b.id: n for n, b in enumerate(layout.bricks)}
+    given = set(brick_ids)
+    beside = {int(j) for i in given for j in graph[index[i]].indices}
+    return sorted(layout.bricks[j].id for j in beside
+                  if layout.bricks[j].kind == "lego" and layout.bricks[j].id not in given)
+
+
 def groups(layout: Layout, brick_ids) -> list[list[int]]:
     """The connected groups of the given bricks (face-to-face contact), each a sorted id list.
 

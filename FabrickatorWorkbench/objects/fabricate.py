@@ -130,8 +130,9 @@ def recompute(obj) -> bool:
     obj.Changes = change_lines(obj, first, result.marks)
     for line in obj.Changes:
         log.message(f"{obj.Label}: {line}")
-    if App.GuiUp:
-        obj.ViewObject.Proxy.later_slice = None
+    proxy = getattr(getattr(obj, "ViewObject", None), "Proxy", None) if App.GuiUp else None
+    if proxy is not None:
+        proxy.later_slice = None
         if result.later and result.fab.to_print:
             later_slices.start(obj, result, result.slicer)
     return True

@@ -78,10 +78,7 @@ def estimator(fab, last_s: float | None = None):
 
 def lego_neighbours(fab, ids) -> list[int]:
     """The LEGO bricks touching the bricks ``ids`` face to face, nearest the boss first."""
-    graph = high_res.adjacency(fab.layout)
-    index = {b.id: n for n, b in enumerate(fab.layout.bricks)}
-    out = {fab.layout.bricks[j].id for i in ids for j in graph[index[i]].indices}
-    return sorted(out - printed_ids(fab) - set(ids))
+    return high_res.lego_beside(fab.layout, ids)
 
 
 def test_the_fixture_has_one_printed_part_and_lego_around_it(fab):

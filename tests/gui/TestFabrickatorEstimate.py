@@ -49,11 +49,7 @@ class TestLiveEstimate(GuiTestCase):
         self.assertTrue(first.startswith("Last "), first)
         self.assertIn(f"speed-up {f.SpeedUp:.1f}x", first)
         part = fab().printed_parts(f)[0]
-        graph = high_res.adjacency(panel.layout)
-        index = {b.id: n for n, b in enumerate(panel.layout.bricks)}
-        printed = {b.id for b in panel.layout.bricks if b.kind == "printed"}
-        near = sorted({panel.layout.bricks[j].id for i in part.BrickIds
-                       for j in graph[index[i]].indices} - printed)
+        near = high_res.lego_beside(panel.layout, part.BrickIds)
         self.assertGreaterEqual(len(near), 2)
 
         called = []
@@ -104,11 +100,7 @@ class TestLiveEstimate(GuiTestCase):
         settle()
         panel = f.ViewObject.Proxy.panel
         part = fab().printed_parts(f)[0]
-        graph = high_res.adjacency(panel.layout)
-        index = {b.id: n for n, b in enumerate(panel.layout.bricks)}
-        printed = {b.id for b in panel.layout.bricks if b.kind == "printed"}
-        near = sorted({panel.layout.bricks[j].id for i in part.BrickIds
-                       for j in graph[index[i]].indices} - printed)
+        near = high_res.lego_beside(panel.layout, part.BrickIds)
         panel.painted |= set(near[:2])
         panel.refresh()
         Gui.ActiveDocument.ActiveView.viewIsometric()
