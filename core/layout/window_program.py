@@ -279,7 +279,7 @@ def solve_window(boxes, free, filled, lab, current, rng, level: Effort, leaf_cos
 
 def _window_lp(boxes, free, filled, lab, rng, leaf_cost: float, penalty: dict | None, limits):
     """The program of :func:`solve_window` (its arguments of the same names): its matrix
-    (CSC), the :class:`highspy.HighsLp` and the number of its bought-count columns.
+    (CSC), the :class:`_Lp` and the number of its bought-count columns.
 
     Columns: the placements (:func:`_placement_costs`), the leaf variables
     (:func:`_leaf_entries`) at ``leaf_cost`` each, and with ``limits`` a bought count per
@@ -320,7 +320,7 @@ def _window_lp(boxes, free, filled, lab, rng, leaf_cost: float, penalty: dict | 
     row_lower = np.concatenate([np.ones(m), np.full(n_leaf + n_fixed + n_buy, -highspy.kHighsInf)])
     row_upper = np.concatenate([np.ones(m), np.ones(n_leaf), np.zeros(n_fixed),
                                 left if n_buy else np.zeros(0)])
-    return a, _highs_lp(a, col_cost, col_upper, row_lower, row_upper), n_buy
+    return a, _Lp(a, col_cost, col_upper, row_lower, row_upper), n_buy
 
 
 def _placement_costs(boxes, fixed, wb, wa, seams, rng, leaf_cost: float,
@@ -372,28 +372,23 @@ def _leaf_entries(boxes, free, filled, lab, cover: sparse.coo_matrix, cell_index
     return rows, cols, vals, n_leaf, n_fixed
 
 
-def _highs_lp(a: sparse.csc_matrix, col_cost, col_upper, row_lower, row_upper) -> highspy.HighsLp:
+@dataclass(frozen=True)
+class _Lp:
     """The LP ``min col_cost . x`` subject to ``row_lower <= a x <= row_upper`` and
-    ``0 <= x <= col_upper``, its matrix column-wise."""
-    n_rows, n_cols = a.shape
-    lp = highspy.HighsLp()
-    lp.num_col_ = n_cols
-    lp.num_row_ = n_rows
-    lp.col_cost_ = col_cost
-    lp.col_lower_ = np.zeros(n_cols)
-    lp.col_upper_ = col_upper
-    lp.row_lower_ = row_lower
-    lp.row_upper_ = row_upper
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.num_col_ = n_cols
-    lp.a_matrix_.num_row_ = n_rows
-    lp.a_matrix_.start_ = a.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = a.indices.astype(np.int32)
-    lp.a_matrix_.value_ = a.data.astype(np.float64)
-    return lp
+    ``0 <= x <= col_upper``, its matrix ``a`` column-wise."""
+
+    a: sparse.csc_matrix
+    col_cost: np.ndarray
+    col_upper: np.ndarray
+    row_lower: np.ndarray
+    row_upper: np.ndarray
+
+    @property
+    def num_col(self) -> int:
+        return self.a.shape[1]
 
 
-def _window_highs(lp: highspy.HighsLp, level: Effort) -> highspy.Highs:
+def _window_highs(lp: _Lp, level: Effort) -> highspy.Highs:
     """A silent single-threaded HiGHS holding ``lp``, with ``level``'s time and node limits."""
     h = highspy.Highs()
     h.setOptionValue("output_flag", False)
@@ -404,11 +399,17 @@ def _window_highs(lp: highspy.HighsLp, level: Effort) -> highspy.Highs:
     h.setOptionValue("time_limit", level.time_limit_s)
     h.setOptionValue("mip_max_nodes", level.node_limit)
     h.setOptionValue("mip_rel_gap", 1e-6)
-    h.passModel(lp)
+    a = lp.a
+    # the arrays themselves: a HighsLp's members convert each array anew, element by element
+    h.passModel(a.shape[1], a.shape[0], a.nnz, int(highspy.MatrixFormat.kColwise),
+                int(highspy.ObjSense.kMinimize), 0.0, lp.col_cost, np.zeros(a.shape[1]),
+                lp.col_upper, lp.row_lower, lp.row_upper, a.indptr.astype(np.int32),
+                a.indices.astype(np.int32), a.data.astype(np.float64),
+                np.zeros(a.shape[1], np.int32))          # every column continuous
     return h
 
 
-def _branch_and_bound(h: highspy.Highs, boxes, current, a, lp: highspy.HighsLp, m: int,
+def _branch_and_bound(h: highspy.Highs, boxes, current, a, lp: _Lp, m: int,
                       n_buy: int) -> tuple[int, bool]:
     """Solve the window program ``h`` (``lp``, matrix ``a``, ``m`` cell rows, ``n_buy``
     bought counts last) with its placements ``boxes`` in integers, from the ``current``
@@ -417,7 +418,7 @@ def _branch_and_bound(h: highspy.Highs, boxes, current, a, lp: highspy.HighsLp, 
     n = len(boxes)
     h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
                             np.full(n, highspy.HighsVarType.kInteger))
-    start = _start_solution(boxes, current, a, n, lp.num_col_, m, lp.row_upper_[m:], n_buy)
+    start = _start_solution(boxes, current, a, n, lp.num_col, m, lp.row_upper[m:], n_buy)
     if start is not None:
         sol = highspy.HighsSolution()
         sol.col_value = list(start)
