@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from core.connectivity import regions
 from core.inventory import BUY_COST, Stock, used as used_designs
 from core.layout.bounds import MAX_VARIABLES
 from core.layout.quality import (FailingJoints, Key, changed_contacts, contacts_of, csr_of,
@@ -81,6 +82,8 @@ class Search:
         self.keys, self.counts, self.touching = contacts_of(self.lab, len(self.rec))
         self.key, self.strict, self.deg, self.art = self._evaluate(self.lab, len(self.rec), 0)
         self.best = (self.strict, np.flatnonzero(self.alive))
+        # the fewest components any cover of these cells has: their regions
+        self.fewest_components = regions(self.filled)[1]
         self.windows = 0
         self.accepted = 0
         self.iterations = 0
@@ -269,7 +272,7 @@ class Search:
             ids = ids[:max(2, (len(ids) * 4) // 5)]
         penalty: dict[tuple, float] = {}
         for attempt in range(WEAK_RETRIES + 1):
-            if chosen is None or sorted(chosen) == sorted(current):
+            if chosen is None or sorted(chosen) == sorted(current) or self._settled(len(chosen) - len(ids)):
                 return False
             n = len(self.rec)
             kept, art = self._try(ids, chosen, lo)
@@ -285,6 +288,14 @@ class Search:
             if chosen is TOO_LARGE:
                 return False
         return False
+
+    def _settled(self, more: int) -> bool:
+        """Whether no re-cover with ``more`` bricks than the bricks it replaces can be kept,
+        whatever its graph: the key has the fewest components the cells allow, no failing
+        joint and no weak point, and no stock prices the designs, so such a re-cover's key is
+        never lower, nor equal where more is 0 and weak points count (:meth:`_try`)."""
+        return (more >= 0 and (more > 0 or self.weak_on) and self.stock is None
+                and self.key[0] == self.fewest_components and self.key[1:4] == (0, 0, 0))
 
     def sweep_layers(self, level: Effort, report: Progress) -> None:
         """Re-cover each layer of bricks in turn, a few hundred studs at a time.
