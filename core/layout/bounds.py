@@ -76,11 +76,26 @@ def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndar
     return fitting_boxes(table, np.array([shape], dtype=np.int64))[:, :3]
 
 
-@njit(cache=True)
-def fitting_boxes(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+def fitting_boxes(table: np.ndarray, sizes: np.ndarray, corners: np.ndarray | None = None) -> np.ndarray:
     """The boxes (n, 6) of every size of ``sizes`` (k, 3) made only of filled cells, size by
     size, min corners in C order; ``table`` is the grid's summed-volume table
-    (:func:`_summed_volume`)."""
+    (:func:`_summed_volume`), ``corners`` its filled cells in C order (None: read from
+    ``table``).  Only filled cells are tried as corners, so a sparse box costs its cells, not
+    its volume."""
+    if corners is None:
+        corners = np.argwhere(_filled_of(table))
+    return _boxes_at(table, np.asarray(sizes, dtype=np.int64), np.asarray(corners, dtype=np.int64))
+
+
+def _filled_of(table: np.ndarray) -> np.ndarray:
+    """The filled cells whose summed-volume table is ``table``."""
+    t = table
+    return (t[1:, 1:, 1:] - t[:-1, 1:, 1:] - t[1:, :-1, 1:] - t[1:, 1:, :-1] + t[:-1, :-1, 1:]
+            + t[:-1, 1:, :-1] + t[1:, :-1, :-1] - t[:-1, :-1, :-1]) > 0
+
+
+@njit(cache=True)
+def _boxes_at(table, sizes, corners):
     nx, ny, nz = table.shape[0] - 1, table.shape[1] - 1, table.shape[2] - 1
     out = np.empty((0, 6), dtype=np.int64)
     count = 0
@@ -90,18 +105,19 @@ def fitting_boxes(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:
             count = 0
         for k in range(sizes.shape[0]):
             sx, sy, sz = sizes[k, 0], sizes[k, 1], sizes[k, 2]
-            for x in range(nx - sx + 1):
-                for y in range(ny - sy + 1):
-                    for z in range(nz - sz + 1):
-                        inside = (table[x + sx, y + sy, z + sz] - table[x, y + sy, z + sz]
-                                  - table[x + sx, y, z + sz] - table[x + sx, y + sy, z]
-                                  + table[x, y, z + sz] + table[x, y + sy, z]
-                                  + table[x + sx, y, z] - table[x, y, z])
-                        if inside == sx * sy * sz:
-                            if fill:
-                                out[count, 0], out[count, 1], out[count, 2] = x, y, z
-                                out[count, 3], out[count, 4], out[count, 5] = sx, sy, sz
-                            count += 1
+            for c in range(corners.shape[0]):
+                x, y, z = corners[c, 0], corners[c, 1], corners[c, 2]
+                if x + sx > nx or y + sy > ny or z + sz > nz:
+                    continue
+                inside = (table[x + sx, y + sy, z + sz] - table[x, y + sy, z + sz]
+                          - table[x + sx, y, z + sz] - table[x + sx, y + sy, z]
+                          + table[x, y, z + sz] + table[x, y + sy, z]
+                          + table[x + sx, y, z] - table[x, y, z])
+                if inside == sx * sy * sz:
+                    if fill:
+                        out[count, 0], out[count, 1], out[count, 2] = x, y, z
+                        out[count, 3], out[count, 4], out[count, 5] = sx, sy, sz
+                    count += 1
     return out
 
 
@@ -167,7 +183,8 @@ def relaxed_cover(filled: np.ndarray, shapes: list[tuple[int, int, int]],
     None when it runs out of time (``time_limit_s``) or stops otherwise, or no placement
     fits."""
     filled = np.ascontiguousarray(filled, dtype=bool)
-    boxes = fitting_boxes(_summed_volume(filled), np.array(shapes, dtype=np.int64).reshape(-1, 3))
+    boxes = fitting_boxes(_summed_volume(filled), np.array(shapes, dtype=np.int64).reshape(-1, 3),
+                         np.argwhere(filled))
     m = int(filled.sum())
     if len(boxes) == 0 or m == 0:
         return None
@@ -188,8 +205,8 @@ def relaxed_cover(filled: np.ndarray, shapes: list[tuple[int, int, int]],
 
 def _placements(filled: np.ndarray, shapes: list[tuple[int, int, int]]):
     """All fitting placements: (positions per shape, total count)."""
-    table = _summed_volume(filled)
-    found = [fitting_positions(table, s) for s in shapes]
+    table, corners = _summed_volume(filled), np.argwhere(filled)
+    found = [fitting_boxes(table, np.array([s], dtype=np.int64), corners)[:, :3] for s in shapes]
     return found, int(sum(len(f) for f in found))
 
 

@@ -98,7 +98,7 @@ def free_placements(free, apart, shapes):
     """
     masks = [free] if apart is None else [free & apart, free & ~apart]
     sizes = np.array([size for size, _ in shapes], dtype=np.int64).reshape(-1, 3)
-    out = [fitting_boxes(_summed_volume(mask), sizes) for mask in masks if mask.any()]
+    out = [fitting_boxes(_summed_volume(mask), sizes, np.argwhere(mask)) for mask in masks if mask.any()]
     return np.concatenate(out) if out else np.empty((0, 6), dtype=np.int64)
 
 
