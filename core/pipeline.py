@@ -338,7 +338,7 @@ def _stages(req: Request, progress: Progress, work: str,
     if before is None:
         reinforced = timed("reinforce", 0.8, reinforce_stage.reinforce, layout, laying, req.ground,
                            req.loads, req.clutch_n, cells, req.seed,
-                           checked_again=bool(cells.any() or req.high_res_bricks))
+                           checked_again=bool(cells.any() or req.high_res_bricks), effort=req.effort)
         if stock is None or inventory_stage.fits(reinforced.layout, stock):
             layout = reinforced.layout
 

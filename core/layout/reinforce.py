@@ -29,12 +29,16 @@ from core.catalog import CATALOG, Part
 from core.layout import greedy as layout_stage
 from core.model import Layout
 
-#: Sites tried per round (the worst first), windows per site, rounds.
+#: Sites tried per round (the worst first), and the seeds of a site's windows.
 SITES = 4
 SEEDS = (1, 2, 3)
-ROUNDS = 2
 #: Window around a site: studs beyond its footprint, plate layers below and above.
 RADIUS = (2, 3)
+#: Per effort level (:data:`core.request.EFFORTS`): the rounds, and the first how many
+#: of :data:`RADIUS` and of :data:`SEEDS` are tried at each site.  Each try is a force check
+#: of the whole build (seconds on hundreds of bricks), so ``fast``, which keeps the greedy
+#: layout, tries each site once.
+EFFORT_TRIES = {"fast": (1, 1, 1), "normal": (2, 2, 3), "best": (2, 2, 3)}
 LAYERS = 3
 #: A brick this loaded (utilisation) is a site even when the layout stands.
 LOADED = 0.8
@@ -65,7 +69,7 @@ def _summary(f: forces_stage.Forces, st: stability_stage.Stability, bricks: int)
 
 def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "table",
               loads=(), clutch_n: float = forces_stage.CLUTCH_N, frozen: np.ndarray | None = None,
-              seed: int = 0, checked_again: bool = False) -> Reinforced:
+              seed: int = 0, checked_again: bool = False, effort: str = "normal") -> Reinforced:
     """``layout`` re-merged around its failing and most loaded bricks (see the module).
 
     ``frozen`` (a grid-shaped bool array, e.g. the cells to print) keeps the
@@ -101,14 +105,15 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
     best = layout
     attempts = kept = 0
     frozen = np.zeros(layout.grid.shape, bool) if frozen is None else np.asarray(frozen, bool)
-    for round_ in range(ROUNDS):
+    rounds, radii, seeds = EFFORT_TRIES[effort]
+    for round_ in range(rounds):
         sites = _sites(best, f, frozen)
         if not sites:
             break
         improved = False
         for site in sites[:SITES]:
-            for radius in RADIUS:
-                for s in SEEDS:
+            for radius in RADIUS[:radii]:
+                for s in SEEDS[:seeds]:
                     candidate = _relaid(best, site, radius, parts, seed * 1009 + 31 * round_ + s, frozen)
                     if candidate is None:
                         continue

@@ -568,6 +568,26 @@ def test_reinforce_re_merges_around_the_failing_joint():
     assert len({b.id for b in result.layout.bricks}) == len(result.layout.bricks)
 
 
+def test_fast_effort_tries_each_reinforce_site_once(monkeypatch):
+    """Each reinforce try is a force check of the whole build: ``fast`` tries one window per
+    site, ``normal`` every window size and seed of reinforce.EFFORT_TRIES; with windows that
+    never help, both stop after their first round."""
+    from core.layout import reinforce
+    load = ["72,0,28.8,80,8,40:45"]
+    layout = arm_of_plates()
+    tried = []
+    monkeypatch.setattr(reinforce, "_relaid", lambda lay, site, radius, parts, seed, frozen:
+                        tried.append(site) or lay)
+    sites = len(reinforce._sites(layout, forces.analyse(layout, ground="baseplate", loads=load),
+                                 np.zeros(layout.grid.shape, bool))[:reinforce.SITES])
+    assert sites >= 2
+    fast = reinforce.reinforce(layout, ground="baseplate", loads=load, effort="fast")
+    assert fast.attempts == sites and fast.kept == 0 and fast.layout is layout
+    normal = reinforce.reinforce(layout, ground="baseplate", loads=load, effort="normal")
+    assert normal.attempts == sites * len(reinforce.RADIUS) * len(reinforce.SEEDS)
+    assert len(tried) == fast.attempts + normal.attempts
+
+
 def test_the_verdict_alone_never_judges_a_layout_worse_than_the_detail():
     """reinforce screens candidates on the verdict alone (detail=False): it has the same
     worst utilisation as the detail, and stands whenever the detail does."""
