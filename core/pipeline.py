@@ -723,15 +723,18 @@ def write_outputs(fab: Fabrication, out: str | os.PathLike,
     if fab.request.picture:
         progress(0.95, "picture")
         from core.instructions import render
+        drawn: dict = {}                         # both pictures draw the same polygons
         render.render_layout(fab.layout, tmp / "layout.png",
                              title=f"{title}: {len(fab.layout.bricks)} bricks",
                              palette=fab.request.palette,
                              colours=None if fab.colouring is None or fab.request.palette != "bom"
-                             else colours.brick_colours(fab.layout, colouring=fab.colouring))
+                             else colours.brick_colours(fab.layout, colouring=fab.colouring),
+                             cache=drawn)
         if fab.forces is not None and fab.forces.utilisation:
             render.render_layout(fab.layout, tmp / "stress.png", title=reporting.stress_title(fab),
                                  colours=colours.stress_rgb(
-                                     [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]))
+                                     [fab.forces.utilisation.get(b.id, 0.0) for b in fab.layout.bricks]),
+                                 cache=drawn)
     result.snapshot(fab, tmp)
     doc = reporting.document(fab) if report_doc is None else json.loads(json.dumps(report_doc))
     for entry in doc["printed_parts"]:

@@ -107,8 +107,22 @@ def _outside(empty: np.ndarray) -> np.ndarray:
     return lab == lab[0, 0, 0]
 
 
-def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.ndarray | None = None):
-    """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB.
+def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.ndarray | None = None,
+           geometry: tuple | None = None):
+    """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds and RGB: the
+    polygons of :func:`_geometry` (or ``geometry``, its answer for this layout and ``studs``)
+    in each brick's colour (``rgb``, else the ``palette``'s), shaded by the side they face."""
+    polys, kinds, owner, shade = _geometry(layout, studs) if geometry is None else geometry
+    rgb = (brick_colours(layout, layout.labels(), palette) if rgb is None
+           else np.asarray(rgb, dtype=float))
+    colours = rgb[np.maximum(owner, 0)] * shade[:, None]
+    colours[owner < 0] = 0.0
+    return polys, kinds, colours
+
+
+def _geometry(layout: Layout, studs: bool = True):
+    """Polygons (n, _VERTS, 2) in screen mm in drawing order, their kinds, the brick each
+    belongs to (its index in ``layout.bricks``; -1 for an outline segment) and its shade.
 
     kind 0 = face, 1 = outline segment, 2 = stud side, 3 = stud top.  Faces
     and studs facing an enclosed cavity (:func:`_outside`) are left out, and
@@ -118,7 +132,6 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
     labels = layout.labels()
     padded = np.pad(labels, 1, constant_values=-1)
     outside = _outside(padded < 0)
-    rgb = brick_colours(layout, labels, palette) if rgb is None else np.asarray(rgb, dtype=float)
     is_lego = np.array([b.kind != "printed" for b in layout.bricks], dtype=bool)
     near_outside = outside[:-2, 1:-1, 1:-1] | outside[1:-1, :-2, 1:-1] | outside[1:-1, 1:-1, 2:]
     cells = np.argwhere((labels >= 0) & near_outside)
@@ -137,7 +150,7 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
         return ((index + 0.5) * cell) @ VIEW
 
     edges = _edge_directions()
-    polys, keys, sub, kinds, colours = [], [], [], [], []
+    polys, keys, sub, kinds, owner, shade = [], [], [], [], [], []
     for f, normal in enumerate(FACE_NORMALS):
         exposed = open_at(normal)
         c, lab = cells[exposed], own[exposed]
@@ -146,7 +159,8 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
         keys.append(depth(c))
         sub.append(np.full(len(c), f))
         kinds.append(np.zeros(len(c), dtype=np.int64))
-        colours.append(rgb[lab] * SHADE[f])
+        owner.append(lab)
+        shade.append(np.full(len(c), SHADE[f]))
         for e, t in enumerate(edges[f]):
             same = (label_at(t)[exposed] == lab) & (label_at(t + normal)[exposed] < 0)
             seg = corners[~same][:, [e, (e + 1) % 4]]
@@ -154,7 +168,8 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
             keys.append(depth(c[~same]))
             sub.append(np.full(len(seg), 3))
             kinds.append(np.ones(len(seg), dtype=np.int64))
-            colours.append(np.zeros((len(seg), 3)))
+            owner.append(np.full(len(seg), -1))
+            shade.append(np.zeros(len(seg)))
 
     tops = open_at(FACE_NORMALS[2]) & is_lego[own] & studs
     c = cells[tops]
@@ -171,17 +186,18 @@ def _scene(layout: Layout, palette: str = "bom", studs: bool = True, rgb: np.nda
     side = np.concatenate([circle(lower, 0.0), circle(upper, STUD_HEIGHT_MM)], axis=1)
     top = circle(ring, STUD_HEIGHT_MM)
     above = depth(c + [0, 0, 1])
-    for kind, poly, shade in ((2, side, SHADE[1]), (3, top, SHADE[2])):
+    for kind, poly, factor in ((2, side, SHADE[1]), (3, top, SHADE[2])):
         polys.append(poly)
         keys.append(above)
         sub.append(np.full(len(c), kind + 2))
         kinds.append(np.full(len(c), kind))
-        colours.append(rgb[own[tops]] * shade)
+        owner.append(own[tops])
+        shade.append(np.full(len(c), factor))
 
     keys, sub = np.concatenate(keys), np.concatenate(sub)
     order = np.lexsort((sub, -np.round(keys, 6)))
     return (np.concatenate(polys)[order], np.concatenate(kinds)[order],
-            np.concatenate(colours)[order])
+            np.concatenate(owner).astype(np.int64)[order], np.concatenate(shade)[order])
 
 
 def _drawable(title: str) -> str:
@@ -214,13 +230,14 @@ def _fitted(fig: Figure, title: str, fontsize: float, width_px: float) -> tuple[
 
 def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
                   title: str | None = None, palette: str = "bom",
-                  colours: np.ndarray | None = None) -> None:
+                  colours: np.ndarray | None = None, cache: dict | None = None) -> None:
     """Write an isometric PNG picture of ``layout`` to ``path``, ``size_px`` (width, height).
 
     Bricks are shaded boxes with black outlines along brick edges and studs
     on their exposed tops (unless they would be under :data:`MIN_STUD_PX` wide), in the colours :mod:`core.colours` decides for
     ``palette`` (printed bricks orange), or ``colours`` (RGB per brick, e.g.
-    :func:`core.colours.stress_rgb`); ``title`` goes above.
+    :func:`core.colours.stress_rgb`); ``title`` goes above.  ``cache`` (a dict the caller
+    keeps for one layout) holds the drawing's polygons for its next picture, in other colours.
     A layout without bricks gives a picture that says so.  Raises
     ValueError for a size that is not two integers from 16 to 20000 and
     FileNotFoundError for a path whose folder does not exist (the caller
@@ -262,7 +279,13 @@ def render_layout(layout: Layout, path: str | os.PathLike, size_px=(1200, 900),
     span_mm = np.maximum(extent.max(axis=0) - extent.min(axis=0), 1e-9)
     stud_px = STUD_DIAMETER_MM * min(0.98 * width / span_mm[0],
                                      (top_margin - 0.02) * height / span_mm[1])
-    polys, kinds, colours = _scene(layout, palette, studs=stud_px >= MIN_STUD_PX, rgb=colours)
+    studs = bool(stud_px >= MIN_STUD_PX)
+    geometry = None if cache is None else cache.get(studs)
+    if geometry is None:
+        geometry = _geometry(layout, studs)
+        if cache is not None:
+            cache[studs] = geometry
+    polys, kinds, colours = _scene(layout, palette, studs, rgb=colours, geometry=geometry)
     lo, hi = polys.reshape(-1, 2).min(axis=0), polys.reshape(-1, 2).max(axis=0)
     span = np.maximum(hi - lo, 1e-9) * 1.04
     box_w, box_h = 0.98 * width, (top_margin - 0.01) * height

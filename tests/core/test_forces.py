@@ -429,7 +429,7 @@ def test_props_in_a_channel_the_bridge_closes_stay_inside():
     either side: the air under the bridge is closed in by the walls, the towers and the
     bridge itself.  Its props stand in that air; when the bridge is closed, and stands
     without them, nothing can take them out: they stay, and the words say so."""
-    from core.instructions import build_order, page as instructions
+    from core.instructions import page as instructions
     bridge = long_bridge(12)
     length = bridge.grid.shape[0]
     bricks = [dataclasses.replace(b, cell=(b.cell[0], b.cell[1] + 1, b.cell[2])) for b in bridge.bricks]

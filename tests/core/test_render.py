@@ -51,6 +51,21 @@ def test_renders_png_of_requested_size(tmp_path):
     assert (img.sum(axis=-1) < 600).mean() > 0.1     # a good part is not white
 
 
+def test_a_second_picture_from_the_cache_is_the_picture_drawn_afresh(tmp_path):
+    """The stress picture reuses the layout picture's polygons (``cache``): pixel for pixel
+    the picture drawn without it, in its own colours."""
+    layout = staircase()
+    red = np.tile([0.9, 0.1, 0.1], (len(layout.bricks), 1))
+    cache: dict = {}
+    render_layout(layout, tmp_path / "a.png", size_px=(640, 480), title="layout", cache=cache)
+    render_layout(layout, tmp_path / "b.png", size_px=(640, 480), title="stress", colours=red,
+                  cache=cache)
+    assert len(cache) == 1
+    render_layout(layout, tmp_path / "c.png", size_px=(640, 480), title="stress", colours=red)
+    assert np.array_equal(pixels(tmp_path / "b.png"), pixels(tmp_path / "c.png"))
+    assert not np.array_equal(pixels(tmp_path / "a.png"), pixels(tmp_path / "b.png"))
+
+
 @pytest.mark.parametrize("size", [(333, 257), (100, 300)])
 def test_odd_sizes(tmp_path, size):
     render_layout(staircase(), tmp_path / "a.png", size_px=size)
