@@ -31,13 +31,13 @@ big a program may be; read at each call), ``bodies``, ``program``, ``decompose``
 words). This package exports the stage's public names.
 """
 
-from core.forces.analyse import analyse
+from core.forces.analyse import Analysis, analyse
 from core.forces.build_steps import BuildChecker
 from core.forces.joints import (CLUTCH_N, FAIL_ABOVE, GROUNDS, G, bending_capacity_nmm,
                                printed_mass_g)
 from core.forces.verdict import (FORCE_MEANS, Forces, build_unchecked, graph_only_why,
                                  verdict_words, worst_words)
 
-__all__ = ["BuildChecker", "CLUTCH_N", "FAIL_ABOVE", "FORCE_MEANS", "Forces", "G", "GROUNDS",
+__all__ = ["Analysis", "BuildChecker", "CLUTCH_N", "FAIL_ABOVE", "FORCE_MEANS", "Forces", "G", "GROUNDS",
            "analyse", "bending_capacity_nmm", "build_unchecked", "graph_only_why", "printed_mass_g",
            "verdict_words", "worst_words"]

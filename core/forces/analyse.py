@@ -7,6 +7,7 @@ says whether every body is held and how hard the hardest joint works.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 
@@ -48,24 +49,45 @@ def analyse(layout: Layout, ground: str = "table", loads=(), printed=(), clamp=N
     not changed.  Raises :class:`InputError` for an unknown ground, a
     clutch not > 0, a load that touches no brick, or ``seconds`` not > 0.
     """
-    start = time.perf_counter()
-    if seconds is not None and not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool)
-                                    and math.isfinite(seconds) and seconds > 0):
-        raise InputError(f"--seconds {seconds!r} must be a number of seconds above 0")
-    if ground not in joints.GROUNDS:
-        raise InputError(f"--ground {ground!r}: choose table or baseplate")
-    if isinstance(clutch_n, bool) or not (isinstance(clutch_n, (int, float))
-                                          and math.isfinite(clutch_n) and clutch_n > 0):
-        raise InputError(f"--clutch {clutch_n!r} must be a force in N above 0")
-    loads = [parse_load(x) for x in loads]
-    if not layout.bricks:
-        return Forces(True, ground, 0.0, clutch_n=float(clutch_n),
-                      loads=[x.to_json() for x in loads], seconds=time.perf_counter() - start)
-    model = _Model(layout, ground, loads, printed, clamp, float(clutch_n), profile)
-    model.whole_seconds = seconds
-    forces = model.verdict(detail)
-    forces.seconds = time.perf_counter() - start
-    return forces
+    return Analysis(layout, ground, loads, printed, clamp, clutch_n, profile, seconds).verdict(detail)
+
+
+class Analysis:
+    """The force model of one layout (:func:`analyse`'s arguments and errors), judged as often
+    as asked: the verdict alone first and then in detail solves the verdict's programs once
+    (reinforce screens its candidates so)."""
+
+    def __init__(self, layout: Layout, ground: str = "table", loads=(), printed=(), clamp=None,
+                 clutch_n: float = joints.CLUTCH_N, profile: dict[str, str] | None = None,
+                 seconds: float | None = None):
+        start = time.perf_counter()
+        if seconds is not None and not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool)
+                                        and math.isfinite(seconds) and seconds > 0):
+            raise InputError(f"--seconds {seconds!r} must be a number of seconds above 0")
+        if ground not in joints.GROUNDS:
+            raise InputError(f"--ground {ground!r}: choose table or baseplate")
+        if isinstance(clutch_n, bool) or not (isinstance(clutch_n, (int, float))
+                                              and math.isfinite(clutch_n) and clutch_n > 0):
+            raise InputError(f"--clutch {clutch_n!r} must be a force in N above 0")
+        self.layout, self.loads = layout, [parse_load(x) for x in loads]
+        self.ground, self.clutch_n = ground, float(clutch_n)
+        self.model = None
+        if layout.bricks:
+            self.model = _Model(layout, ground, self.loads, printed, clamp, float(clutch_n), profile)
+            self.model.whole_seconds = seconds
+        self._build_s = time.perf_counter() - start
+
+    def verdict(self, detail: bool = True) -> Forces:
+        """The verdict (with ``detail``, every brick's utilisation), as :func:`analyse`; its
+        ``seconds`` count the model's building in the first answer."""
+        start = time.perf_counter()
+        if self.model is None:
+            return Forces(True, self.ground, 0.0, clutch_n=self.clutch_n,
+                          loads=[x.to_json() for x in self.loads], seconds=self._build_s)
+        forces = self.model.verdict(detail)
+        forces.seconds = time.perf_counter() - start + self._build_s
+        self._build_s = 0.0
+        return forces
 
 
 def supported_below(lab: np.ndarray) -> bool:
@@ -81,11 +103,26 @@ class _Model(Decompositions, ProgramRows, Bodies):
 
     def verdict(self, detail: bool) -> Forces:
         """:meth:`_verdict`, with :attr:`Forces.work` the work of every program it solved
-        (its parts' and bands' included)."""
-        start = self.work
-        out = self._verdict(detail)
-        out.work = self.work - start
+        (its parts' and bands' included); a verdict asked again is a copy of the first (and
+        the verdict's programs are not solved again for the detail, :meth:`_phase_one`)."""
+        known = self.__dict__.setdefault("_verdicts", {})
+        if detail not in known:
+            start = self.work
+            known[detail] = self._verdict(detail)
+            known[detail].work = self.work - start
+            return copy.copy(known[detail])
+        out = copy.copy(known[detail])
+        out.work = 0
         return out
+
+    def _phase_one(self) -> tuple[str, np.ndarray | None, int]:
+        """Phase 1 of the whole program: (its status, solution, load-factor column), solved
+        once per model."""
+        if getattr(self, "_first", None) is None:
+            prog, parts = self._program(detail=False)
+            status, x = self._solve(prog)
+            self._first = (status, x, parts["factor"])
+        return self._first
 
     def _verdict(self, detail: bool) -> Forces:
         """A build whose every cell rests on a cell or the ground stands without any pull
@@ -120,15 +157,14 @@ class _Model(Decompositions, ProgramRows, Bodies):
                              + "; the brick graph's verdict stands alone (python -m core stability "
                              "layout.json --seconds 900 solves it as one program)")
             return out
-        prog, parts = self._program(detail=False)
-        status, x = self._solve(prog)
+        status, x, factor_col = self._phase_one()
         if status == "limit":
             out = self._forces(False, math.nan, {}, [], [], [])
             out.unchecked = (f"{self.nbody} bricks and printed parts: the force program of the "
                              f"whole build ran past {self._limit_words()}"
                              "; the brick graph's verdict stands alone")
             return out
-        factor = float(x[parts["factor"]]) if status == "optimal" else 0.0
+        factor = float(x[factor_col]) if status == "optimal" else 0.0
         worst = worst_of(factor)
         floats = ~self.held[self.body_of]
         stable = bool(worst <= joints.FAIL_ABOVE and not floats.any())

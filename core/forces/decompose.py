@@ -406,8 +406,13 @@ class Decompositions:
     def _window(self, group: np.ndarray, support: np.ndarray, under: sparse.csr_matrix,
                 detail: bool) -> Forces:
         """The verdict of the bodies ``group`` on the supports right under them (its
-        programs' work added to :attr:`work`)."""
-        f = self._sub_model(group, support, under)[0].verdict(detail)
+        programs' work added to :attr:`work`).  The model of a group is made once, so its
+        detail after its verdict solves only the detail (:meth:`verdict`)."""
+        models = self.__dict__.setdefault("_group_models", {})
+        key = (np.asarray(group).tobytes(), np.asarray(support).tobytes())
+        if key not in models:
+            models[key] = self._sub_model(group, support, under)[0]
+        f = models[key].verdict(detail)
         self.work += f.work
         return f
 

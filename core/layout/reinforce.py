@@ -82,14 +82,19 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
     parts in it) a layout that stands below :data:`LOADED` is judged on the
     verdict alone and comes back as it is with ``forces`` None.
     """
-    def judge(candidate: Layout, detail: bool = True):
-        f = forces_stage.analyse(candidate, ground, loads, clutch_n=clutch_n, detail=detail)
+    def judge(check: forces_stage.Analysis, detail: bool = True):
+        candidate = check.layout
+        f = check.verdict(detail)
         st = stability_stage.analyse(candidate)
         worst = f.max_utilisation if math.isfinite(f.max_utilisation) else 1e9
         key = (st.components, not f.stable, round(worst, 6), len(st.weak_points), len(candidate.bricks))
         return key, f, st
 
-    key, f, st = judge(layout, detail=not checked_again)
+    def analysis(candidate: Layout) -> forces_stage.Analysis:
+        return forces_stage.Analysis(candidate, ground, loads, clutch_n=clutch_n)
+
+    first = analysis(layout)
+    key, f, st = judge(first, detail=not checked_again)
     before = _summary(f, st, len(layout.bricks))
     if f.unchecked or f.bands:
         # in height bands every brick has only its band's worst: no joint to work around,
@@ -100,7 +105,7 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
         if f.stable and f.max_utilisation <= LOADED:
             # no brick above the worst, so none is a site
             return Reinforced(layout, before, before, 0, 0, None)
-        key, f, st = judge(layout)
+        key, f, st = judge(first)
         before = _summary(f, st, len(layout.bricks))
     best = layout
     attempts = kept = 0
@@ -121,9 +126,10 @@ def reinforce(layout: Layout, parts: tuple[Part, ...] = CATALOG, ground: str = "
                     # the verdict alone first: its key is never above the full one's (the
                     # same worst; a build that stands may yet tip in the detail), so a
                     # candidate it does not keep, the full check would not keep either
-                    if not judge(candidate, detail=False)[0] < key:
+                    check = analysis(candidate)
+                    if not judge(check, detail=False)[0] < key:
                         continue
-                    new_key, new_f, new_st = judge(candidate)
+                    new_key, new_f, new_st = judge(check)
                     if new_key < key:
                         key, f, st, best = new_key, new_f, new_st, candidate
                         kept += 1

@@ -568,6 +568,23 @@ def test_reinforce_re_merges_around_the_failing_joint():
     assert len({b.id for b in result.layout.bricks}) == len(result.layout.bricks)
 
 
+def test_the_detail_after_the_verdict_solves_the_verdict_once():
+    """forces.Analysis asked for the verdict alone and then the detail gives the detail a
+    fresh analyse gives, for less work (the verdict's program is not solved again); the
+    verdict asked again costs nothing."""
+    load = ["72,0,28.8,80,8,40:45"]
+    check = forces.Analysis(arm_of_plates(), ground="baseplate", loads=load)
+    alone = check.verdict(detail=False)
+    detail = check.verdict()
+    fresh = forces.analyse(arm_of_plates(), ground="baseplate", loads=load)
+    assert not fresh.stable and fresh.work > 0
+    assert (detail.stable, detail.max_utilisation) == (fresh.stable, fresh.max_utilisation)
+    assert detail.utilisation == fresh.utilisation and detail.failing_bricks == fresh.failing_bricks
+    assert 0 < detail.work < fresh.work
+    again = check.verdict(detail=False)
+    assert again.work == 0 and again.max_utilisation == alone.max_utilisation == fresh.max_utilisation
+
+
 def test_fast_effort_tries_each_reinforce_site_once(monkeypatch):
     """Each reinforce try is a force check of the whole build: ``fast`` tries one window per
     site, ``normal`` every window size and seed of reinforce.EFFORT_TRIES; with windows that
