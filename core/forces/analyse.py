@@ -96,16 +96,24 @@ def supported_below(lab: np.ndarray) -> bool:
 
 
 class _Model(Decompositions, ProgramRows, Bodies):
-    """Bodies, contacts and the programs of one :func:`analyse` call.
+    """Bodies, contacts and the programs of one :class:`Analysis`.
 
     Inside the programs lengths are in studs (8 mm) and forces in grams-force,
     so that the coefficients stay near 1."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        #: the verdicts given (by ``detail``), phase 1's answer (:meth:`_phase_one`) and the
+        #: models of the hanging parts' groups (:meth:`_window`): each found once
+        self._verdicts: dict[bool, Forces] = {}
+        self._first: tuple | None = None
+        self._group_models: dict[tuple, "_Model"] = {}
 
     def verdict(self, detail: bool) -> Forces:
         """:meth:`_verdict`, with :attr:`Forces.work` the work of every program it solved
         (its parts' and bands' included); a verdict asked again is a copy of the first (and
         the verdict's programs are not solved again for the detail, :meth:`_phase_one`)."""
-        known = self.__dict__.setdefault("_verdicts", {})
+        known = self._verdicts
         if detail not in known:
             start = self.work
             known[detail] = self._verdict(detail)
@@ -118,7 +126,7 @@ class _Model(Decompositions, ProgramRows, Bodies):
     def _phase_one(self) -> tuple[str, np.ndarray | None, int]:
         """Phase 1 of the whole program: (its status, solution, load-factor column), solved
         once per model."""
-        if getattr(self, "_first", None) is None:
+        if self._first is None:
             prog, parts = self._program(detail=False)
             status, x = self._solve(prog)
             self._first = (status, x, parts["factor"])

@@ -408,7 +408,7 @@ class Decompositions:
         """The verdict of the bodies ``group`` on the supports right under them (its
         programs' work added to :attr:`work`).  The model of a group is made once, so its
         detail after its verdict solves only the detail (:meth:`verdict`)."""
-        models = self.__dict__.setdefault("_group_models", {})
+        models = self._group_models
         key = (np.asarray(group).tobytes(), np.asarray(support).tobytes())
         if key not in models:
             models[key] = self._sub_model(group, support, under)[0]

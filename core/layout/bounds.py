@@ -67,13 +67,15 @@ def _summed_volume(filled: np.ndarray) -> np.ndarray:
     return s
 
 
-def fitting_positions(table: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
+def fitting_positions(table: np.ndarray, shape: tuple[int, int, int],
+                      corners: np.ndarray | None = None) -> np.ndarray:
     """Min corners (n, 3) of every box of size ``shape`` made only of filled cells, in C
     order.
 
-    ``table`` is the summed-volume table of the grid (:func:`_summed_volume`).
+    ``table`` is the summed-volume table of the grid (:func:`_summed_volume`), ``corners``
+    as :func:`fitting_boxes`.
     """
-    return fitting_boxes(table, np.array([shape], dtype=np.int64))[:, :3]
+    return fitting_boxes(table, np.array([shape], dtype=np.int64), corners)[:, :3]
 
 
 def fitting_boxes(table: np.ndarray, sizes: np.ndarray, corners: np.ndarray | None = None) -> np.ndarray:
@@ -206,7 +208,7 @@ def relaxed_cover(filled: np.ndarray, shapes: list[tuple[int, int, int]],
 def _placements(filled: np.ndarray, shapes: list[tuple[int, int, int]]):
     """All fitting placements: (positions per shape, total count)."""
     table, corners = _summed_volume(filled), np.argwhere(filled)
-    found = [fitting_boxes(table, np.array([s], dtype=np.int64), corners)[:, :3] for s in shapes]
+    found = [fitting_positions(table, s, corners) for s in shapes]
     return found, int(sum(len(f) for f in found))
 
 
